@@ -1,0 +1,87 @@
+"""Authoring API for skeletons: joints as marker frames, links, chains (paper 1, Fig. 1).
+
+Units: lengths in mm, angles in rad.
+
+A template builds a :class:`Skeleton` at the mechanism's *home* configuration in
+world coordinates: each joint by a point of its axis and the axis direction (the
+frame ``L_i``), configuration frames (base, platform, tool) by an origin and two
+axes, links as bars between named points.  The skeleton turns into
+
+* the solver's :class:`~solver.model.Mechanism` (:meth:`Skeleton.mechanism`), through
+  :class:`solver.build.MechanismBuilder`, and
+* a CadQuery assembly with one marker (a small x/y/z triad) per joint frame and per
+  configuration frame, and the link solids (:meth:`Skeleton.assembly`, see
+  :mod:`cad_plugin.assembly`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from solver.build import MechanismBuilder
+from solver.model import Mechanism
+
+__all__ = ["Skeleton", "Link"]
+
+
+@dataclass
+class Link:
+    """A link drawn as straight bars through points (joint names or coordinates), mm."""
+
+    name: str
+    points: tuple
+    radius: float
+
+
+class Skeleton(MechanismBuilder):
+    """A mechanism skeleton: declarations in world coordinates at the home configuration.
+
+    Parameters
+    ----------
+    name : str
+        Mechanism name (also the assembly name).
+    base : str
+        Name of the base frame (the world frame).
+    description : str
+        Free text.
+    parameters : dataclass instance, optional
+        The template parameters used, kept as provenance in the model file.
+    marker_size : float
+        Length of the marker triad arrows, mm.
+    """
+
+    def __init__(self, name: str, base: str = "R0", description: str = "", parameters: Any = None,
+                 marker_size: float = 20.0) -> None:
+        super().__init__(name, base=base, description=description)
+        self.links: list[Link] = []
+        self.marker_size = float(marker_size)
+        if parameters is not None:
+            self.metadata["parameters"] = dataclasses.asdict(parameters)
+
+    def link(self, name: str, points: Sequence[Any], radius: float = 5.0) -> None:
+        """Declare a link as bars through ``points``: joint / frame names or (x, y, z) in mm."""
+        self.links.append(Link(name, tuple(points), float(radius)))
+
+    def point(self, ref: Any) -> np.ndarray:
+        """World position of a joint, fixed transform or frame name, or of a coordinate triple."""
+        if isinstance(ref, str):
+            if ref in self._items:
+                return np.asarray(self._items[ref].origin, float)
+            if ref in self._frames:
+                return np.asarray(self._frames[ref].origin, float)
+            raise KeyError(f"link point '{ref}' is not a declared joint or frame")
+        return np.asarray(ref, float)
+
+    def mechanism(self) -> Mechanism:
+        """The solver model of this skeleton."""
+        return self.build()
+
+    def assembly(self, analysis: dict | None = None):
+        """CadQuery assembly of links and markers (imports CadQuery)."""
+        from .assembly import build_assembly
+
+        return build_assembly(self, analysis)

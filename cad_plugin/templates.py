@@ -1,0 +1,112 @@
+"""Load skeleton templates (Python files) and build them with parameter overrides.
+
+Units: lengths in mm, angles in rad.
+
+Trust boundary: a template is Python and runs as code with the user's rights, like
+any script; only load templates you trust.  Parameter values from the command line
+are parsed as numbers (:mod:`cad_plugin.params`), never evaluated.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import importlib.util
+import sys
+import traceback
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from solver.errors import HyperstatError, TemplateError
+
+from .params import make_parameters, parse_overrides
+from .skeleton import Skeleton
+
+__all__ = ["load_template", "template_parameters", "build_template", "TEMPLATE_DIR", "list_templates"]
+
+TEMPLATE_DIR = Path(__file__).resolve().parent.parent / "templates"
+
+
+def list_templates() -> list[Path]:
+    """Template files shipped with hyperstat."""
+    return sorted(p for p in TEMPLATE_DIR.glob("*.py") if not p.name.startswith("_"))
+
+
+def load_template(path: str | Path) -> ModuleType:
+    """Import a template file as a module.
+
+    Raises
+    ------
+    TemplateError
+        If the file is missing, has a syntax error, fails at import, or has no
+        ``build`` function or ``Parameters`` dataclass.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise TemplateError(f"{path}: no such template file.")
+    digest = hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:10]
+    name = f"hyperstat_template_{path.stem}_{digest}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise TemplateError(f"{path}: cannot be loaded as a Python template.")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses need the module registered
+    try:
+        spec.loader.exec_module(module)
+    except SyntaxError as exc:
+        sys.modules.pop(name, None)
+        raise TemplateError(f"{path}: syntax error at line {exc.lineno}: {exc.msg}.") from None
+    except HyperstatError:
+        sys.modules.pop(name, None)
+        raise
+    except Exception as exc:  # noqa: BLE001 - a template is user code
+        sys.modules.pop(name, None)
+        line = _user_line(exc, path)
+        raise TemplateError(f"{path}: failed while loading{line}: {exc.__class__.__name__}: {exc}.") from None
+    if not callable(getattr(module, "build", None)):
+        raise TemplateError(f"{path}: a template must define a function build(**parameters).")
+    if not dataclasses.is_dataclass(getattr(module, "Parameters", None)):
+        raise TemplateError(f"{path}: a template must define a dataclass Parameters (see cad_plugin.params.param).")
+    return module
+
+
+def _user_line(exc: BaseException, path: Path) -> str:
+    for frame in reversed(traceback.extract_tb(exc.__traceback__)):
+        if Path(frame.filename).resolve() == path.resolve():
+            return f" (line {frame.lineno})"
+    return ""
+
+
+def template_parameters(module: ModuleType) -> type:
+    """The ``Parameters`` dataclass of a loaded template."""
+    return module.Parameters
+
+
+def build_template(path: str | Path, overrides: list[str] | dict[str, Any] | None = None) -> Skeleton:
+    """Build a template with overrides (``["NAME=VALUE"]`` strings or a dict of numbers).
+
+    Raises
+    ------
+    TemplateError
+        On an unknown parameter, a bad value, or an exception inside ``build``.
+    """
+    path = Path(path)
+    module = load_template(path)
+    cls = template_parameters(module)
+    if isinstance(overrides, dict):
+        values = dict(overrides)
+    else:
+        values = parse_overrides(overrides, cls)
+    make_parameters(cls, dict(values))  # validates names and bounds with clear messages
+    try:
+        skeleton = module.build(**values)
+    except HyperstatError as exc:
+        raise TemplateError(f"{path}: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - a template is user code
+        line = _user_line(exc, path)
+        raise TemplateError(f"{path}: build() failed{line}: {exc.__class__.__name__}: {exc}.") from None
+    if not isinstance(skeleton, Skeleton):
+        raise TemplateError(f"{path}: build() must return a cad_plugin.skeleton.Skeleton, got {type(skeleton).__name__}.")
+    skeleton.metadata.setdefault("template", path.name)
+    return skeleton

@@ -1,0 +1,147 @@
+"""The ``hyperstat`` command line (solver side: model files only).
+
+Units: lengths in mm, angles in rad.
+
+``solver`` knows model files (``*.json``).  The CAD side (:mod:`cad_plugin.cli`)
+registers more source kinds (templates ``*.py``, STEP files) and commands
+(``build``, ``view``) and is what the ``hyperstat`` console script runs, so that the
+solver never imports CAD code.  Every user error is one sentence on stderr and exit
+code 2; outputs are written atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from pathlib import Path
+from typing import Any, Callable
+
+from .atomic import write_json
+from .errors import HyperstatError
+from .model import Mechanism
+from .modelfile import load_model
+
+__all__ = ["main", "build_parser", "register_source", "load_source", "jsonable", "COMMANDS"]
+
+# suffix -> loader(path, overrides) -> (Mechanism, provenance dict)
+_SOURCES: dict[str, Callable[[Path, list[str]], tuple[Mechanism, dict]]] = {}
+COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {}
+
+
+def register_source(suffix: str, loader: Callable[[Path, list[str]], tuple[Mechanism, dict]]) -> None:
+    """Let ``hyperstat`` read sources with ``suffix`` (e.g. ``".py"``) through ``loader``."""
+    _SOURCES[suffix.lower()] = loader
+
+
+def _load_json_model(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]:
+    if overrides:
+        raise HyperstatError(f"{path}: parameter overrides (-p) apply to templates, not to model files.")
+    return load_model(path), {"source": str(path), "kind": "model"}
+
+
+register_source(".json", _load_json_model)
+
+
+def load_source(path: str | Path, overrides: list[str] | None = None) -> tuple[Mechanism, dict]:
+    """Mechanism from a model file, or a template / STEP file when the CAD side is loaded."""
+    path = Path(path)
+    loader = _SOURCES.get(path.suffix.lower())
+    if loader is None:
+        known = ", ".join(sorted(_SOURCES))
+        raise HyperstatError(f"{path}: unknown source kind '{path.suffix}'; hyperstat reads {known}.")
+    if not path.exists():
+        raise HyperstatError(f"{path}: no such file.")
+    return loader(path, list(overrides or []))
+
+
+def jsonable(obj: Any) -> Any:
+    """Plain JSON types: numpy scalars to Python, infinities and NaN to ``None``."""
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+# ---------------------------------------------------------------------------- analyze
+def _cmd_analyze(args: argparse.Namespace) -> int:
+    from .closure import Kinematics
+    from .export.text import format_analysis
+    from .stationarity import analyze
+    from .symbolic import exact_check
+    from .verify import verify
+
+    mech, provenance = load_source(args.source, args.param)
+    kin = Kinematics(mech)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = analyze(mech, n_configurations=args.configurations, seed=args.seed, kinematics=kin)
+    checks = verify(mech, result, kinematics=kin) if args.verify else None
+    exact = exact_check(mech, kin=kin) if args.exact else None
+    doc = result.to_dict()
+    doc["source"] = provenance
+    if checks is not None:
+        doc["verification"] = [c.to_dict() for c in checks]
+    if exact is not None:
+        doc["exact"] = exact.to_dict()
+    if args.json:
+        write_json(args.json, jsonable(doc))
+    if not args.quiet:
+        sys.stdout.write(format_analysis(result, checks, exact))
+        if args.json:
+            sys.stdout.write(f"wrote {args.json}\n")
+    if checks is not None and not all(c.confirmed for c in checks):
+        return 1
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Argument parser with the solver's commands."""
+    parser = argparse.ArgumentParser(
+        prog="hyperstat",
+        description="Geometric defects of over-constrained mechanisms: stationarity analysis, accuracy, "
+        "identification, diagnosis (lengths in mm, angles in rad).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("analyze", help="stationarity analysis: forced / coupled / free defects")
+    p.add_argument("source", help="template (.py), model file (.json) or STEP file (.step with its sidecar)")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--verify", action="store_true", help="confirm every verdict by nonlinear re-assembly")
+    p.add_argument("--exact", action="store_true", help="certify the rank with exact rational arithmetic (sympy)")
+    p.add_argument("--json", metavar="OUT", help="write the result as JSON")
+    p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_analyze)
+    return parser
+
+
+def main(argv: list[str] | None = None, parser: argparse.ArgumentParser | None = None) -> int:
+    """Run the command line; returns the exit code (2 for a user error)."""
+    parser = parser or build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except HyperstatError as exc:
+        sys.stderr.write(f"hyperstat: error: {exc}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write("hyperstat: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

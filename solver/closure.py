@@ -1,0 +1,469 @@
+"""Forward model, loop-closure residuals, screw Jacobians and assembly.
+
+Units: lengths in mm, angles in rad.
+
+For a configuration ``q`` (all joint variables) and a defect vector ``xi`` the
+frames of every chain are products of ``D`` and ``M`` matrices (paper 1, eq. 2).
+A loop closure (eqs. 7, 9) compares the frame reached by a closing chain with the
+same frame reached by its defining chain; its residual is the 6-vector
+
+    r = (log(R_closing R_reference^T), p_closing - p_reference)    [rad, mm]
+
+written in the base frame.  Jacobians are assembled from the unit screws of the
+joints and of the defects (paper 2, eq. 7): a column is the twist ``(omega, v)`` of
+the parameter, turned into ``(omega, v + omega x p)``, the angular velocity and the
+velocity of the frame origin ``p``.  Everything is vectorised over configurations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import AssemblyError
+from .frames import (
+    make_transform,
+    minimal_rotation,
+    minimal_rotation_velocity,
+    motion_matrix,
+    so3_log,
+)
+from .model import ConfigurationFrame, Joint, Mechanism
+
+__all__ = ["Kinematics", "KinematicState", "AssemblyResult"]
+
+_COMP_INDEX = {"I": 0, "J": 1, "K": 2, "a": 0, "b": 1, "c": 2}
+
+
+@dataclass
+class KinematicState:
+    """Frames, residuals and Jacobians at a batch of configurations.
+
+    Shapes use ``K`` configurations, ``m = 6 * n_closures`` residual rows,
+    ``n_xi`` defect parameters and ``n_q`` joints.
+
+    Attributes
+    ----------
+    residual : ndarray, (K, m)
+        Closure residuals ``(rotation [rad], position [mm])`` per closure.
+    closure_xi : ndarray, (K, m, n_xi) or None
+        ``dr/dxi`` (the stationarity matrix ``A_s`` of eq. 3).
+    closure_q : ndarray, (K, m, n_q) or None
+        ``dr/dq`` for all joints (passive columns give ``B_s``).
+    output_pose : ndarray, (K, 4, 4)
+        Output frame in the base frame.
+    output_xi, output_q : ndarray, (K, 6, n) or None
+        Angular velocity and origin velocity of the output frame per unit parameter.
+    frames : dict
+        Frame name -> (K, 4, 4) absolute transform (defining chain).
+    element_frames : dict
+        ``(chain, element)`` -> (K, 4, 4) absolute ``L`` frame of every element.
+    """
+
+    residual: np.ndarray
+    closure_xi: np.ndarray | None
+    closure_q: np.ndarray | None
+    output_pose: np.ndarray
+    output_xi: np.ndarray | None
+    output_q: np.ndarray | None
+    frames: dict
+    element_frames: dict
+
+
+@dataclass
+class AssemblyResult:
+    """Outcome of :meth:`Kinematics.assemble`.
+
+    Attributes
+    ----------
+    q : ndarray, (K, n_q)
+        Configurations with solved passive joints.
+    residual : ndarray, (K,)
+        Closure residual norm after solving, rotations scaled by the length scale (mm).
+    converged : ndarray of bool, (K,)
+        Whether the residual fell below the tolerance.
+    """
+
+    q: np.ndarray
+    residual: np.ndarray
+    converged: np.ndarray
+
+
+class Kinematics:
+    """Vectorised forward model of a :class:`~solver.model.Mechanism`.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        The model to evaluate.
+    """
+
+    def __init__(self, mechanism: Mechanism) -> None:
+        self.mechanism = mechanism
+        m = mechanism
+        self.n_q = len(m.joints)
+        self.n_xi = len(m.parameters)
+        self._order = m.topology["order"]
+        # Per element: nominal matrix, axis, and the parameter indices by component.
+        self._elements: dict[tuple[int, int], dict] = {}
+        for ci, chain in enumerate(m.chains):
+            for ei, el in enumerate(chain.elements):
+                d0 = el.placement.matrix()
+                info = {
+                    "D0": d0,
+                    "R0": d0[:3, :3].copy(),
+                    "p0": d0[:3, 3].copy(),
+                    "n0": d0[:3, 2].copy(),
+                    "params": {},
+                    "joint": m.joint_index[el.name] if isinstance(el, Joint) else None,
+                    "type": el.type if isinstance(el, Joint) else None,
+                }
+                self._elements[(ci, ei)] = info
+        for pi, p in enumerate(m.parameters):
+            self._elements[(p.chain, p.index)]["params"][p.component] = pi
+        self._param_element = [(p.chain, p.index) for p in m.parameters]
+        self._joint_element = [None] * self.n_q
+        for key, info in self._elements.items():
+            if info["joint"] is not None:
+                self._joint_element[info["joint"]] = key
+        # Signed membership of elements in closure loops and the output path.
+        keys = list(self._elements)
+        self._key_index = {k: i for i, k in enumerate(keys)}
+        n_el = len(keys)
+        self._closure_sign = np.zeros((len(m.closures), n_el))
+        for k, cl in enumerate(m.closures):
+            for e in cl.path:
+                self._closure_sign[k, self._key_index[e]] += 1.0
+            for e in cl.reference_path:
+                self._closure_sign[k, self._key_index[e]] -= 1.0
+        self._output_member = np.zeros(n_el)
+        for e in m.path_to(m.output):
+            self._output_member[self._key_index[e]] = 1.0
+        self._param_el_idx = np.array([self._key_index[k] for k in self._param_element], dtype=int)
+        self._joint_el_idx = np.array([self._key_index[k] for k in self._joint_element], dtype=int)
+        self.length_scale = self._characteristic_length()
+
+    # ------------------------------------------------------------------ helpers
+    def _characteristic_length(self) -> float:
+        state = self.evaluate(self.mechanism.home[None, :], jacobians=False)
+        pts = [f[0, :3, 3] for f in state.frames.values()]
+        pts += [t[0, :3, 3] for t in state.element_frames.values()]
+        pts = np.array(pts)
+        rms = float(np.sqrt(np.mean(np.sum((pts - pts.mean(axis=0)) ** 2, axis=1)))) if len(pts) > 1 else 0.0
+        return max(rms, 1.0)
+
+    def _broadcast(self, q: np.ndarray, xi: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        k = q.shape[0]
+        if xi is None:
+            xi = np.zeros((k, self.n_xi))
+        else:
+            xi = np.asarray(xi, dtype=float)
+            xi = np.broadcast_to(xi, (k, self.n_xi)) if xi.ndim == 1 else xi
+        return q, xi
+
+    def _element_matrix(self, info: dict, xi: np.ndarray) -> tuple[np.ndarray, dict]:
+        """``D(xi)`` for one element, shape (K, 4, 4), plus intermediate values."""
+        k = xi.shape[0]
+        params = info["params"]
+        extra = {}
+        if not params:
+            return np.broadcast_to(info["D0"], (k, 4, 4)), extra
+        dn = np.zeros((k, 3))
+        dp = np.zeros((k, 3))
+        gamma = np.zeros(k)
+        for comp, pi in params.items():
+            if comp in "IJK":
+                dn[:, _COMP_INDEX[comp]] = xi[:, pi]
+            elif comp in "abc":
+                dp[:, _COMP_INDEX[comp]] = xi[:, pi]
+            else:
+                gamma = xi[:, pi]
+        n0 = info["n0"]
+        raw = n0 + dn
+        norm = np.linalg.norm(raw, axis=1, keepdims=True)
+        b = raw / norm
+        rmin = minimal_rotation(np.broadcast_to(n0, b.shape), b)
+        rot = rmin @ info["R0"]
+        if np.any(gamma != 0):
+            c, s = np.cos(gamma), np.sin(gamma)
+            rz = np.zeros((k, 3, 3))
+            rz[:, 0, 0] = c
+            rz[:, 0, 1] = -s
+            rz[:, 1, 0] = s
+            rz[:, 1, 1] = c
+            rz[:, 2, 2] = 1.0
+            rot = rot @ rz
+        extra.update(b=b, norm=norm)
+        return make_transform(rot, info["p0"] + dp), extra
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(
+        self, q: np.ndarray, xi: np.ndarray | None = None, jacobians: bool = True
+    ) -> KinematicState:
+        """Frames, closure residuals and (optionally) Jacobians at configurations ``q``.
+
+        Parameters
+        ----------
+        q : ndarray, (K, n_q) or (n_q,)
+            Joint values (rad / mm), all joints.
+        xi : ndarray, (n_xi,) or (K, n_xi), optional
+            Defect values (rad / mm); zero (nominal geometry) if omitted.
+        jacobians : bool
+            Also compute ``dr/dxi``, ``dr/dq`` and the output Jacobians.
+
+        Returns
+        -------
+        KinematicState
+        """
+        m = self.mechanism
+        q, xi = self._broadcast(q, xi)
+        k = q.shape[0]
+        frames: dict[str, np.ndarray] = {m.base: np.broadcast_to(np.eye(4), (k, 4, 4))}
+        closing_end: dict[int, np.ndarray] = {}
+        parents: dict[tuple[int, int], np.ndarray] = {}
+        lframes: dict[tuple[int, int], np.ndarray] = {}
+        extras: dict[tuple[int, int], dict] = {}
+        for ci in self._order:
+            chain = m.chains[ci]
+            t = frames[chain.start]
+            for ei, el in enumerate(chain.elements):
+                info = self._elements[(ci, ei)]
+                d, extra = self._element_matrix(info, xi)
+                parents[(ci, ei)] = t
+                lf = t @ d
+                lframes[(ci, ei)] = lf
+                extras[(ci, ei)] = extra
+                if info["joint"] is not None:
+                    t = lf @ motion_matrix(info["type"], q[:, info["joint"]])
+                else:
+                    t = lf
+            if chain.end in frames:
+                closing_end[ci] = t
+            else:
+                frames[chain.end] = t
+
+        closures = m.closures
+        residual = np.zeros((k, 6 * len(closures)))
+        for c, cl in enumerate(closures):
+            ref = frames[cl.frame]
+            other = closing_end[cl.chain]
+            rot_err = so3_log(other[:, :3, :3] @ np.swapaxes(ref[:, :3, :3], 1, 2))
+            residual[:, 6 * c : 6 * c + 3] = rot_err
+            residual[:, 6 * c + 3 : 6 * c + 6] = other[:, :3, 3] - ref[:, :3, 3]
+        out_pose = frames[m.output]
+        if not jacobians:
+            return KinematicState(residual, None, None, out_pose, None, None, frames, lframes)
+
+        # Spatial twists (omega, v) of every defect parameter and every joint.
+        tw_xi = np.zeros((k, self.n_xi, 6))
+        for key, info in self._elements.items():
+            params = info["params"]
+            if not params:
+                continue
+            parent = parents[key]
+            lf = lframes[key]
+            origin = lf[:, :3, 3]
+            rp = parent[:, :3, :3]
+            orient = [(c, params[c]) for c in "IJK" if c in params]
+            if orient:
+                b = extras[key]["b"]
+                norm = extras[key]["norm"]
+                eye = np.eye(3)
+                proj = (eye[None] - b[:, :, None] * b[:, None, :]) / norm[:, :, None]
+                db = np.stack([proj[:, :, _COMP_INDEX[c]] for c, _ in orient], axis=1)  # (K, n, 3)
+                w_par = minimal_rotation_velocity(np.broadcast_to(info["n0"], b.shape), b, db)
+                w = np.einsum("kij,knj->kni", rp, w_par)
+                for j, (_, pi) in enumerate(orient):
+                    tw_xi[:, pi, :3] = w[:, j]
+                    tw_xi[:, pi, 3:] = np.cross(origin, w[:, j])
+            for c in "abc":
+                if c in params:
+                    tw_xi[:, params[c], 3:] = rp[:, :, _COMP_INDEX[c]]
+            if "G" in params:
+                w = lf[:, :3, 2]
+                tw_xi[:, params["G"], :3] = w
+                tw_xi[:, params["G"], 3:] = np.cross(origin, w)
+        tw_q = np.zeros((k, self.n_q, 6))
+        for ji, key in enumerate(self._joint_element):
+            lf = lframes[key]
+            z = lf[:, :3, 2]
+            if self._elements[key]["type"] == "R":
+                tw_q[:, ji, :3] = z
+                tw_q[:, ji, 3:] = np.cross(lf[:, :3, 3], z)
+            else:
+                tw_q[:, ji, 3:] = z
+
+        def rows(tw: np.ndarray, weights: np.ndarray, p: np.ndarray) -> np.ndarray:
+            # tw (K, n, 6), weights (n,), p (K, 3) -> (K, 6, n)
+            w = tw[:, :, :3] * weights[None, :, None]
+            v = tw[:, :, 3:] * weights[None, :, None] + np.cross(w, p[:, None, :])
+            return np.concatenate([w, v], axis=2).transpose(0, 2, 1)
+
+        a = np.zeros((k, 6 * len(closures), self.n_xi))
+        bq = np.zeros((k, 6 * len(closures), self.n_q))
+        for c, cl in enumerate(closures):
+            p = frames[cl.frame][:, :3, 3]
+            sign = self._closure_sign[c]
+            a[:, 6 * c : 6 * c + 6] = rows(tw_xi, sign[self._param_el_idx], p)
+            bq[:, 6 * c : 6 * c + 6] = rows(tw_q, sign[self._joint_el_idx], p)
+        po = out_pose[:, :3, 3]
+        o_xi = rows(tw_xi, self._output_member[self._param_el_idx], po)
+        o_q = rows(tw_q, self._output_member[self._joint_el_idx], po)
+        return KinematicState(residual, a, bq, out_pose, o_xi, o_q, frames, lframes)
+
+    # ------------------------------------------------------------------ assembly
+    def scaled(self, residual: np.ndarray) -> np.ndarray:
+        """Residual with rotation rows multiplied by the length scale (all in mm)."""
+        r = residual.copy()
+        for c in range(r.shape[-1] // 6):
+            r[..., 6 * c : 6 * c + 3] *= self.length_scale
+        return r
+
+    def residual_norm(self, residual: np.ndarray) -> np.ndarray:
+        """Norm of the scaled residual per configuration (mm)."""
+        return np.linalg.norm(self.scaled(residual), axis=-1)
+
+    def assemble(
+        self,
+        q: np.ndarray,
+        xi: np.ndarray | None = None,
+        tol: float = 1e-9,
+        max_iter: int = 40,
+        max_step: float = 0.3,
+    ) -> AssemblyResult:
+        """Solve the passive joints by Gauss-Newton (least squares when over-constrained).
+
+        Parameters
+        ----------
+        q : ndarray, (K, n_q)
+            Actuated values to hold and initial guesses of the passive joints.
+        xi : ndarray, optional
+            Defects (rad / mm).
+        tol : float
+            Convergence tolerance on the scaled residual step, relative to the length scale.
+        max_iter : int
+            Maximum Gauss-Newton iterations.
+        max_step : float
+            Largest revolute step per iteration (rad); prismatic steps are scaled alike
+            by the length scale.
+
+        Returns
+        -------
+        AssemblyResult
+        """
+        q = np.atleast_2d(np.array(q, dtype=float))
+        passive = self.mechanism.passive
+        if len(self.mechanism.closures) == 0 or len(passive) == 0:
+            st = self.evaluate(q, xi, jacobians=False)
+            res = self.residual_norm(st.residual)
+            return AssemblyResult(q, res, res <= tol * self.length_scale)
+        types = np.array([self.mechanism.joints[i].type for i in passive])
+        step_cap = np.where(types == "R", max_step, max_step * self.length_scale)
+        active = np.ones(q.shape[0], dtype=bool)
+        prev = np.full(q.shape[0], np.inf)
+        for _ in range(max_iter):
+            idx = np.nonzero(active)[0]
+            if idx.size == 0:
+                break
+            st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]))
+            r = self.scaled(st.residual)
+            b = self.scaled_rows(st.closure_q[:, :, passive])
+            dq = -np.einsum("kij,kj->ki", np.linalg.pinv(b, rcond=1e-10), r)
+            ratio = np.max(np.abs(dq) / step_cap, axis=1, keepdims=True)
+            dq = dq / np.maximum(ratio, 1.0)
+            q[np.ix_(idx, passive)] += dq
+            stepn = np.max(np.abs(dq) / step_cap * max_step, axis=1)
+            rn = np.linalg.norm(r, axis=1)
+            stalled = (rn >= prev[idx] * 0.999999) & (stepn < 1e-6)
+            done = (stepn < tol) | (rn < 1e-13 * self.length_scale) | stalled
+            prev[idx] = rn
+            active[idx[done]] = False
+        st = self.evaluate(q, xi, jacobians=False)
+        res = self.residual_norm(st.residual)
+        return AssemblyResult(q, res, res <= 1e-7 * self.length_scale)
+
+    def scaled_rows(self, jac: np.ndarray) -> np.ndarray:
+        """Jacobian with rotation rows multiplied by the length scale."""
+        j = jac.copy()
+        for c in range(j.shape[-2] // 6):
+            j[..., 6 * c : 6 * c + 3, :] *= self.length_scale
+        return j
+
+    @property
+    def joint_scale(self) -> np.ndarray:
+        """Column scale of joint variables: 1 for revolute (rad), the length scale for prismatic (mm)."""
+        return np.array([1.0 if j.type == "R" else self.length_scale for j in self.mechanism.joints])
+
+    @property
+    def parameter_scale(self) -> np.ndarray:
+        """Column scale of defects: 1 for angles (rad), the length scale for positions (mm)."""
+        return np.array([self.length_scale if p.unit == "mm" else 1.0 for p in self.mechanism.parameters])
+
+    def dimensionless(self, jac: np.ndarray, column_scale: np.ndarray | None = None) -> np.ndarray:
+        """Jacobian with position rows divided and length columns multiplied by the length scale.
+
+        Rows come in blocks of six (rotation, position); the result relates
+        dimensionless quantities (rad, and mm per length scale), so that singular
+        values of mixed angle / length matrices are comparable.
+        """
+        j = np.array(jac, dtype=float, copy=True)
+        for c in range(j.shape[-2] // 6):
+            j[..., 6 * c + 3 : 6 * c + 6, :] /= self.length_scale
+        if column_scale is not None:
+            j = j * column_scale
+        return j
+
+    def check_home(self) -> None:
+        """Raise :class:`AssemblyError` if the nominal home configuration does not close."""
+        st = self.evaluate(self.mechanism.home[None, :], jacobians=False)
+        for c, cl in enumerate(self.mechanism.closures):
+            r = st.residual[0, 6 * c : 6 * c + 6]
+            rot, pos = np.linalg.norm(r[:3]), np.linalg.norm(r[3:])
+            if rot * self.length_scale + pos > 1e-6 * self.length_scale:
+                raise AssemblyError(
+                    f"the nominal mechanism '{self.mechanism.name}' does not close at its home configuration: "
+                    f"loop '{cl.label(self.mechanism)}' misses by {pos:.4g} mm and {rot:.4g} rad."
+                )
+
+    def solve(
+        self,
+        q_actuated: np.ndarray,
+        xi: np.ndarray | None = None,
+        start: np.ndarray | None = None,
+        steps: int = 6,
+    ) -> AssemblyResult:
+        """Assemble at actuated values by continuation from ``start`` (default: home).
+
+        The actuated joints move from ``start`` to their targets in ``steps`` equal
+        steps, the passive joints follow by Gauss-Newton, which keeps every
+        configuration on the assembly branch of the start configuration.
+
+        Parameters
+        ----------
+        q_actuated : ndarray, (K, n_actuated)
+            Target actuated values (rad / mm).
+        xi : ndarray, optional
+            Defects (rad / mm).
+        start : ndarray, (n_q,) or (K, n_q), optional
+            Assembled start configuration.
+        steps : int
+            Continuation steps.
+
+        Returns
+        -------
+        AssemblyResult
+        """
+        qa = np.atleast_2d(np.asarray(q_actuated, dtype=float))
+        k = qa.shape[0]
+        act = self.mechanism.actuated
+        q0 = self.mechanism.home if start is None else np.asarray(start, dtype=float)
+        q = np.array(np.broadcast_to(q0, (k, self.n_q)), dtype=float)
+        a0 = q[:, act].copy()
+        result = None
+        for s in range(1, steps + 1):
+            q[:, act] = a0 + (qa - a0) * (s / steps)
+            result = self.assemble(q, xi, max_iter=40 if s == steps else 12)
+            q = result.q
+        return result
