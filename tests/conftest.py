@@ -1,0 +1,29 @@
+"""Shared fixtures: templates built once per session (units: mm, rad)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+TEMPLATES = ROOT / "templates"
+
+
+@pytest.fixture(scope="session")
+def slider_crank():
+    """The slider-crank mechanism of paper 1, section 4.1 (template defaults)."""
+    from cad_plugin.templates import build_template
+
+    return build_template(TEMPLATES / "slider_crank.py").mechanism()
+
+
+@pytest.fixture(scope="session")
+def slider_crank_analysis(slider_crank):
+    """Stationarity analysis of the slider-crank."""
+    from solver.stationarity import analyze
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return analyze(slider_crank, n_configurations=24, seed=0)
