@@ -6,7 +6,9 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test clean
+.PHONY: setup demo test images clean
+
+TEMPLATE_NAMES := slider_crank tripteor_x7 triflex_ii scara hexapod
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +23,14 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest -q
+
+# Pictures of every template with its markers coloured by verdict (docs/img/, committed).
+images: setup
+	mkdir -p out docs/img
+	for t in $(TEMPLATE_NAMES); do \
+	  $(VENV)/bin/hyperstat analyze templates/$$t.py --json out/$$t.analysis.json --quiet && \
+	  $(VENV)/bin/hyperstat view templates/$$t.py --analysis out/$$t.analysis.json --png docs/img/$$t.png || exit 1; \
+	done
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

@@ -22,13 +22,93 @@ def _load_template(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]:
     return mech, {"source": str(path), "kind": "template", "parameters": mech.metadata.get("parameters", {})}
 
 
+def _load_step(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]:
+    from solver.errors import HyperstatError
+
+    from .extract import extract_from_step
+
+    if overrides:
+        raise HyperstatError(f"{path}: parameter overrides (-p) apply to templates, not to STEP files.")
+    mech = extract_from_step(path)
+    return mech, {"source": str(path), "kind": "step", "parameters": mech.metadata.get("parameters", {})}
+
+
 solver_cli.register_source(".py", _load_template)
+solver_cli.register_source(".step", _load_step)
+solver_cli.register_source(".stp", _load_step)
+
+
+def _cmd_build(args) -> int:
+    from solver.errors import HyperstatError
+    from solver.modelfile import save_model
+
+    from .assembly import export_step
+    from .templates import build_template
+
+    if Path(args.template).suffix.lower() != ".py":
+        raise HyperstatError(f"{args.template}: 'build' takes a template (.py).")
+    skeleton = build_template(args.template, args.param)
+    mech = skeleton.mechanism()
+    wrote = []
+    if args.model:
+        wrote.append(save_model(mech, args.model))
+    if args.step:
+        wrote += list(export_step(skeleton, args.step))
+    counts = mech.count()
+    print(f"{mech.name}: {counts['R']} R + {counts['P']} P joints ({counts['actuated']} actuated), "
+          f"{counts['parameters']} defect parameters, {counts['closures']} loop closure(s)")
+    for w in wrote:
+        print(f"wrote {w}")
+    return 0
+
+
+def _cmd_view(args) -> int:
+    import json
+
+    from solver.errors import HyperstatError
+
+    from .view import render_png
+
+    mech, provenance = solver_cli.load_source(args.source, args.param)
+    analysis = None
+    if args.analysis:
+        try:
+            analysis = json.loads(Path(args.analysis).read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise HyperstatError(f"{args.analysis}: cannot be read as an analysis JSON ({exc.__class__.__name__}).") from None
+        if not isinstance(analysis, dict) or not isinstance(analysis.get("parameters"), list):
+            raise HyperstatError(f"{args.analysis}: field 'parameters' is missing: not a 'hyperstat analyze --json' output.")
+        known = {p.name for p in mech.parameters}
+        unknown = [p.get("name") for p in analysis["parameters"] if p.get("name") not in known]
+        if unknown:
+            raise HyperstatError(f"{args.analysis}: parameter '{unknown[0]}' is not a defect of '{mech.name}'.")
+    out = render_png(mech, args.png, analysis=analysis)
+    print(f"wrote {out}")
+    return 0
+
+
+def build_parser():
+    """The solver's parser plus the CAD commands."""
+    parser = solver_cli.build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    p = sub.add_parser("build", help="build a template: model file and/or STEP file with its sidecar")
+    p.add_argument("template", help="template file (.py)")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--step", metavar="OUT.step", help="write the CAD skeleton as STEP (+ OUT.step.json sidecar)")
+    p.add_argument("--model", metavar="OUT.json", help="write the model file")
+    p.set_defaults(func=_cmd_build)
+    p = sub.add_parser("view", help="render the skeleton with its markers (PNG, off-screen)")
+    p.add_argument("source", help="template (.py), model file (.json) or STEP file")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--analysis", metavar="RESULT.json", help="colour markers by the verdicts of this analysis")
+    p.add_argument("--png", required=True, metavar="OUT.png", help="output picture")
+    p.set_defaults(func=_cmd_view)
+    return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``hyperstat`` command."""
-    parser = solver_cli.build_parser()
-    return solver_cli.main(argv, parser)
+    return solver_cli.main(argv, build_parser())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -58,6 +58,7 @@ class Skeleton(MechanismBuilder):
                  marker_size: float = 20.0) -> None:
         super().__init__(name, base=base, description=description)
         self.links: list[Link] = []
+        self._mechanism: Mechanism | None = None
         self.marker_size = float(marker_size)
         if parameters is not None:
             self.metadata["parameters"] = dataclasses.asdict(parameters)
@@ -77,8 +78,10 @@ class Skeleton(MechanismBuilder):
         return np.asarray(ref, float)
 
     def mechanism(self) -> Mechanism:
-        """The solver model of this skeleton."""
-        return self.build()
+        """The solver model of this skeleton (built once, then cached)."""
+        if self._mechanism is None:
+            self._mechanism = self.build()
+        return self._mechanism
 
     def assembly(self, analysis: dict | None = None):
         """CadQuery assembly of links and markers (imports CadQuery)."""

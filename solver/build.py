@@ -44,6 +44,7 @@ class FrameSpec:
     defects: str = ""
     defect_names: dict = field(default_factory=dict)
     fixed: bool = False  # a fixed geometric transform (D with defects) rather than a frame
+    target: str | None = None  # a fixed transform placed where another chain put this frame
 
 
 @dataclass
@@ -117,6 +118,10 @@ class MechanismBuilder:
         self._chains: list[tuple[str, str, str, list[str]]] = []
         self.metadata: dict = {}
         self.output: str | None = None
+        #: world pose at home of every element's L frame and of every frame, filled by build()
+        self.poses: dict[str, np.ndarray] = {}
+        #: the chain that defines each frame, filled by build()
+        self.frame_chain: dict[str, str] = {}
 
     # ------------------------------------------------------------------ declarations
     def _joint(self, type_, name, point, axis, role, x_axis, defects, defect_names, range, home):
@@ -184,23 +189,29 @@ class MechanismBuilder:
     def fixed(
         self,
         name: str,
-        origin: Sequence[float],
-        z_axis: Sequence[float],
+        origin: Sequence[float] | None = None,
+        z_axis: Sequence[float] | None = None,
         x_axis: Sequence[float] | None = None,
         defects: str = "IJKabc",
         defect_names: dict | None = None,
+        target: str | None = None,
     ) -> None:
         """Declare a fixed geometric transform (a ``D`` without motion, with defects).
 
-        Its pose is the world pose of the frame it leads to; it is placed inside a
-        chain like a joint.
+        Its pose is the world pose of the frame it leads to, given either explicitly
+        (``origin``, ``z_axis``, ``x_axis``) or as ``target``: the name of a frame that
+        another chain reaches first (e.g. ``"R51"`` for the paper's ``D_R52^R51``).
+        It is placed inside a chain like a joint.
         """
         if name in self._items or name in self._frames:
             raise ModelError(f"element name '{name}' is declared twice.")
+        if target is None and (origin is None or z_axis is None):
+            raise ModelError(f"fixed transform '{name}' needs an origin and a z_axis, or a target frame.")
         self._items[name] = FrameSpec(
-            name, np.asarray(origin, float), _unit(z_axis, f"fixed transform '{name}' z_axis"),
+            name, np.zeros(3) if origin is None else np.asarray(origin, float),
+            np.array([0.0, 0.0, 1.0]) if z_axis is None else _unit(z_axis, f"fixed transform '{name}' z_axis"),
             None if x_axis is None else _unit(x_axis, f"fixed transform '{name}' x_axis"),
-            defects, dict(defect_names or {}), fixed=True,
+            defects, dict(defect_names or {}), fixed=True, target=target,
         )
 
     def chain(self, name: str, start: str, end: str, elements: Sequence[str]) -> None:
@@ -234,6 +245,8 @@ class MechanismBuilder:
         """
         used: set[str] = set()
         reached: dict[str, np.ndarray] = {self.base: np.eye(4)}
+        self.poses = {self.base: np.eye(4)}
+        self.frame_chain = {}
         chains = []
         pending = list(self._chains)
         while pending:
@@ -254,13 +267,21 @@ class MechanismBuilder:
                     raise ModelError(f"'{el_name}' appears in two chains; every joint belongs to one chain.")
                 used.add(el_name)
                 spec = self._items[el_name]
-                z_rel = w_prev[:3, :3].T @ spec.z_axis
-                x_rel = None if spec.x_axis is None else w_prev[:3, :3].T @ spec.x_axis
-                rot = axis_frame(z_rel, x_rel)
-                origin = w_prev[:3, :3].T @ (spec.origin - w_prev[:3, 3])
-                d = _clean(make_transform(rot, origin))
+                if getattr(spec, "target", None) is not None:
+                    if spec.target not in reached:
+                        raise ModelError(
+                            f"fixed transform '{el_name}' targets frame '{spec.target}', which no earlier chain reaches."
+                        )
+                    d = _clean(invert_transform(w_prev) @ reached[spec.target])
+                else:
+                    z_rel = w_prev[:3, :3].T @ spec.z_axis
+                    x_rel = None if spec.x_axis is None else w_prev[:3, :3].T @ spec.x_axis
+                    rot = axis_frame(z_rel, x_rel)
+                    origin = w_prev[:3, :3].T @ (spec.origin - w_prev[:3, 3])
+                    d = _clean(make_transform(rot, origin))
                 placement = Placement.from_matrix(d)
                 lw = w_prev @ d
+                self.poses[el_name] = lw
                 if isinstance(spec, JointSpec):
                     elements.append(
                         Joint(
@@ -284,6 +305,8 @@ class MechanismBuilder:
             if not np.allclose(t, np.eye(4), rtol=0.0, atol=1e-12) or not elements:
                 elements.append(ConfigurationFrame(f"T_{name}_{end}", Placement.from_matrix(t)))
             reached.setdefault(end, w_prev @ t)
+            self.poses.setdefault(end, reached[end])
+            self.frame_chain.setdefault(end, name)
             chains.append(Chain(name, start, end, tuple(elements)))
         unused = [n for n in self._items if n not in used]
         if unused:

@@ -172,13 +172,20 @@ def gauge_parameters(mechanism: Mechanism) -> dict[str, str]:
       axis; it is a gauge when the next element of the chain carries ``a, b, c``.
     """
     out: dict[str, str] = {}
+
+    def largest(comps: list[str], letters: str, n0: np.ndarray) -> str:
+        # ties (equal components within 1e-9) go to the first letter, so that round-off
+        # in a model read back from CAD cannot change the choice
+        top = max(abs(n0[letters.index(c)]) for c in comps)
+        return next(c for c in comps if abs(n0[letters.index(c)]) >= top - 1e-9)
+
     for chain in mechanism.chains:
         for ei, el in enumerate(chain.elements):
             defects = {d.component: d.name for d in getattr(el, "defects", ())}
             n0 = np.asarray(el.placement.z_axis, dtype=float)
             orient = [c for c in "IJK" if c in defects]
             if orient:
-                comp = max(orient, key=lambda c: abs(n0["IJK".index(c)]))
+                comp = largest(orient, "IJK", n0)
                 if abs(n0["IJK".index(comp)]) > 1e-9:
                     out[defects[comp]] = "normalisation of the axis (n . dn = 0)"
             pos = [c for c in "abc" if c in defects]
@@ -186,7 +193,7 @@ def gauge_parameters(mechanism: Mechanism) -> dict[str, str]:
                 nxt = chain.elements[ei + 1]
                 nxt_pos = {d.component for d in getattr(nxt, "defects", ())} & set("abc")
                 if nxt_pos == set("abc"):
-                    comp = max(pos, key=lambda c: abs(n0["abc".index(c)]))
+                    comp = largest(pos, "abc", n0)
                     if abs(n0["abc".index(comp)]) > 1e-9:
                         out[defects[comp]] = (
                             f"shift along the joint's own axis, equal to the shift d{'c'} of the next element '{nxt.name}'"

@@ -1,0 +1,151 @@
+"""Off-screen pyvista pictures of a skeleton: links, marker triads, verdict colours.
+
+Units: lengths in mm, angles in rad.
+
+The picture is drawn from the solver model at its home configuration, so every
+source (template, model file, STEP file) gives the same view: each chain as a tube
+through its frame origins, a small x/y/z triad (red, green, blue) at every joint
+frame ``L_i`` and fixed transform, a larger triad at every configuration frame, and,
+when an analysis is given, a sphere at each joint frame coloured by the most severe
+verdict among its defects (:data:`cad_plugin.assembly.VERDICT_COLORS`), with a legend.
+Spheres are drawn unlit so that their colour reaches the image unshaded.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from solver.atomic import write_bytes
+from solver.closure import Kinematics
+from solver.model import Mechanism
+
+from .assembly import AXIS_COLORS, VERDICT_COLORS, element_verdicts
+
+__all__ = ["render_png", "VIEWS", "LEGEND_LABELS"]
+
+VIEWS = ("iso", "front", "side", "top")
+LEGEND_LABELS = {
+    "forced": "forced by over-constraint",
+    "coupled": "coupled (relation)",
+    "free-influential": "free, influential",
+    "free-non-influent": "free, non-influent",
+    "none": "no defect / gauge only",
+}
+
+
+def _scene(plotter, mech: Mechanism, verdicts: dict, size: float, label: bool) -> None:
+    import pyvista as pv
+
+    kin = Kinematics(mech)
+    st = kin.evaluate(mech.home[None, :], jacobians=False)
+    frames = {k: v[0] for k, v in st.frames.items()}
+    elems = {k: v[0] for k, v in st.element_frames.items()}
+    for ci, chain in enumerate(mech.chains):
+        pts = [frames[chain.start][:3, 3]] + [elems[(ci, ei)][:3, 3] for ei in range(len(chain.elements))]
+        pts.append(frames[chain.end][:3, 3])
+        pts = np.array(pts)
+        keep = np.r_[True, np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-9]
+        pts = pts[keep]
+        if len(pts) > 1:
+            line = pv.lines_from_points(pts)
+            plotter.add_mesh(line.tube(radius=0.08 * size), color=(0.62, 0.62, 0.66), smooth_shading=True)
+
+    def triad(t: np.ndarray, scale: float) -> None:
+        for i, a in enumerate("xyz"):
+            arrow = pv.Arrow(start=t[:3, 3], direction=t[:3, i], scale=scale * size, tip_radius=0.12,
+                             shaft_radius=0.04)
+            plotter.add_mesh(arrow, color=AXIS_COLORS[a])
+
+    names = []
+    points = []
+    for ci, chain in enumerate(mech.chains):
+        for ei, el in enumerate(chain.elements):
+            if el.kind == "frame":
+                continue
+            t = elems[(ci, ei)]
+            triad(t, 1.0)
+            cls = verdicts.get(el.name)
+            if verdicts:
+                color = VERDICT_COLORS[cls or "none"]
+                # off the origin along the joint axis, so that frames sharing a point stay apart
+                ball = pv.Sphere(radius=0.2 * size, center=t[:3, 3] + 0.45 * size * t[:3, 2])
+                plotter.add_mesh(ball, color=color, lighting=False)
+            names.append(el.name)
+            points.append(t[:3, 3] + 0.3 * size * np.array([1.0, 1.0, 1.0]))
+    for name, t in frames.items():
+        triad(t, 1.6)
+    if label and points:
+        plotter.add_point_labels(np.array(points), names, font_size=11, point_size=1, shape_opacity=0.0,
+                                 text_color="black", show_points=False, always_visible=True)
+
+
+def render_png(
+    mech: Mechanism,
+    path: str | os.PathLike,
+    analysis: dict | None = None,
+    marker_size: float | None = None,
+    window_size: tuple[int, int] = (1600, 1200),
+    title: str | None = None,
+    views: tuple[str, ...] = VIEWS,
+) -> Path:
+    """Render ``mech`` at home in several views (one PNG, atomically written).
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The model to draw.
+    path : path-like
+        Output PNG.
+    analysis : dict, optional
+        ``hyperstat analyze --json`` output; colours the joint markers by verdict.
+    marker_size : float, optional
+        Triad length in mm; defaults to 12 % of the mechanism's length scale.
+    window_size : tuple of int
+        Image size in pixels.
+    title : str, optional
+        Text at the top; defaults to the mechanism name.
+    views : tuple of str
+        Any of ``"iso"``, ``"front"`` (x-z), ``"side"`` (y-z), ``"top"`` (x-y).
+
+    Returns
+    -------
+    Path
+    """
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    verdicts = element_verdicts(analysis)
+    size = marker_size or 0.12 * Kinematics(mech).length_scale
+    n = len(views)
+    shape = (1, 1) if n == 1 else (2, 2) if n <= 4 else (2, (n + 1) // 2)
+    plotter = pv.Plotter(off_screen=True, shape=shape, window_size=list(window_size), border=False)
+    for k, view in enumerate(views):
+        plotter.subplot(k // shape[1], k % shape[1])
+        plotter.set_background("white")
+        _scene(plotter, mech, verdicts, size, label=(view == "iso"))
+        plotter.add_text(view if k else (title or mech.name) + "  (iso)", font_size=12, color="black")
+        if view == "iso":
+            plotter.view_isometric()
+        elif view == "front":
+            plotter.view_xz()
+        elif view == "side":
+            plotter.view_yz()
+        elif view == "top":
+            plotter.view_xy()
+        plotter.reset_camera()
+        plotter.camera.zoom(1.1)
+        if k == 0 and verdicts:
+            used = [c for c in VERDICT_COLORS if c in set(verdicts.values())]
+            plotter.add_legend([[LEGEND_LABELS[c], VERDICT_COLORS[c]] for c in used], bcolor="white",
+                               size=(0.45, 0.055 * len(used) + 0.03), loc="lower left", face="circle")
+    img = plotter.screenshot(return_img=True)
+    plotter.close()
+    from PIL import Image
+    import io
+
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="PNG", optimize=True)
+    return write_bytes(path, buf.getvalue())

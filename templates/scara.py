@@ -1,0 +1,61 @@
+"""SCARA robot, serial RRPR (no loop): the serial case of the joint-invariant model.
+
+Units: lengths in mm, angles in rad.
+
+Joint 1 (shoulder) and 2 (elbow) are revolutes about the vertical, 3 the vertical
+quill (prismatic), 4 the wrist roll; all four axes are parallel, the case the
+Denavit-Hartenberg parameters handle badly and the joint invariants handle well
+(Chanal et al. 2021, ref. [11] of paper 1).  The tool frame is a fixed transform with
+all six rigid-body defects (``IJKabc`` and the roll ``G``), so that eq. (1) of paper 1
+applies: ``C = 4R + 2P + 6 = 20`` independent parameters for a full-pose output.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from cad_plugin.params import make_parameters, param
+from cad_plugin.skeleton import Skeleton
+
+
+@dataclass
+class Parameters:
+    """SCARA dimensions (mm)."""
+
+    column: float = param(400.0, "mm", "height of the arm above the base", minimum=0.0, exclusive_minimum=True)
+    arm1: float = param(350.0, "mm", "shoulder to elbow", minimum=0.0, exclusive_minimum=True)
+    arm2: float = param(300.0, "mm", "elbow to quill", minimum=0.0, exclusive_minimum=True)
+    quill_stroke: float = param(150.0, "mm", "vertical stroke of the quill", minimum=0.0, exclusive_minimum=True)
+    tool_offset: float = param(40.0, "mm", "tool tip offset from the wrist axis", minimum=0.0)
+    tool_length: float = param(120.0, "mm", "tool tip below the arm", minimum=0.0, exclusive_minimum=True)
+    section: float = param(15.0, "mm", "radius of the link bars drawn in CAD", minimum=0.0, exclusive_minimum=True)
+
+
+def build(**overrides: float) -> Skeleton:
+    """Skeleton of the SCARA at its home configuration (arm stretched along x, quill up).
+
+    Returns
+    -------
+    Skeleton
+    """
+    p = make_parameters(Parameters, overrides)
+    sk = Skeleton("scara", base="R0", parameters=p, marker_size=40.0,
+                  description="SCARA robot RRPR (serial, parallel axes)")
+    h, x2, x3 = p.column, p.arm1, p.arm1 + p.arm2
+    sk.revolute("1", (0, 0, 0), (0, 0, 1), role="actuated", range=(-2.5, 2.5))
+    sk.revolute("2", (x2, 0, h), (0, 0, 1), role="actuated", range=(-2.5, 2.5))
+    sk.prismatic("3", (x3, 0, h), (0, 0, 1), role="actuated", range=(-p.quill_stroke, 0.0))
+    sk.revolute("4", (x3, 0, h), (0, 0, 1), role="actuated", range=(-math.pi, math.pi))
+    sk.fixed("5", (x3 + p.tool_offset, 0, h - p.tool_length), (0, 0, -1), (1, 0, 0), defects="IJKabcG")
+    sk.chain("arm", "R0", "T", ["1", "2", "3", "4", "5"])
+    sk.output = "T"
+    sk.link("column", [(0, 0, 0), (0, 0, h)], p.section)
+    sk.link("arm1", [(0, 0, h), "2"], p.section)
+    sk.link("arm2", ["2", "3"], p.section)
+    sk.link("quill", ["4", (x3, 0, h - p.tool_length), "5"], 0.5 * p.section)
+    return sk
+
+
+if "show_object" in globals():  # CQ-editor
+    show_object(build().assembly())  # noqa: F821
