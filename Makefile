@@ -6,7 +6,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test images clean
+.PHONY: setup demo test images bench clean
 
 TEMPLATE_NAMES := slider_crank tripteor_x7 triflex_ii scara hexapod
 
@@ -31,6 +31,9 @@ images: setup
 	  $(VENV)/bin/hyperstat analyze templates/$$t.py --json out/$$t.analysis.json --quiet && \
 	  $(VENV)/bin/hyperstat view templates/$$t.py --analysis out/$$t.analysis.json --png docs/img/$$t.png || exit 1; \
 	done
+
+bench: setup
+	$(PY) benchmarks/run.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

@@ -108,6 +108,65 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def _analysis(args: argparse.Namespace):
+    from .closure import Kinematics
+    from .stationarity import analyze
+
+    mech, provenance = load_source(args.source, args.param)
+    kin = Kinematics(mech)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = analyze(mech, n_configurations=args.configurations, seed=args.seed, kinematics=kin)
+    return mech, provenance, kin, result
+
+
+def _cmd_check_hypotheses(args: argparse.Namespace) -> int:
+    from .hypotheses import check_hypotheses, load_hypotheses
+
+    mech, provenance, kin, result = _analysis(args)
+    axes, points, hyps = load_hypotheses(args.hypotheses, mech)
+    verdicts = check_hypotheses(mech, result, axes, points, hyps, kinematics=kin)
+    doc = {"mechanism": mech.name, "source": provenance, "hypothesis_file": str(args.hypotheses),
+           "units": {"length": "mm", "angle": "rad"},
+           "hypotheses": [v.to_dict() for v in verdicts]}
+    if args.json:
+        write_json(args.json, jsonable(doc))
+    if not args.quiet:
+        width = max(len(v.id) for v in verdicts)
+        for v in verdicts:
+            sys.stdout.write(f"{v.id:<{width}}  {v.verdict:<16} {v.reason}\n{'':<{width}}  {'':<16} {v.evidence}\n")
+        if args.json:
+            sys.stdout.write(f"wrote {args.json}\n")
+    return 0
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from .atomic import write_text
+    from .compare import compare, load_reference
+    from .verify import verify
+
+    mech, provenance, kin, result = _analysis(args)
+    reference = load_reference(args.reference)
+    checks = verify(mech, result, kinematics=kin) if args.verify else None
+    comp = compare(mech, result, reference, checks)
+    text = comp.to_markdown()
+    if args.markdown:
+        write_text(args.markdown, text)
+    if args.json:
+        write_json(args.json, jsonable({"mechanism": mech.name, "source": provenance, **comp.to_dict()}))
+    if not args.quiet:
+        sys.stdout.write(text)
+    return 0
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
+    p.add_argument("--json", metavar="OUT", help="write the result as JSON")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser with the solver's commands."""
     parser = argparse.ArgumentParser(
@@ -126,6 +185,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_analyze)
+    p = sub.add_parser("check-hypotheses", help="check a designer's geometric hypotheses against the analysis")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("hypotheses", help="hypothesis file (YAML)")
+    _common(p)
+    p.set_defaults(func=_cmd_check_hypotheses)
+    p = sub.add_parser("compare", help="compare the analysis with a paper's tables (reference YAML)")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("reference", help="reference file (YAML)")
+    p.add_argument("--verify", action="store_true", help="attach the nonlinear evidence to every difference")
+    p.add_argument("--markdown", metavar="OUT.md", help="write the comparison as Markdown")
+    _common(p)
+    p.set_defaults(func=_cmd_compare)
     return parser
 
 

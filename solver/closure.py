@@ -59,6 +59,9 @@ class KinematicState:
         Frame name -> (K, 4, 4) absolute transform (defining chain).
     element_frames : dict
         ``(chain, element)`` -> (K, 4, 4) absolute ``L`` frame of every element.
+    defect_twists : ndarray, (K, n_xi, 6) or None
+        Spatial twist ``(omega, v)`` of every defect parameter (``v``: velocity of the
+        point at the base origin); it moves every frame downstream of its element.
     """
 
     residual: np.ndarray
@@ -69,6 +72,7 @@ class KinematicState:
     output_q: np.ndarray | None
     frames: dict
     element_frames: dict
+    defect_twists: np.ndarray | None = None
 
 
 @dataclass
@@ -311,7 +315,7 @@ class Kinematics:
         po = out_pose[:, :3, 3]
         o_xi = rows(tw_xi, self._output_member[self._param_el_idx], po)
         o_q = rows(tw_q, self._output_member[self._joint_el_idx], po)
-        return KinematicState(residual, a, bq, out_pose, o_xi, o_q, frames, lframes)
+        return KinematicState(residual, a, bq, out_pose, o_xi, o_q, frames, lframes, tw_xi)
 
     # ------------------------------------------------------------------ assembly
     def scaled(self, residual: np.ndarray) -> np.ndarray:

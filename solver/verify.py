@@ -28,7 +28,7 @@ from .frames import so3_log
 from .model import Mechanism
 from .stationarity import StationarityResult
 
-__all__ = ["Check", "verify"]
+__all__ = ["Check", "verify", "reassembly_residual"]
 
 
 @dataclass
@@ -82,6 +82,15 @@ def _pose_change(kin: Kinematics, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
     return rot * kin.length_scale + pos
 
 
+def reassembly_residual(kin: Kinematics, q0: np.ndarray, xi: np.ndarray) -> tuple[float, float]:
+    """Largest closure residual (mm) after least-squares re-assembly with defects ``xi``,
+    and largest change of the output pose (mm, rotations times the length scale)."""
+    nominal = kin.evaluate(q0, jacobians=False)
+    res = kin.assemble(q0.copy(), xi)
+    st = kin.evaluate(res.q, xi, jacobians=False)
+    return float(np.max(res.residual)), float(np.max(_pose_change(kin, nominal.output_pose, st.output_pose)))
+
+
 def verify(
     mechanism: Mechanism,
     result: StationarityResult,
@@ -123,12 +132,10 @@ def verify(
         out = []
         change = 0.0
         for size in (delta, delta / 10.0):
-            xi = direction * size * scale
-            res = kin.assemble(q0.copy(), xi)
-            out.append(float(np.max(res.residual)))
+            residual, moved = reassembly_residual(kin, q0, direction * size * scale)
+            out.append(residual)
             if size == delta:
-                st = kin.evaluate(res.q, xi, jacobians=False)
-                change = float(np.max(_pose_change(kin, nominal.output_pose, st.output_pose)))
+                change = moved
         pred = np.einsum("kij,kj->ki", proj_out, a @ direction)
         predicted = float(np.max(np.linalg.norm(pred, axis=1))) * delta * lc
         return out[0], out[1], predicted, change

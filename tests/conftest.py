@@ -27,3 +27,21 @@ def slider_crank_analysis(slider_crank):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return analyze(slider_crank, n_configurations=24, seed=0)
+
+
+@pytest.fixture(scope="session")
+def tripteor():
+    """The Tripteor X7 (paper 1, section 4.2) at the template defaults."""
+    from cad_plugin.templates import build_template
+
+    return build_template(TEMPLATES / "tripteor_x7.py").mechanism()
+
+
+@pytest.fixture(scope="session")
+def tripteor_analysis(tripteor):
+    """Stationarity analysis of the Tripteor X7."""
+    from solver.stationarity import analyze
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return analyze(tripteor, n_configurations=24, seed=0)

@@ -1,0 +1,108 @@
+"""hyperstat benchmarks: medians over repeated runs (units: seconds, configurations per second, MiB).
+
+Run with ``make bench`` (or ``.venv/bin/python benchmarks/run.py``).  Prints a table; with
+``--markdown FILE`` also writes it as Markdown.  Timings are wall-clock medians of
+``--repeat`` runs after one warm-up run ("warm"); "cold" runs start a fresh Python
+process and include the imports.  Peak memory is the peak resident set of the run
+measured with ``tracemalloc`` (Python allocations, numpy included) in one extra run,
+or for a new process its maximum resident set size.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import time
+import tracemalloc
+import warnings
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+warnings.simplefilter("ignore")
+
+TEMPLATES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod"]
+BENCHES: dict = {}
+
+
+def bench(name: str, unit: str = "s"):
+    """Register a benchmark: a function returning (setup-free callable, work count or None)."""
+
+    def deco(fn):
+        BENCHES[name] = (fn, unit)
+        return fn
+
+    return deco
+
+
+def _mech(name: str):
+    from cad_plugin.templates import build_template
+
+    return build_template(ROOT / "templates" / f"{name}.py").mechanism()
+
+
+for _t in TEMPLATES:
+    def _make(t=_t):
+        def setup():
+            from solver import Kinematics, analyze
+
+            mech = _mech(t)
+            kin = Kinematics(mech)
+            return (lambda: analyze(mech, kinematics=kin)), None
+        return setup
+    bench(f"stationarity analysis, {_t} (warm)")(_make())
+
+
+@bench("stationarity analysis, tripteor_x7 (cold, new process)")
+def _cold_tripteor():
+    code = ("import warnings; warnings.simplefilter('ignore');"
+            "from cad_plugin.templates import build_template; from solver import analyze;"
+            f"analyze(build_template(r'{ROOT / 'templates' / 'tripteor_x7.py'}').mechanism())")
+    return (lambda: subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)), None
+
+
+def run(names: list[str], repeat: int) -> list[tuple[str, float, str, float]]:
+    rows = []
+    for name in names:
+        fn, unit = BENCHES[name]
+        work, count = fn()
+        work()  # warm-up
+        times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            work()
+            times.append(time.perf_counter() - t0)
+        if "new process" in name:
+            import resource
+
+            peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # largest child, KiB -> MiB
+        else:
+            tracemalloc.start()  # a separate run: tracing slows Python down
+            work()
+            peak = tracemalloc.get_traced_memory()[1] / 2**20
+            tracemalloc.stop()
+        med = statistics.median(times)
+        value = count / med if count else med
+        rows.append((name, value, unit if not count else "configs/s", peak))
+        print(f"{name:<60} {value:>12.4g} {rows[-1][2]:<10} peak {peak:8.1f} MiB", flush=True)
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--only", help="substring of the benchmarks to run")
+    parser.add_argument("--markdown", help="also write the table as Markdown")
+    args = parser.parse_args()
+    names = [n for n in BENCHES if not args.only or args.only in n]
+    rows = run(names, args.repeat)
+    if args.markdown:
+        lines = ["| benchmark | median | unit | peak memory (MiB) |", "|---|---|---|---|"]
+        lines += [f"| {n} | {v:.4g} | {u} | {m:.1f} |" for n, v, u, m in rows]
+        Path(args.markdown).write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
