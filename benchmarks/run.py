@@ -63,6 +63,37 @@ def _cold_tripteor():
     return (lambda: subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)), None
 
 
+@bench("identification, tripteor_x7, 107 + 30 validation points (warm)")
+def _identify_tripteor():
+    from solver import Kinematics, analyze
+    from solver.identify import identify
+    from solver.virtual import VirtualMachine
+
+    mech = _mech("tripteor_x7")
+    kin = Kinematics(mech)
+    analysis = analyze(mech, kinematics=kin)
+    vm = VirtualMachine.random(mech, analysis, seed=0, kinematics=kin)
+    q = vm.poses(137, seed=1)
+    data, val = vm.measure(q[:107], seed=2), vm.measure(q[107:], seed=3, prefix="V")
+    return (lambda: identify(mech, analysis, data, val, kinematics=kin)), None
+
+
+@bench("D-optimal choice of 107 poses among 1000, tripteor_x7")
+def _select_tripteor():
+    from solver import Kinematics, analyze
+    from solver.identify import MeasurementModel
+    from solver.poses import select_poses
+    from solver.virtual import VirtualMachine
+
+    mech = _mech("tripteor_x7")
+    kin = Kinematics(mech)
+    analysis = analyze(mech, kinematics=kin)
+    vm = VirtualMachine.random(mech, analysis, seed=0, kinematics=kin)
+    candidates = vm.poses(1000, seed=1)
+    model = MeasurementModel(mech, analysis, kin)
+    return (lambda: select_poses(model, candidates, 107, noise=vm.noise)), None
+
+
 def run(names: list[str], repeat: int) -> list[tuple[str, float, str, float]]:
     rows = []
     for name in names:

@@ -27,6 +27,10 @@ from .model import (
 from .modelfile import dumps_model, load_model, mechanism_from_dict, mechanism_to_dict, save_model
 from .sampling import ConfigurationSample, sample_configurations
 from .stationarity import ParameterVerdict, Relation, StationarityResult, analyze, gauge_parameters
+from .identify import IdentificationResult, MeasurementModel, identify
+from .measurements import MeasurementSet, NoiseModel, read_measurements, write_measurements
+from .poses import PoseSelection, select_poses
+from .virtual import VirtualMachine
 from .symbolic import ExactCheck, exact_check, find_rational_configurations
 from .verify import Check, verify
 
@@ -67,4 +71,14 @@ __all__ = [
     "find_rational_configurations",
     "Check",
     "verify",
+    "IdentificationResult",
+    "MeasurementModel",
+    "identify",
+    "MeasurementSet",
+    "NoiseModel",
+    "read_measurements",
+    "write_measurements",
+    "PoseSelection",
+    "select_poses",
+    "VirtualMachine",
 ]

@@ -159,6 +159,73 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- simulate / identify
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .identify import MeasurementModel
+    from .measurements import parse_noise, write_measurements
+    from .poses import select_poses
+    from .virtual import VirtualMachine
+
+    if args.poses < 1 or args.validation < 0:
+        raise HyperstatError(f"--poses must be at least 1 and --validation at least 0 (got {args.poses}, "
+                             f"{args.validation}).")
+    noise = parse_noise(args.noise, "--noise")
+    mech, provenance, kin, result = _analysis(args)
+    vm = VirtualMachine.random(mech, result, seed=args.seed, angle_tolerance=args.angle_tolerance,
+                               length_tolerance=args.length_tolerance, noise=noise, kinematics=kin)
+    selection = None
+    if args.select == "d-optimal":
+        candidates = vm.poses(max(args.candidates, args.poses), seed=args.seed + 1)
+        selection = select_poses(MeasurementModel(mech, result, kin), candidates, args.poses, seed=args.seed,
+                                 noise=noise)
+        q_id = candidates[selection.index]
+    else:
+        q_id = vm.poses(args.poses, seed=args.seed + 1, mode=args.select)
+    comment = f"simulated by hyperstat: seed {args.seed}, defects within +-{args.angle_tolerance:g} rad / " \
+              f"+-{args.length_tolerance:g} mm, poses {args.select}"
+    wrote = [write_measurements(args.out, vm.measure(q_id, seed=args.seed + 2), mech, comment)]
+    if args.validation:
+        q_val = vm.poses(args.validation, seed=args.seed + 3)
+        val_path = args.validation_out or str(Path(args.out).with_suffix("")) + ".validation.csv"
+        wrote.append(write_measurements(val_path, vm.measure(q_val, seed=args.seed + 4, prefix="V"), mech,
+                                        comment + " (validation)"))
+    if args.truth:
+        doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
+               "truth": vm.truth(), "drawn": vm.metadata}
+        if selection is not None:
+            doc["pose_selection"] = selection.to_dict()
+        wrote.append(write_json(args.truth, jsonable(doc)))
+    if not args.quiet:
+        if selection is not None:
+            sys.stdout.write(f"D-optimal poses: condition number {selection.condition_number:.3g} "
+                             f"(random poses: {selection.random_condition_number:.3g})\n")
+        for w in wrote:
+            sys.stdout.write(f"wrote {w}\n")
+    return 0
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from .export.text import format_identification
+    from .identify import identify
+    from .measurements import read_measurements
+
+    mech, provenance, kin, result = _analysis(args)
+    data = read_measurements(args.data, mech)
+    validation = read_measurements(args.validation, mech) if args.validation else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify(mech, result, data, validation, kinematics=kin)
+    if args.json:
+        doc = {"mechanism": mech.name, "source": provenance, "data": str(args.data),
+               "validation_data": None if args.validation is None else str(args.validation), **res.to_dict()}
+        write_json(args.json, jsonable(doc))
+    if not args.quiet:
+        sys.stdout.write(format_identification(res))
+        if args.json:
+            sys.stdout.write(f"wrote {args.json}\n")
+    return 0
+
+
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
     p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
@@ -197,6 +264,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--markdown", metavar="OUT.md", help="write the comparison as Markdown")
     _common(p)
     p.set_defaults(func=_cmd_compare)
+    p = sub.add_parser("simulate", help="simulate tracker measurements of a virtual machine with random defects")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("--poses", type=int, default=107, help="identification poses (default 107)")
+    p.add_argument("--validation", type=int, default=30, help="validation poses (default 30, 0 for none)")
+    p.add_argument("--noise", default="0.005 mm + 0.005 mm/m", help="1-sigma tracker noise per axis, 'A mm + B mm/m'")
+    p.add_argument("--angle-tolerance", type=float, default=2e-4, help="angular defects drawn within +- (rad)")
+    p.add_argument("--length-tolerance", type=float, default=0.05, help="length defects drawn within +- (mm)")
+    p.add_argument("--select", choices=["random", "grid", "d-optimal"], default="random",
+                   help="how identification poses are chosen")
+    p.add_argument("--candidates", type=int, default=1000, help="candidate poses for --select d-optimal")
+    p.add_argument("--out", required=True, metavar="DATA.csv", help="identification measurements")
+    p.add_argument("--validation-out", metavar="VAL.csv", help="validation measurements (default DATA.validation.csv)")
+    p.add_argument("--truth", metavar="TRUTH.json", help="write the true parameters")
+    _common(p)
+    p.set_defaults(func=_cmd_simulate)
+    p = sub.add_parser("identify", help="identify the free defects, tracker frame and target from measurements")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("data", help="identification measurements (CSV, see docs/identification.md)")
+    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
+    _common(p)
+    p.set_defaults(func=_cmd_identify)
     return parser
 
 

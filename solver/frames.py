@@ -29,10 +29,12 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "cross",
     "skew",
     "unskew",
     "so3_exp",
     "so3_log",
+    "so3_left_jacobian",
     "se3_exp",
     "se3_log",
     "adjoint",
@@ -48,6 +50,15 @@ __all__ = [
 ]
 
 _EPS = 1e-12
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis (broadcasting), faster than ``np.cross`` on small stacks."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -107,6 +118,11 @@ def so3_log(r: np.ndarray) -> np.ndarray:
         sign = np.where(sign == 0, 1.0, sign)
         out = np.where(near_pi[..., None], col * sign * theta[..., None], out)
     return out
+
+
+def so3_left_jacobian(w: np.ndarray) -> np.ndarray:
+    """Left Jacobian of SO(3): ``d exp(w) = [J_l(w) dw] exp(w)`` (shape ``(..., 3, 3)``)."""
+    return _left_jacobian(np.asarray(w, dtype=float))
 
 
 def _left_jacobian(w: np.ndarray) -> np.ndarray:
@@ -233,7 +249,7 @@ def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
-    v = np.cross(a, b)
+    v = cross(a, b)
     c = np.sum(a * b, axis=-1)[..., None, None]
     k = skew(v)
     return np.eye(3) + k + (k @ k) / (1.0 + c)
@@ -252,9 +268,9 @@ def minimal_rotation_velocity(a: np.ndarray, b: np.ndarray, db: np.ndarray) -> n
     if multi:
         a = a[..., None, :]
         b = b[..., None, :]
-    v = np.cross(a, b)
+    v = cross(a, b)
     c = np.sum(a * b, axis=-1)[..., None, None]
-    dv = np.cross(a, db)
+    dv = cross(a, db)
     dc = np.sum(a * db, axis=-1)[..., None, None]
     k, dk = skew(v), skew(dv)
     r = np.eye(3) + k + (k @ k) / (1.0 + c)

@@ -136,6 +136,46 @@ class StationarityResult:
         out["total"] = len(self.parameters)
         return out
 
+    def parameterization(self, mechanism: Mechanism, influential_only: bool = True) -> tuple[list[str], np.ndarray]:
+        """Independent coordinates of the admissible defects and the map to the full defect vector.
+
+        Free parameters are their own coordinates; for each relation between coupled
+        parameters the pivot (first) parameter is dependent and follows the others.
+
+        Parameters
+        ----------
+        mechanism : Mechanism
+            The analysed model.
+        influential_only : bool
+            Keep only coordinates that move the output (identification unknowns).
+
+        Returns
+        -------
+        names : list of str
+            Independent parameter names.
+        matrix : ndarray, (n_xi, len(names))
+            ``xi = matrix @ u`` in physical units (rad, mm).
+        """
+        index = mechanism.parameter_index
+        dependent = {}
+        for rel in self.relations:
+            pivot = next(iter(rel.terms))
+            dependent[pivot] = {n: -c / rel.terms[pivot] for n, c in rel.terms.items() if n != pivot}
+        names = []
+        for p in self.parameters:
+            if p.verdict not in ("free", "coupled") or p.name in dependent:
+                continue
+            if influential_only and not p.influential:
+                continue
+            names.append(p.name)
+        matrix = np.zeros((len(mechanism.parameters), len(names)))
+        for k, n in enumerate(names):
+            matrix[index[n], k] = 1.0
+            for pivot, terms in dependent.items():
+                if n in terms:
+                    matrix[index[pivot], k] = terms[n]
+        return names, matrix
+
     def to_dict(self) -> dict:
         """JSON-ready dictionary (units: rad, mm)."""
         return {

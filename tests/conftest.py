@@ -45,3 +45,21 @@ def tripteor_analysis(tripteor):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return analyze(tripteor, n_configurations=24, seed=0)
+
+
+@pytest.fixture(scope="session")
+def scara():
+    """The SCARA template (a serial chain: R R R P)."""
+    from cad_plugin.templates import build_template
+
+    return build_template(TEMPLATES / "scara.py").mechanism()
+
+
+@pytest.fixture(scope="session")
+def scara_analysis(scara):
+    """Stationarity analysis of the SCARA."""
+    from solver.stationarity import analyze
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return analyze(scara, n_configurations=24, seed=0)

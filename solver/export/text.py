@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..stationarity import StationarityResult
 
-__all__ = ["format_analysis"]
+__all__ = ["format_analysis", "format_identification"]
 
 
 def _fmt_gap(gap: float) -> str:
@@ -75,4 +75,41 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
             lines.append(f"exact check unavailable: {exact.reason}")
     for w in result.warnings:
         lines.append(f"warning: {w}")
+    return "\n".join(lines) + "\n"
+
+
+def format_identification(result) -> str:
+    """Readable summary of an :class:`~solver.identify.IdentificationResult` (units: mm, rad; residuals in um)."""
+    lines = [
+        f"Identification: {result.rank} identifiable of {result.n_unknowns} unknowns "
+        f"(singular-value gap {_fmt_gap(result.singular_value_gap)}), condition number "
+        f"{result.condition_number:.3g} (scaled columns; raw {result.condition_number_raw:.3g}), "
+        f"{result.iterations} evaluations, {result.elapsed:.2f} s",
+        "observability  " + "  ".join(f"{k} {v:.3g}" for k, v in result.observability.items()),
+        "",
+        f"{'parameter':<12} {'unit':<4} {'estimate':>12} {'std':>10}",
+    ]
+    for p in result.parameters:
+        if p["identifiable"]:
+            lines.append(f"{p['name']:<12} {p['unit']:<4} {p['estimate']:>12.6g} {p['std']:>10.3g}")
+    if result.unidentifiable:
+        lines += ["", "not identifiable alone (held at their prior value):"]
+        for u in result.unidentifiable:
+            comb = " ".join(f"{c:+.4g}*{n}" for n, c in u["combination"].items()) or "-"
+            lines.append(f"  {u['name']:<12} {u['reason']}; seen as {u['name']} = {comb}")
+    if result.correlations:
+        lines += ["", f"strong correlations (|rho| > 0.9): {len(result.correlations)}"]
+        for c in sorted(result.correlations, key=lambda c: -abs(c["rho"]))[:8]:
+            lines.append(f"  {c['a']:<12} {c['b']:<12} {c['rho']:+.4f}")
+
+    def row(label: str, s: dict | None) -> str:
+        if s is None:
+            return f"{label:<15} -"
+        return (f"{label:<15} mean {1000 * s['mean']:8.2f} um  max {1000 * s['max']:8.2f} um  "
+                f"RMS {1000 * s['rms']:8.2f} um  ({s['n']} points)")
+
+    lines += ["", row("identification", result.identification), row("validation", result.validation)]
+    if result.noise_rms is not None:
+        lines.append(f"{'noise floor':<15} RMS {1000 * result.noise_rms:8.2f} um (the data's noise model)")
+    lines += [f"warning: {w}" for w in result.warnings]
     return "\n".join(lines) + "\n"
