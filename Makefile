@@ -6,7 +6,12 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test images bench clean
+.PHONY: setup system-deps demo test images bench clean
+
+# Debian packages the tests drive for real: headless Chromium (report screenshots and PDF),
+# LinuxCNC (genhexkins). Installed only when missing; sudo when not root.
+DEB_PACKAGES := chromium linuxcnc-uspace
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 TEMPLATE_NAMES := slider_crank tripteor_x7 triflex_ii scara hexapod
 
@@ -18,10 +23,26 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-demo: setup
-	$(VENV)/bin/hyperstat analyze templates/slider_crank.py --verify --exact
+system-deps:
+	@if ! command -v chromium >/dev/null || ! command -v halrun >/dev/null; then \
+	  echo "installing Debian packages: $(DEB_PACKAGES)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(DEB_PACKAGES); \
+	fi
 
-test: setup
+# The main job on the built-in default: a simulated Tripteor X7 campaign (with an effect the
+# rigid model does not know), then the tolerance report and the controller file.
+demo: setup
+	mkdir -p out/demo
+	$(VENV)/bin/hyperstat simulate templates/tripteor_x7.py --effect backlash --out out/demo/measurements.csv \
+	  --truth out/demo/truth.json --quiet
+	$(VENV)/bin/hyperstat report templates/tripteor_x7.py --data out/demo/measurements.csv \
+	  --validation out/demo/measurements.validation.csv --hypotheses templates/tripteor_x7.hypotheses.yaml --out out/demo
+	$(VENV)/bin/hyperstat export-controller templates/tripteor_x7.py out/demo/measurements.csv \
+	  --validation out/demo/measurements.validation.csv --diagnose --out out/demo/machine.json
+	@echo "The report is out/demo/report.html (also report.md, report.json); the controller file out/demo/machine.json."
+
+test: setup system-deps
 	$(PY) -m pytest -q
 
 # Pictures of every template with its markers coloured by verdict (docs/img/, committed).

@@ -33,6 +33,13 @@ def _load_step(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]:
     return mech, {"source": str(path), "kind": "step", "parameters": mech.metadata.get("parameters", {})}
 
 
+def _plot_diagnosis(diag, data, directory):
+    from .plots import write_diagnosis_plots
+
+    return write_diagnosis_plots(diag, data, directory)
+
+
+solver_cli.register_plotter("diagnosis", _plot_diagnosis)
 solver_cli.register_source(".py", _load_template)
 solver_cli.register_source(".step", _load_step)
 solver_cli.register_source(".stp", _load_step)
@@ -87,6 +94,71 @@ def _cmd_view(args) -> int:
     return 0
 
 
+def _cmd_report(args) -> int:
+    import warnings
+
+    import numpy as np
+
+    from solver.identify import MeasurementModel
+    from solver.measurements import read_measurements
+    from solver.report_content import identifiable_by_design, report_document
+    from solver.verify import verify
+    from solver.virtual import VirtualMachine
+
+    from .plots import diagnosis_figures
+    from .report import write_report
+
+    mech, provenance, kin, result = solver_cli._analysis(args)
+    data = read_measurements(args.data, mech) if args.data else None
+    validation = read_measurements(args.validation, mech) if args.validation else None
+    hypotheses = None
+    if args.hypotheses:
+        from solver.hypotheses import check_hypotheses, load_hypotheses
+
+        axes, points, hyps = load_hypotheses(args.hypotheses, mech)
+        hypotheses = check_hypotheses(mech, result, axes, points, hyps, kinematics=kin)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        checks = verify(mech, result, kinematics=kin)
+        nominal = VirtualMachine.random(mech, result, seed=0, angle_tolerance=0.0, length_tolerance=0.0,
+                                        kinematics=kin)
+        design = identifiable_by_design(MeasurementModel(mech, result, kin), mech, nominal.poses(60, seed=0))
+        diagnosis = identification = None
+        images = {}
+        if data is not None:
+            from solver.diagnose import diagnose
+
+            if data.noise is not None:
+                diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
+                identification = diagnosis.final or diagnosis.rigid
+                images.update(diagnosis_figures(diagnosis, data))
+            else:
+                from solver.identify import identify
+
+                identification = identify(mech, result, data, validation, kinematics=kin)
+    accuracy = _accuracy_section(mech, result, kin)
+    doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, design, accuracy)
+    analysis_json = solver_cli.jsonable(result.to_dict())
+    written = write_report(doc, args.out, mech, analysis_json, images)
+    if not args.quiet:
+        c = doc["summary"]["tolerance_classes"]
+        print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
+        for w in written:
+            print(f"wrote {w}")
+        print(f"open {Path(args.out) / 'report.html'} in a browser (self-contained, prints on A4)")
+    return 0
+
+
+def _accuracy_section(mech, result, kin) -> dict | None:
+    """Accuracy coefficients and allocation for the report, when the accuracy module is present."""
+    try:
+        from solver import accuracy as accuracy_module  # noqa: F401
+    except ImportError:
+        return None
+    builder = getattr(accuracy_module, "report_section", None)
+    return None if builder is None else builder(mech, result, kin)
+
+
 def build_parser():
     """The solver's parser plus the CAD commands."""
     parser = solver_cli.build_parser()
@@ -103,6 +175,17 @@ def build_parser():
     p.add_argument("--analysis", metavar="RESULT.json", help="colour markers by the verdicts of this analysis")
     p.add_argument("--png", required=True, metavar="OUT.png", help="output picture")
     p.set_defaults(func=_cmd_view)
+    p = sub.add_parser("report", help="tolerance report: report.html (self-contained), report.md, report.json")
+    p.add_argument("source", help="template (.py), model file (.json) or STEP file")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--data", metavar="ID.csv", help="identification measurements (identification and diagnosis)")
+    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements")
+    p.add_argument("--hypotheses", metavar="H.yaml", help="design hypotheses to check")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_report)
     return parser
 
 

@@ -23,11 +23,17 @@ from .errors import HyperstatError
 from .model import Mechanism
 from .modelfile import load_model
 
-__all__ = ["main", "build_parser", "register_source", "load_source", "jsonable", "COMMANDS"]
+__all__ = ["main", "build_parser", "register_source", "register_plotter", "load_source", "jsonable", "COMMANDS"]
 
 # suffix -> loader(path, overrides) -> (Mechanism, provenance dict)
 _SOURCES: dict[str, Callable[[Path, list[str]], tuple[Mechanism, dict]]] = {}
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {}
+PLOTTERS: dict[str, Callable] = {}  # kind -> plotting function, registered by the presentation side
+
+
+def register_plotter(kind: str, function: Callable) -> None:
+    """Let commands write plots of ``kind`` (e.g. ``"diagnosis"``) through ``function``."""
+    PLOTTERS[kind] = function
 
 
 def register_source(suffix: str, loader: Callable[[Path, list[str]], tuple[Mechanism, dict]]) -> None:
@@ -171,8 +177,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                              f"{args.validation}).")
     noise = parse_noise(args.noise, "--noise")
     mech, provenance, kin, result = _analysis(args)
+    effects = _simulated_effects(args, mech, result)
     vm = VirtualMachine.random(mech, result, seed=args.seed, angle_tolerance=args.angle_tolerance,
-                               length_tolerance=args.length_tolerance, noise=noise, kinematics=kin)
+                               length_tolerance=args.length_tolerance, noise=noise, kinematics=kin, effects=effects)
+    with_metadata = args.metadata or bool(effects)
     selection = None
     if args.select == "d-optimal":
         candidates = vm.poses(max(args.candidates, args.poses), seed=args.seed + 1)
@@ -183,12 +191,20 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         q_id = vm.poses(args.poses, seed=args.seed + 1, mode=args.select)
     comment = f"simulated by hyperstat: seed {args.seed}, defects within +-{args.angle_tolerance:g} rad / " \
               f"+-{args.length_tolerance:g} mm, poses {args.select}"
-    wrote = [write_measurements(args.out, vm.measure(q_id, seed=args.seed + 2), mech, comment)]
+    q_val = vm.poses(args.validation, seed=args.seed + 3) if args.validation else None
+    meta_id = meta_val = None
+    if with_metadata:
+        from .virtual import workshop_metadata
+
+        meta = workshop_metadata(mech, len(q_id) + args.validation, seed=args.seed)
+        meta_id = {k: v[: len(q_id)] for k, v in meta.items()}
+        meta_val = {k: v[len(q_id):] for k, v in meta.items()}
+    outputs = [(args.out, vm.measure(q_id, seed=args.seed + 2, metadata=meta_id), comment)]
     if args.validation:
-        q_val = vm.poses(args.validation, seed=args.seed + 3)
         val_path = args.validation_out or str(Path(args.out).with_suffix("")) + ".validation.csv"
-        wrote.append(write_measurements(val_path, vm.measure(q_val, seed=args.seed + 4, prefix="V"), mech,
-                                        comment + " (validation)"))
+        outputs.append((val_path, vm.measure(q_val, seed=args.seed + 4, prefix="V", metadata=meta_val),
+                        comment + " (validation)"))
+    wrote = [write_measurements(path, data, mech, text) for path, data, text in outputs]
     if args.truth:
         doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
                "truth": vm.truth(), "drawn": vm.metadata}
@@ -202,6 +218,32 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         for w in wrote:
             sys.stdout.write(f"wrote {w}\n")
     return 0
+
+
+def _simulated_effects(args: argparse.Namespace, mech, result) -> tuple:
+    """Effects of ``simulate --effect NAME[:DEFECT]`` with realistic true parameters (seeded)."""
+    import numpy as np
+
+    from .effects import EFFECT_NAMES, make_effect
+
+    effects = []
+    rng = np.random.default_rng(10_000 + args.seed)
+    for spec in args.effect or []:
+        name, _, defect = spec.partition(":")
+        if name not in EFFECT_NAMES:
+            raise HyperstatError(f"--effect: unknown effect '{name}'; effects are {', '.join(EFFECT_NAMES)}.")
+        options: dict = {}
+        if name == "tracker-drift":
+            options["sessions"] = [1.0, 2.0]
+        if name == "violated-constraint":
+            from .diagnosis_suite import VIOLATION_MAGNITUDE
+
+            if not defect:
+                raise HyperstatError("--effect violated-constraint needs the forced defect, e.g. "
+                                     "'violated-constraint:dK13'.")
+            options.update(only=[defect], magnitude_rad=VIOLATION_MAGNITUDE, magnitude_mm=VIOLATION_MAGNITUDE)
+        effects.append(make_effect(name, mech, result, None, **options).draw_truth(rng))
+    return tuple(effects)
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
@@ -223,6 +265,140 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         sys.stdout.write(format_identification(res))
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
+    return 0
+
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from .diagnose import diagnose
+    from .effects import EFFECT_NAMES
+    from .export.text import format_diagnosis
+    from .measurements import read_measurements
+
+    candidates = tuple(args.effects.split(",")) if args.effects else EFFECT_NAMES
+    unknown = [c for c in candidates if c not in EFFECT_NAMES]
+    if unknown:
+        raise HyperstatError(f"--effects: unknown effect '{unknown[0]}'; effects are {', '.join(EFFECT_NAMES)}.")
+    mech, provenance, kin, result = _analysis(args)
+    data = read_measurements(args.data, mech)
+    validation = read_measurements(args.validation, mech) if args.validation else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        diag = diagnose(mech, result, data, validation, candidates=candidates, kinematics=kin)
+    written = []
+    if args.plots:
+        if "diagnosis" not in PLOTTERS:
+            raise HyperstatError("--plots needs the plotting side (run the 'hyperstat' console script).")
+        written = PLOTTERS["diagnosis"](diag, data, args.plots)
+    if args.json:
+        doc = {"mechanism": mech.name, "source": provenance, "data": str(args.data),
+               "validation_data": None if args.validation is None else str(args.validation), **diag.to_dict()}
+        write_json(args.json, jsonable(doc))
+    if not args.quiet:
+        sys.stdout.write(format_diagnosis(diag))
+        for w in written + ([args.json] if args.json else []):
+            sys.stdout.write(f"wrote {w}\n")
+    return 0
+
+
+def _cmd_validate_diagnosis(args: argparse.Namespace) -> int:
+    from .atomic import write_text
+    from .diagnosis_suite import run_suite, summarize, to_markdown
+    from .stationarity import analyze
+
+    sources = []
+    for src in args.sources:
+        mech, _ = load_source(src, [])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sources.append((mech, analyze(mech, n_configurations=args.configurations, seed=0)))
+
+    def progress(r) -> None:
+        if not args.quiet:
+            sys.stderr.write(f"{r.mechanism:<14} seed {r.seed}  {'+'.join(r.truth) or 'none':<28} -> "
+                             f"{'gap' if r.gap_significant else 'no gap':<6} first {r.ranked_first or '-':<20} "
+                             f"selected {'+'.join(r.selected) or '-':<28} {'ok' if r.correct else 'WRONG'}\n")
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = run_suite(sources, seeds=args.seeds, pairs=not args.no_pairs,
+                            only=tuple(args.cases.split(",")) if args.cases else None, progress=progress)
+    summary = summarize(results)
+    command = "hyperstat validate-diagnosis " + " ".join(args.sources) + f" --seeds {args.seeds}"
+    if args.json:
+        write_json(args.json, jsonable({"summary": summary, "cases": [r.to_dict() for r in results],
+                                        "command": command}))
+    if args.markdown:
+        write_text(args.markdown, to_markdown(results, summary, command))
+    if not args.quiet:
+        sys.stdout.write(to_markdown(results, summary, command).split("### ")[0])
+    return 0
+
+
+def _cmd_export_controller(args: argparse.Namespace) -> int:
+    from .controller import MACHINE_EFFECTS, controller_document, write_controller
+    from .effects import make_effect
+    from .identify import identify
+    from .measurements import read_measurements
+
+    mech, provenance, kin, result = _analysis(args)
+    data = read_measurements(args.data, mech)
+    validation = read_measurements(args.validation, mech) if args.validation else None
+    names = list(args.effect or [])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if args.diagnose:
+            from .diagnose import diagnose
+
+            diag = diagnose(mech, result, data, validation, kinematics=kin)
+            names += [n for n in diag.selected if n not in names]
+            violated = diag.violated_defect["defect"] if diag.violated_defect else None
+        else:
+            violated = None
+        effects = []
+        for spec in names:
+            name, _, defect = spec.partition(":")
+            if name not in MACHINE_EFFECTS:
+                if name in ("tracker-scale", "tracker-drift"):
+                    continue  # measurement effects: fitted by the diagnosis, not part of the machine
+                raise HyperstatError(f"--effect: '{name}' is not a machine effect ({', '.join(MACHINE_EFFECTS)}).")
+            options = {"only": [defect or violated]} if name == "violated-constraint" else {}
+            effects.append(make_effect(name, mech, result, data, **options))
+        res = identify(mech, result, data, validation, effects=tuple(effects), kinematics=kin)
+    files = [args.data] + ([args.validation] if args.validation else [])
+    doc = controller_document(mech, res, tuple(effects), provenance, tuple(files))
+    path = write_controller(args.out, doc)
+    if not args.quiet:
+        v = res.validation or res.identification
+        sys.stdout.write(f"{mech.name}: {len(doc['identified'])} identified parameters, effects: "
+                         f"{', '.join(e['effect'] for e in doc['effects']) or 'none'}; "
+                         f"{'validation' if res.validation else 'identification'} RMS {1000 * v['rms']:.1f} um\n"
+                         f"wrote {path} (sha256 {doc['sha256'][:16]}...)\n")
+    return 0
+
+
+def _cmd_export_linuxcnc(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .atomic import write_text
+    from .controller import ControllerModel, read_controller
+    from .linuxcnc import genhexkins_parameters, hal_lines, ini_section
+
+    if not args.controller and not args.source:
+        raise HyperstatError("export-linuxcnc needs a hexapod SOURCE or --controller MACHINE.json.")
+    if args.controller:
+        doc = read_controller(args.controller)
+        model = ControllerModel(doc)
+        mech, xi = model.mechanism, model.xi
+    else:
+        mech, _ = load_source(args.source, args.param)
+        xi = np.zeros(len(mech.parameters))
+    params = genhexkins_parameters(mech, xi)
+    hal = write_text(args.hal, hal_lines(params))
+    ini = write_text(args.ini, ini_section()) if args.ini else None
+    if not args.quiet:
+        sys.stdout.write(f"genhexkins geometry of '{mech.name}': largest strut-length difference to the model "
+                         f"{params['max_strut_difference_mm']:.3g} mm over {params['poses_checked']} poses\n"
+                         f"wrote {hal}\n" + (f"wrote {ini}\n" if ini else ""))
     return 0
 
 
@@ -277,6 +453,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DATA.csv", help="identification measurements")
     p.add_argument("--validation-out", metavar="VAL.csv", help="validation measurements (default DATA.validation.csv)")
     p.add_argument("--truth", metavar="TRUTH.json", help="write the true parameters")
+    p.add_argument("--effect", action="append", metavar="NAME[:DEFECT]",
+                   help="add an unmodelled effect to the simulated machine (repeatable), e.g. thermal, "
+                        "violated-constraint:dK13")
+    p.add_argument("--metadata", action="store_true",
+                   help="record campaign metadata (time, temperature, payload, directions, sessions); implied by --effect")
     _common(p)
     p.set_defaults(func=_cmd_simulate)
     p = sub.add_parser("identify", help="identify the free defects, tracker frame and target from measurements")
@@ -285,6 +466,41 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
     _common(p)
     p.set_defaults(func=_cmd_identify)
+    p = sub.add_parser("diagnose", help="diagnose the gap left by the rigid model: where, which effect, how far")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("data", help="identification measurements (CSV with a noise model)")
+    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
+    p.add_argument("--effects", help="comma-separated candidate effects (default: all)")
+    p.add_argument("--plots", metavar="DIR", help="write the residual plots (PNG) to DIR")
+    _common(p)
+    p.set_defaults(func=_cmd_diagnose)
+    p = sub.add_parser("export-controller", help="identify and write the controller parameter file")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("data", help="identification measurements (CSV)")
+    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
+    p.add_argument("--effect", action="append", metavar="NAME[:DEFECT]", help="machine effect to identify and export")
+    p.add_argument("--diagnose", action="store_true", help="add the effects the diagnosis selects")
+    p.add_argument("--out", required=True, metavar="MACHINE.json", help="controller file")
+    _common(p)
+    p.set_defaults(func=_cmd_export_controller)
+    p = sub.add_parser("export-linuxcnc", help="LinuxCNC genhexkins parameters of a hexapod (HAL setp, INI [KINS])")
+    p.add_argument("source", nargs="?", help="hexapod template or model file (nominal geometry)")
+    p.add_argument("--controller", metavar="MACHINE.json", help="take the identified geometry from a controller file")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--hal", required=True, metavar="OUT.hal", help="HAL file with the setp lines")
+    p.add_argument("--ini", metavar="OUT.ini", help="INI fragment with the [KINS] section")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_export_linuxcnc)
+    p = sub.add_parser("validate-diagnosis", help="withheld-effect validation suite of the diagnosis")
+    p.add_argument("sources", nargs="+", help="templates or model files")
+    p.add_argument("--seeds", type=int, default=5, help="seeds per case (default 5)")
+    p.add_argument("--cases", help="comma-separated cases, e.g. none,thermal,thermal+backlash (default: all)")
+    p.add_argument("--no-pairs", action="store_true", help="leave out the pairs of effects")
+    p.add_argument("--markdown", metavar="OUT.md", help="write the confusion matrix and rates as Markdown")
+    p.add_argument("--configurations", type=int, default=24, help="configurations of the stationarity sample")
+    p.add_argument("--json", metavar="OUT", help="write every case as JSON")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_validate_diagnosis)
     return parser
 
 

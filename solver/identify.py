@@ -111,6 +111,11 @@ class MeasurementModel:
             self.units += eff.parameter_units(self)
             self.kinds += [f"effect:{eff.name}"] * (len(self.names) - start)
             self._effect_slices.append(slice(start, len(self.names)))
+        self._effect_defects = []  # (slice, (n_xi, n_e) defect directions) of defect-type effects
+        for eff, sl in zip(self.effects, self._effect_slices):
+            directions = eff.defect_directions(self)
+            if directions is not None:
+                self._effect_defects.append((sl, np.asarray(directions, dtype=float)))
         self.n = len(self.names)
         ng = len(self.geometry_names)
         self.sl_geometry = slice(0, ng)
@@ -119,8 +124,12 @@ class MeasurementModel:
 
     # ------------------------------------------------------------------ parameters
     def defects(self, theta: np.ndarray) -> np.ndarray:
-        """Full defect vector ``xi`` (rad / mm) of parameters ``theta``."""
-        return self.geometry_matrix @ np.asarray(theta)[self.sl_geometry]
+        """Full defect vector ``xi`` (rad / mm) of parameters ``theta`` (geometry and defect-type effects)."""
+        theta = np.asarray(theta)
+        xi = self.geometry_matrix @ theta[self.sl_geometry]
+        for sl, directions in self._effect_defects:
+            xi = xi + directions @ theta[sl]
+        return xi
 
     def initial(self, tracker: np.ndarray | None = None, target: np.ndarray | None = None) -> np.ndarray:
         """Parameter vector with zero defects and the given tracker pose and target offset."""
@@ -173,15 +182,18 @@ class MeasurementModel:
             q0 = q_start.copy()
             q0[:, m.actuated] = qa
             res = kin.assemble(q0, xi)
-            # over-constrained loops with slightly inadmissible trial defects close only in the
-            # least-squares sense (second-order strain of the linear coupled-defect relations, about
-            # 1e-4 mm on the Tripteor): call a pose lost only if it misses by more than 1e-5 length scales
-            bad = res.residual > 1e-5 * kin.length_scale
-            res.converged = ~bad
-            if np.any(bad):  # fall back to continuation from home for those
-                redo = kin.solve(qa[bad], xi)
-                res.q[bad] = redo.q
-                res.converged[bad] = redo.converged
+        # Over-constrained loops with inadmissible defects (second-order strain of the linear
+        # coupled-defect relations, about 1e-4 mm on the Tripteor, or a violated forced defect)
+        # close only in the least-squares sense, the minimum of the closure gap energy with
+        # rotations weighted by the length scale.  A pose is lost only when the gap is of the
+        # order of the links (above 1 % of the length scale).
+        bad = res.residual > 1e-2 * kin.length_scale
+        if q_start is not None and np.any(bad):  # fall back to continuation from home for those
+            redo = kin.solve(qa[bad], xi)
+            res.q[bad] = redo.q
+            res.residual[bad] = redo.residual
+            bad = res.residual > 1e-2 * kin.length_scale
+        res.converged = ~bad
         q = res.q
         st = kin.evaluate(q, xi, jacobians=jacobian)
         rot_out = st.output_pose[:, :3, :3]
@@ -208,26 +220,18 @@ class MeasurementModel:
         if not jacobian:
             return Prediction(position, None, q, res.converged, world)
         # output twist with the passive joints following (implicit function theorem)
-        passive, act = m.passive, m.actuated
-        o_xi, o_q = st.output_xi, st.output_q
-        if len(passive) and len(m.closures):
-            # passive joints solve the (scaled) closure in the least-squares sense, as in assembly
-            b = kin.scaled_rows(st.closure_q[:, :, passive])
-            rhs = kin.scaled_rows(np.concatenate([st.closure_xi, st.closure_q[:, :, act]], axis=2))
-            dp = batched_lstsq(b, rhs)
-            n_xi = st.closure_xi.shape[2]
-            k_xi = o_xi - o_q[:, :, passive] @ dp[:, :, :n_xi]
-            k_a = o_q[:, :, act] - o_q[:, :, passive] @ dp[:, :, n_xi:]
-        else:
-            k_xi, k_a = o_xi, o_q[:, :, act]
+        k_xi, k_a = self.twist_maps(st)
         arm = world - org_out  # target relative to the output origin
 
         def point(rows: np.ndarray) -> np.ndarray:  # (K, 6, n) -> (K, 3, n) target velocity
             return rows[:, 3:, :] + np.cross(rows[:, :3, :], arm[:, :, None], axis=1)
 
         dworld[:, :, self.sl_geometry] += point(k_xi) @ self.geometry_matrix
+        for sl, directions in self._effect_defects:
+            dworld[:, :, sl] += point(k_xi) @ directions
         dworld[:, :, self.sl_target] += rot_out
-        dworld += np.einsum("kan,kjn->kaj", point(k_a), dqa_dtheta) if self.effects else 0.0
+        if self.effects:
+            dworld += np.einsum("kan,knj->kaj", point(k_a), dqa_dtheta)
         jac = np.einsum("ij,kia->kja", r_trk, dworld)  # R^T d(world)
         # tracker: position = R^T (world - t), R = exp(w): d/dw = R^T [world - t]x J_l(w), d/dt = -R^T
         jl = so3_left_jacobian(theta[self.sl_tracker][:3])
@@ -239,6 +243,29 @@ class MeasurementModel:
             jac[:, :, sl] += dm_dt
         self._last_k_a = k_a
         return Prediction(position, jac, q, res.converged, world)
+
+    def twist_maps(self, st) -> tuple[np.ndarray, np.ndarray]:
+        """Output twist per unit defect and per unit actuated value, passive joints following.
+
+        ``K_xi = O_xi - O_p B_s^+ A_s`` and ``K_a = O_a - O_p B_s^+ B_a`` (eq. 3 solved for the
+        passive joints in the least-squares sense, as in assembly), shapes (K, 6, n_xi) and
+        (K, 6, n_actuated); twists (omega, v) at the output origin.
+        """
+        m, kin = self.mechanism, self.kin
+        passive, act = m.passive, m.actuated
+        o_xi, o_q = st.output_xi, st.output_q
+        if len(passive) and len(m.closures):
+            b = kin.scaled_rows(st.closure_q[:, :, passive])
+            rhs = kin.scaled_rows(np.concatenate([st.closure_xi, st.closure_q[:, :, act]], axis=2))
+            dp = batched_lstsq(b, rhs)
+            n_xi = st.closure_xi.shape[2]
+            return (o_xi - o_q[:, :, passive] @ dp[:, :, :n_xi],
+                    o_q[:, :, act] - o_q[:, :, passive] @ dp[:, :, n_xi:])
+        return o_xi, o_q[:, :, act]
+
+    def actuation_twists(self, st) -> np.ndarray:
+        """Output twist per unit actuated value (K, 6, n_actuated) at an evaluated state (see :meth:`twist_maps`)."""
+        return self.twist_maps(st)[1]
 
     def actuation_jacobian(self) -> np.ndarray | None:
         """Output twist per unit actuated joint value at the last prediction (K, 6, n_actuated)."""

@@ -24,7 +24,29 @@ from .model import Mechanism
 from .sampling import passive_conditioning
 from .stationarity import StationarityResult
 
-__all__ = ["VirtualMachine", "default_tracker"]
+__all__ = ["VirtualMachine", "default_tracker", "workshop_metadata"]
+
+
+def workshop_metadata(mechanism: Mechanism, n: int, seed: int = 0, sessions: int = 2) -> dict:
+    """Plausible metadata of ``n`` measured poses: what a measurement campaign records.
+
+    * ``time[s]``: one pose every 60 s;
+    * ``temperature[degC]``: a slow drift from 18 to 26 degC over the campaign plus 0.3 degC noise;
+    * ``payload[kg]``: 0, 10 or 25 kg, random per pose;
+    * ``dir<joint>``: approach direction of every actuator, random +-1;
+    * ``session``: ``sessions`` consecutive blocks (the tracker is set up again between them).
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 60.0
+    meta = {
+        "time": t,
+        "temperature": 18.0 + 8.0 * t / max(t[-1], 1.0) + rng.normal(0.0, 0.3, n),
+        "payload": rng.choice([0.0, 10.0, 25.0], n),
+        "session": np.floor(np.arange(n) * sessions / n) + 1.0,
+    }
+    for i in mechanism.actuated:
+        meta[f"dir{mechanism.joints[i].name}"] = rng.choice([-1.0, 1.0], n)
+    return meta
 
 
 def default_tracker(kin: Kinematics) -> np.ndarray:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..stationarity import StationarityResult
 
-__all__ = ["format_analysis", "format_identification"]
+__all__ = ["format_analysis", "format_identification", "format_diagnosis"]
 
 
 def _fmt_gap(gap: float) -> str:
@@ -112,4 +112,57 @@ def format_identification(result) -> str:
     if result.noise_rms is not None:
         lines.append(f"{'noise floor':<15} RMS {1000 * result.noise_rms:8.2f} um (the data's noise model)")
     lines += [f"warning: {w}" for w in result.warnings]
+    return "\n".join(lines) + "\n"
+
+
+def format_diagnosis(diag) -> str:
+    """Readable summary of a :class:`~solver.diagnose.Diagnosis` (residuals in um)."""
+    um = 1000.0
+    t = diag.gap_test
+    lines = ["Is there a gap?"]
+    for key in ("identification", "validation"):
+        if key in t:
+            lines.append(f"  {key:<15} chi2 {t[key]['chi2']:.1f} for {t[key]['dof']} dof, p = {t[key]['p_value']:.2g}")
+    lines.append("  -> " + ("significant gap (p below %.1g)" % t["threshold"] if diag.gap_significant
+                            else "no significant gap: the residuals are at the noise level of the data"))
+    w = diag.where
+    lines += ["", "Where?",
+              "  by direction (base frame, RMS um): " + "  ".join(f"{k} {um * v:.1f}" for k, v in w["direction_rms"].items()),
+              "  by workspace region (RMS um): " + "  ".join(f"#{r['region']} {um * r['rms']:.1f} ({r['points']} pts)"
+                                                           for r in w["regions"]),
+              "  share of the residual explained by: " + ", ".join(f"{e['variable']} {100 * e['share']:.0f} %"
+                                                                  for e in w["explained_by"][:5])]
+    for s in w["spectra"]:
+        lines.append(f"  spectrum along q{s['joint']}: peak at a period of {s['peak_period_mm']:.2f} mm "
+                     f"({100 * s['peak_share']:.0f} % of the power)")
+    lines += ["", "Which effect? (blocked cross-validation; BIC relative to the rigid model)"]
+    for e in diag.ranking:
+        note = f"  [{e['note']}]" if e.get("note") else ""
+        lines.append(f"  {e['effect']:<20} CV RMS {um * e['cv_rms']:7.1f} um   dBIC {e['criterion']:8.1f}{note}")
+    for name, why in diag.not_applicable.items():
+        lines.append(f"  {name:<20} not tried: {why}")
+    lines.append("  selected: " + (", ".join(diag.selected) or "none"))
+    for a in diag.ambiguous:
+        lines.append(f"  ambiguous between {a['effects'][0]} and {a['effects'][1]}: {a['note']}")
+    if diag.violated_defect:
+        v = diag.violated_defect
+        est = f" = {v['estimate']:.4g} +- {v['std']:.2g} {v['unit']}" if "estimate" in v else ""
+        lines.append(f"  violated forced defect: {v['defect']}{est}")
+    for p in diag.effect_parameters:
+        std = "-" if p["std"] is None else f"{p['std']:.2g}"
+        lines.append(f"    {p['name']:<22} {p['estimate']:.4g} +- {std} {p['unit']}")
+    lines += ["", "How far does it shrink?"]
+    b, a = diag.validation_before, diag.validation_after
+    if b:
+        lines.append(f"  validation before: mean {um * b['mean']:.1f}  max {um * b['max']:.1f}  RMS {um * b['rms']:.1f} um")
+    if a:
+        lines.append(f"  validation after:  mean {um * a['mean']:.1f}  max {um * a['max']:.1f}  RMS {um * a['rms']:.1f} um")
+    if diag.rigid.noise_rms is not None:
+        lines.append(f"  noise floor RMS {um * diag.rigid.noise_rms:.1f} um")
+    if diag.share_explained is not None:
+        lines.append(f"  share of the gap explained: {100 * diag.share_explained:.0f} %")
+    c = diag.ceiling
+    if "share_black_box" in c:
+        lines.append(f"  ceiling: a black-box regression of the residuals explains {100 * c['share_black_box']:.0f} % "
+                     f"under the same folds (the selected effects: {100 * c['share_selected']:.0f} %)")
     return "\n".join(lines) + "\n"

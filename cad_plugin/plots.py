@@ -1,0 +1,86 @@
+"""Residual plots of a diagnosis (PNG, matplotlib with the Agg backend; residuals in um, joints in mm / rad).
+
+Plotting lives on the CAD / presentation side: ``solver`` stays numpy / scipy / sympy only
+and reaches these through :func:`solver.cli.register_plotter`.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from solver.atomic import write_bytes
+
+__all__ = ["write_diagnosis_plots", "diagnosis_figures"]
+
+
+def diagnosis_figures(diag, data) -> dict:
+    """PNG bytes by file name: residuals against each actuated joint, per region, spectra, before/after."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = {}
+    um = 1000.0
+    resid = diag.rigid.residuals
+    norm = np.linalg.norm(resid, axis=1) * um
+    n_act = data.q.shape[1]
+    fig, axes = plt.subplots(1, n_act, figsize=(3.2 * n_act, 3.0), squeeze=False)
+    for a in range(n_act):
+        ax = axes[0, a]
+        ax.scatter(data.q[:, a], norm, s=8)
+        ax.set_xlabel(f"q{data.joints[a]}")
+        ax.set_ylabel("|residual| (um)" if a == 0 else "")
+    fig.suptitle("Rigid-model residuals against the actuated joints")
+    fig.tight_layout()
+    out["residuals_vs_joints.png"] = fig
+    fig, ax = plt.subplots(figsize=(5, 3))
+    regions = diag.where["regions"]
+    ax.bar([f"#{r['region']}" for r in regions], [um * r["rms"] for r in regions])
+    if diag.rigid.noise_rms:
+        ax.axhline(um * diag.rigid.noise_rms, color="k", ls="--", label="noise RMS")
+        ax.legend()
+    ax.set_ylabel("RMS residual (um)")
+    ax.set_title("Residual RMS per workspace region")
+    fig.tight_layout()
+    out["residuals_by_region.png"] = fig
+    if diag.where["spectra"]:
+        fig, ax = plt.subplots(figsize=(5, 3))
+        for s in diag.where["spectra"]:
+            ax.plot(s["periods_mm"], s["power"], label=f"q{s['joint']}")
+        ax.set_xlabel("period along the actuator travel (mm)")
+        ax.set_ylabel("Lomb-Scargle power")
+        ax.legend()
+        fig.tight_layout()
+        out["spectra.png"] = fig
+    if diag.validation_before:
+        fig, ax = plt.subplots(figsize=(5, 3))
+        labels = ["before"] + (["after"] if diag.validation_after else [])
+        values = [diag.validation_before] + ([diag.validation_after] if diag.validation_after else [])
+        x = np.arange(len(labels))
+        for i, key in enumerate(("mean", "rms", "max")):
+            ax.bar(x + 0.25 * (i - 1), [um * v[key] for v in values], width=0.25, label=key)
+        if diag.rigid.noise_rms:
+            ax.axhline(um * diag.rigid.noise_rms, color="k", ls="--", label="noise RMS")
+        ax.set_xticks(x, labels)
+        ax.set_ylabel("validation error (um)")
+        ax.legend()
+        fig.tight_layout()
+        out["before_after.png"] = fig
+    pngs = {}
+    for name, fig in out.items():
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
+        plt.close(fig)
+        pngs[name] = buf.getvalue()
+    return pngs
+
+
+def write_diagnosis_plots(diag, data, directory: str | Path) -> list[Path]:
+    """Write the figures of :func:`diagnosis_figures` atomically into ``directory``."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    return [write_bytes(directory / name, png) for name, png in diagnosis_figures(diag, data).items()]
