@@ -94,11 +94,11 @@ def build_template(path: str | Path, overrides: list[str] | dict[str, Any] | Non
     path = Path(path)
     module = load_template(path)
     cls = template_parameters(module)
-    if isinstance(overrides, dict):
-        values = dict(overrides)
-    else:
-        values = parse_overrides(overrides, cls)
-    make_parameters(cls, dict(values))  # validates names and bounds with clear messages
+    try:
+        values = dict(overrides) if isinstance(overrides, dict) else parse_overrides(overrides, cls)
+        make_parameters(cls, dict(values))  # validates names and bounds with clear messages
+    except TemplateError as exc:
+        raise TemplateError(f"{path.name}: {exc}") from None
     try:
         skeleton = module.build(**values)
     except HyperstatError as exc:

@@ -6,9 +6,11 @@ kill in the middle of writing.
 
 from __future__ import annotations
 
+import glob
 import json
 import os
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -22,14 +24,30 @@ def _umask() -> int:
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file + ``os.replace``)."""
+    """Write ``data`` to ``path`` atomically (temporary file + ``os.replace``).
+
+    The temporary file is ``.NAME.XXXX.part`` next to ``path``; it is removed if the
+    write fails or the process is interrupted (``SIGINT``, or ``SIGTERM`` under the
+    command line).  A ``SIGKILL`` cannot be caught: it may leave that hidden ``.part``
+    file, never a partial ``path``; the next successful write of ``path`` removes it.
+    The environment variable ``HYPERSTAT_TEST_WRITE_DELAY`` (seconds) pauses half-way
+    through each write, so that tests can kill a process in the middle of one.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    started = time.time()
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            delay = float(os.environ.get("HYPERSTAT_TEST_WRITE_DELAY", "0") or 0)
+            if delay > 0:
+                fh.write(data[: len(data) // 2])
+                fh.flush()
+                time.sleep(delay)
+                fh.write(data[len(data) // 2:])
+            else:
+                fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
@@ -39,6 +57,12 @@ def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
         except FileNotFoundError:
             pass
         raise
+    for stale in path.parent.glob(f".{glob.escape(path.name)}.*.part"):  # left by a killed writer
+        try:
+            if stale.stat().st_mtime < started:
+                stale.unlink()
+        except FileNotFoundError:
+            pass
     return path
 
 

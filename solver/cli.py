@@ -504,18 +504,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """Raised by the SIGTERM handler so that pending atomic writes clean up their temporary files."""
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001 - signal handler signature
+    raise Terminated()
+
+
 def main(argv: list[str] | None = None, parser: argparse.ArgumentParser | None = None) -> int:
-    """Run the command line; returns the exit code (2 for a user error)."""
+    """Run the command line; returns the exit code (2 for a user error, 143 when terminated)."""
+    import signal
+    import threading
+
     parser = parser or build_parser()
     args = parser.parse_args(argv)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         return int(args.func(args) or 0)
+    except Terminated:
+        sys.stderr.write("hyperstat: terminated; no output was left half-written\n")
+        return 143
     except HyperstatError as exc:
         sys.stderr.write(f"hyperstat: error: {exc}\n")
         return 2
     except KeyboardInterrupt:
         sys.stderr.write("hyperstat: interrupted\n")
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

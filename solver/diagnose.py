@@ -14,12 +14,13 @@ Units: lengths in mm (residuals reported in mm; the text output prints um), angl
    rigid solution (its Jacobian columns next to the base geometric ones) and scored by
    blocked cross-validation: folds are workspace regions and, when recorded, payload,
    session and temperature groups; the refit on each training fold is a ridge-regularised
-   Gauss-Newton step (prior standard deviations 0.5 mm and 1e-3 rad on the geometry, ten
-   times the realistic magnitude on the effect), so that extrapolating weakly identifiable
+   Gauss-Newton step (prior standard deviations 0.5 mm and 1e-3 rad on the geometry, a
+   thousand times the realistic magnitude on the effect: practically none), so that extrapolating weakly identifiable
    geometric directions into an unseen region does not dominate the score.  BIC (known
    noise variance: ``chi2 + k ln n``) is reported beside.  An effect whose columns the
    geometry spans (its residual part after projection on the geometric columns is below
-   1 %) is reported as absorbed by the geometry.  Effects are added one at a time while
+   0.1 %) is reported as absorbed by the geometry and never selected; one mostly absorbed
+   (below 10 %) carries its ``absorbed_share``: only the rest of it can be seen.  Effects are added one at a time while
    they lower the cross-validated error by at least 5 % and BIC by at least 10; two
    effects that explain the same part of the gap are reported as ambiguous.
 4. **How far it shrinks.**  The selected effects are identified together with the
@@ -92,7 +93,6 @@ class Diagnosis:
             "violated_defect": self.violated_defect,
             "rigid_identification": {"rank": self.rigid.rank, "condition_number": self.rigid.condition_number,
                                      "identification": self.rigid.identification},
-            "elapsed_s": self.elapsed,
         }
 
 
@@ -190,7 +190,7 @@ def _effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effe
     theta[: rigid.model.n] = rigid.theta
     pred = model.predict(theta, data, jacobian=True)
     sl = model._effect_slices[0]
-    return pred.jacobian[:, :, sl], 10.0 * np.maximum(effect.magnitude, 1e-12)
+    return pred.jacobian[:, :, sl], 1000.0 * np.maximum(effect.magnitude, 1e-12)
 
 
 def _where(mech: Mechanism, rigid: IdentificationResult, data: MeasurementSet, labels: np.ndarray) -> dict:
@@ -363,8 +363,10 @@ def diagnose(
                  "parameters": len(prior_e), "unexplained_by_geometry": free}
         if name == "violated-constraint":
             entry["defect"] = violated["defect"]
-        if free < 0.01:
+        if free < 1e-3:
             entry["note"] = "absorbed by the geometric parameters: not identifiable against them"
+        elif free < 0.1:
+            entry["absorbed_share"] = 1.0 - free
         ranking.append(entry)
     ranking.sort(key=lambda e: (e.get("note") is not None, e["cv_rms"]))
 

@@ -52,6 +52,7 @@ class CaseResult:
     magnitude_found: float | None
     violated_defect: str | None
     elapsed: float
+    truth_defect: str | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (mm)."""
@@ -143,7 +144,8 @@ def run_case(mechanism, analysis, kin, case: tuple, seed: int, violated: str | N
     return CaseResult(mechanism.name, seed, tuple(case), d.gap_significant, first, tuple(d.selected), bool(correct),
                       d.validation_before["rms"], None if d.validation_after is None else d.validation_after["rms"],
                       d.rigid.noise_rms, true_mag, found_mag,
-                      None if d.violated_defect is None else d.violated_defect["defect"], time.perf_counter() - t0)
+                      None if d.violated_defect is None else d.violated_defect["defect"], time.perf_counter() - t0,
+                      violated if "violated-constraint" in case else None)
 
 
 def run_suite(sources: list[tuple[Mechanism, StationarityResult]], seeds: int = 5, pairs: bool = True,
@@ -199,6 +201,8 @@ def summarize(results: list[CaseResult]) -> dict:
         "below_noise_floor_no_gap": float(np.mean([not r.gap_significant or r.correct for r in hidden]))
         if hidden else None,
         "violated_defect_named": sorted({r.violated_defect for r in results if r.violated_defect}),
+        "violated_defect_named_right": [r.violated_defect == r.truth_defect for r in results
+                                        if r.truth == ("violated-constraint",) and r.violated_defect],
         "confusion": confusion,
     }
 
@@ -217,7 +221,12 @@ def to_markdown(results: list[CaseResult], summary: dict, command: str) -> str:
         f"| validation RMS within 1.3x noise RMS after adding it | {pct(summary['after_within_1.3x_noise'])} | "
         f"{summary['after_within_1.3x_noise_n']} |",
         f"| false alarm on no-effect cases | {pct(summary['false_alarm'])} | {summary['false_alarm_n']} |",
+        f"| violated forced defect named right (when selected) | "
+        f"{pct(np.mean(summary['violated_defect_named_right']) if summary['violated_defect_named_right'] else None)} | "
+        f"{len(summary['violated_defect_named_right'])} |",
         f"| both effects of a pair selected | {pct(summary['pairs_both_found'])} | {summary['pairs_n']} |",
+        f"| single effects below the noise floor (validation before < {VISIBLE}x noise): no gap or named | "
+        f"{pct(summary['below_noise_floor_no_gap'])} | {len(summary['below_noise_floor'])} |",
         f"| absorbed effects (tracker-scale): no gap, or named | {pct(summary['absorbed_cases_without_gap_or_named'])} "
         f"| {sum(1 for r in results if r.truth and r.truth[0] in ABSORBED and len(r.truth) == 1)} |",
         "",

@@ -387,7 +387,6 @@ class IdentificationResult:
             "noise_rms": self.noise_rms,
             "sigma": self.sigma,
             "iterations": self.iterations,
-            "elapsed_s": self.elapsed,
             "warnings": self.warnings,
         }
 

@@ -196,7 +196,6 @@ class StationarityResult:
             "influential_rank": self.influential_rank,
             "influential_gap": self.influential_gap,
             "length_scale_mm": self.length_scale,
-            "elapsed_s": self.elapsed,
             "warnings": list(self.warnings),
         }
 
