@@ -35,7 +35,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lombscargle
 from scipy.stats import chi2
 
 from .closure import Kinematics
@@ -139,6 +138,7 @@ class _Screen:
     base_jac: np.ndarray  # (K, 3, n_base) unweighted
     base_prior: np.ndarray  # (n_base,) prior std
     schemes: list
+    q: np.ndarray | None = None  # assembled configurations at the rigid solution (warm start)
 
 
 def _cv_rms(screen: _Screen, extra: np.ndarray | None, extra_prior: np.ndarray | None) -> tuple[float, float, int]:
@@ -183,12 +183,13 @@ def _absorbed(screen: _Screen, extra: np.ndarray) -> float:
     return float(np.linalg.svd(rest, compute_uv=False)[0])
 
 
-def _effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effect) -> tuple[np.ndarray, np.ndarray]:
+def _effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effect,
+                    q_start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unweighted Jacobian columns (K, 3, n_e) of ``effect`` at the rigid solution, and their prior std."""
     model = MeasurementModel(mech, analysis, kin, effects=(effect,))
     theta = model.initial()
     theta[: rigid.model.n] = rigid.theta
-    pred = model.predict(theta, data, jacobian=True)
+    pred = model.predict(theta, data, jacobian=True, q_start=q_start)
     sl = model._effect_slices[0]
     return pred.jacobian[:, :, sl], 1000.0 * np.maximum(effect.magnitude, 1e-12)
 
@@ -216,6 +217,8 @@ def _where(mech: Mechanism, rigid: IdentificationResult, data: MeasurementSet, l
         fit = design @ coef
         explained.append({"variable": name, "share": float(np.sum(fit**2) / total) if total > 0 else 0.0})
     explained.sort(key=lambda e: -e["share"])
+    from scipy.signal import lombscargle  # heavy import, only needed here
+
     spectra = []
     for a, i in enumerate(mech.actuated):
         if mech.joints[i].type != "P":
@@ -330,12 +333,12 @@ def diagnose(
 
     schemes = _folds(data, n_blocks, seed)
     base_idx = [rigid.model.names.index(b) for b in rigid.base]
-    full = rigid.model.predict(rigid.theta, data, jacobian=True)
+    full = rigid.model.predict(rigid.theta, data, jacobian=True, q_start=rigid.configurations)
     units = rigid.model.units
     kinds = rigid.model.kinds
     prior = np.array([(PRIOR_ANGLE if units[j] == "rad" else PRIOR_LENGTH) if kinds[j] == "geometry" else 1e3
                       for j in base_idx])
-    screen = _Screen(w, rigid.residuals, full.jacobian[:, :, base_idx], prior, schemes)
+    screen = _Screen(w, rigid.residuals, full.jacobian[:, :, base_idx], prior, schemes, full.q)
     where = _where(mechanism, rigid, data, schemes[0][1])
     base_cv, base_bic, _ = _cv_rms(screen, None, None)
 
@@ -355,7 +358,7 @@ def diagnose(
         if not effect.parameter_names(None):
             not_applicable[name] = "no parameter applies to this mechanism and data"
             continue
-        jac_e, prior_e = _effect_columns(mechanism, analysis, kin, rigid, data, effect)
+        jac_e, prior_e = _effect_columns(mechanism, analysis, kin, rigid, data, effect, screen.q)
         free = _absorbed(screen, jac_e)
         cv, bic, _ = _cv_rms(screen, jac_e, prior_e)
         columns[name] = (jac_e, prior_e)
@@ -451,7 +454,7 @@ def _name_violated(mech, analysis, kin, rigid, data, screen, selected) -> dict:
         if p.verdict != "forced":
             continue
         effect = make_effect("violated-constraint", mech, analysis, data, only=[p.name])
-        je, pe = _effect_columns(mech, analysis, kin, rigid, data, effect)
+        je, pe = _effect_columns(mech, analysis, kin, rigid, data, effect, screen.q)
         if not np.any(je):
             continue
         cv, _, _ = _cv_rms(screen, je, pe)

@@ -344,6 +344,8 @@ class IdentificationResult:
         Base parameter names.
     covariance : ndarray
         Covariance of the base parameters (``base`` order).
+    configurations : ndarray
+        Assembled configurations (all joints) at the identification poses.
     """
 
     rank: int
@@ -365,6 +367,7 @@ class IdentificationResult:
     base: list
     model: MeasurementModel = field(repr=False)
     covariance: np.ndarray | None = field(default=None, repr=False)
+    configurations: np.ndarray | None = field(default=None, repr=False)
     residuals: np.ndarray | None = field(default=None, repr=False)
     validation_residuals: np.ndarray | None = field(default=None, repr=False)
     warnings: list = field(default_factory=list)
@@ -693,6 +696,7 @@ def identify(
         sigma=float(np.sqrt(sigma2)),
         iterations=n_evaluations[0],
         covariance=cov,
+        configurations=final.q,
         elapsed=time.perf_counter() - t0,
         theta=theta,
         base=[model.names[b] for b in base],
