@@ -19,6 +19,8 @@ import tracemalloc
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 warnings.simplefilter("ignore")
@@ -92,6 +94,33 @@ def _select_tripteor():
     candidates = vm.poses(1000, seed=1)
     model = MeasurementModel(mech, analysis, kin)
     return (lambda: select_poses(model, candidates, 107, noise=vm.noise)), None
+
+
+def _triflex_configurations(n: int):
+    from solver import Kinematics
+    from solver.accuracy import sample_workspace
+
+    mech = _mech("triflex_ii")
+    kin = Kinematics(mech)
+    base = sample_workspace(mech, 2000, seed=0, kinematics=kin)
+    return mech, kin, base[np.arange(n) % len(base)]
+
+
+@bench("accuracy coefficients, 100,000 Triflex-II configurations")
+def _accuracy_triflex():
+    from solver.accuracy import accuracy_maps
+
+    mech, kin, q = _triflex_configurations(100_000)
+    return (lambda: accuracy_maps(mech, q, kinematics=kin)), None
+
+
+@bench("Monte Carlo, 100,000 samples, Triflex-II (nonlinear re-assembly)")
+def _montecarlo_triflex():
+    from solver.montecarlo import monte_carlo
+
+    mech, kin, q = _triflex_configurations(2000)
+    tol = {p.name: (6.76e-3 if p.unit == "rad" else 5e-3) for p in mech.parameters}
+    return (lambda: monte_carlo(mech, q, tol, samples=100_000, kinematics=kin)), None
 
 
 def run(names: list[str], repeat: int) -> list[tuple[str, float, str, float]]:

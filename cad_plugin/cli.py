@@ -39,7 +39,14 @@ def _plot_diagnosis(diag, data, directory):
     return write_diagnosis_plots(diag, data, directory)
 
 
+def _plot_accuracy(*args, **kwargs):
+    from .plots import accuracy_map_png
+
+    return accuracy_map_png(*args, **kwargs)
+
+
 solver_cli.register_plotter("diagnosis", _plot_diagnosis)
+solver_cli.register_plotter("accuracy", _plot_accuracy)
 solver_cli.register_source(".py", _load_template)
 solver_cli.register_source(".step", _load_step)
 solver_cli.register_source(".stp", _load_step)

@@ -84,3 +84,50 @@ def write_diagnosis_plots(diag, data, directory: str | Path) -> list[Path]:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     return [write_bytes(directory / name, png) for name, png in diagnosis_figures(diag, data).items()]
+
+
+def accuracy_map_png(mech, analysis, axes: tuple, slices: list, path, coefficients=("delta_gR", "epsilon_gR"),
+                     ranges: dict | None = None, n: int = 61, kinematics=None):
+    """Maps of accuracy coefficients over a grid of two actuated joints, one row per slice (PNG).
+
+    Parameters
+    ----------
+    axes : tuple of str
+        The two actuated joints of the grid.
+    slices : list of dict
+        Values of the other actuated joints for each row (e.g. ``[{"1": 0.0}, {"1": 0.75}]``).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from solver.accuracy import accuracy_maps, grid_slice
+    from solver.closure import Kinematics
+
+    kin = kinematics or Kinematics(mech)
+    slices = slices or [{}]
+    fig, axs = plt.subplots(len(slices), len(coefficients), figsize=(5.2 * len(coefficients), 4.2 * len(slices)),
+                            squeeze=False)
+    for r, fixed in enumerate(slices):
+        u, v, q = grid_slice(mech, axes, fixed, n, ranges, kin)
+        ok = ~np.isnan(q[:, 0])
+        maps = accuracy_maps(mech, q[ok], analysis, kinematics=kin)
+        for c, name in enumerate(coefficients):
+            grid = np.full(len(q), np.nan)
+            grid[ok] = maps.coefficients[name]
+            ax = axs[r, c]
+            img = ax.contourf(u, v, grid.reshape(n, n).T, levels=20, cmap="viridis")
+            ax.contour(u, v, grid.reshape(n, n).T, levels=10, colors="k", linewidths=0.4)
+            fig.colorbar(img, ax=ax, label=f"{name} [{maps.units[name]}]")
+            where = ", ".join(f"q{k} = {val:g}" for k, val in fixed.items()) or "others at home"
+            ax.set_title(f"{name}  ({where})")
+            ax.set_xlabel(f"q{axes[0]}")
+            ax.set_ylabel(f"q{axes[1]}")
+            ax.set_aspect("equal", adjustable="box")
+    fig.suptitle(f"Accuracy coefficients of {mech.name} (paper 2, eq. 18); blank: no assembly")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
+    plt.close(fig)
+    return write_bytes(path, buf.getvalue())

@@ -245,23 +245,10 @@ class MeasurementModel:
         return Prediction(position, jac, q, res.converged, world)
 
     def twist_maps(self, st) -> tuple[np.ndarray, np.ndarray]:
-        """Output twist per unit defect and per unit actuated value, passive joints following.
+        """Output twist per unit defect and per unit actuated value (see :func:`solver.accuracy.output_twist_maps`)."""
+        from .accuracy import output_twist_maps
 
-        ``K_xi = O_xi - O_p B_s^+ A_s`` and ``K_a = O_a - O_p B_s^+ B_a`` (eq. 3 solved for the
-        passive joints in the least-squares sense, as in assembly), shapes (K, 6, n_xi) and
-        (K, 6, n_actuated); twists (omega, v) at the output origin.
-        """
-        m, kin = self.mechanism, self.kin
-        passive, act = m.passive, m.actuated
-        o_xi, o_q = st.output_xi, st.output_q
-        if len(passive) and len(m.closures):
-            b = kin.scaled_rows(st.closure_q[:, :, passive])
-            rhs = kin.scaled_rows(np.concatenate([st.closure_xi, st.closure_q[:, :, act]], axis=2))
-            dp = batched_lstsq(b, rhs)
-            n_xi = st.closure_xi.shape[2]
-            return (o_xi - o_q[:, :, passive] @ dp[:, :, :n_xi],
-                    o_q[:, :, act] - o_q[:, :, passive] @ dp[:, :, n_xi:])
-        return o_xi, o_q[:, :, act]
+        return output_twist_maps(self.kin, st)
 
     def actuation_twists(self, st) -> np.ndarray:
         """Output twist per unit actuated value (K, 6, n_actuated) at an evaluated state (see :meth:`twist_maps`)."""
