@@ -6,7 +6,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup system-deps demo test images bench clean
+.PHONY: setup system-deps demo test images bench clean freecad-deps freecad-install freecad-screenshot
 
 # Debian packages the tests drive for real: headless Chromium (report screenshots and PDF),
 # LinuxCNC (genhexkins). Installed only when missing; sudo when not root.
@@ -42,8 +42,10 @@ demo: setup
 	  --validation out/demo/measurements.validation.csv --diagnose --out out/demo/machine.json
 	@echo "The report is out/demo/report.html (also report.md, report.json); the controller file out/demo/machine.json."
 
-test: setup system-deps
-	$(PY) -m pytest -q
+# The FreeCAD workbench tests run the real FreeCAD: HYPERSTAT_REQUIRE_FREECAD=1 makes them fail, not skip,
+# if it is missing.
+test: setup system-deps freecad-deps
+	HYPERSTAT_REQUIRE_FREECAD=1 $(PY) -m pytest -q
 
 # Pictures of every template with its markers coloured by verdict (docs/img/, committed).
 images: setup
@@ -55,6 +57,31 @@ images: setup
 
 bench: setup
 	$(PY) benchmarks/run.py
+
+# FreeCAD 0.20 (Debian freecad-python3: freecadcmd and the freecad GUI) and Xvfb for the workbench tests.
+# Installed with apt-get only when a tool is missing (sudo when not root), so running it again is a no-op.
+FREECAD_PACKAGES := freecad-python3 xvfb xauth
+freecad-deps:
+	@if command -v freecadcmd >/dev/null 2>&1 && command -v freecad >/dev/null 2>&1 \
+	    && command -v xvfb-run >/dev/null 2>&1 && command -v xauth >/dev/null 2>&1; then :; else \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  echo "installing $(FREECAD_PACKAGES) (apt-get, about a minute)"; \
+	  $$SUDO apt-get update -q && \
+	  $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends $(FREECAD_PACKAGES); \
+	fi
+
+# The workbench into FreeCAD's user Mod folder, with the path of .venv/bin/hyperstat recorded.
+freecad-install: setup freecad-deps
+	$(PY) cad_plugin/freecad/install.py
+
+# docs/img/freecad_workbench.png: the GUI under Xvfb, in a throwaway HOME (your FreeCAD settings are untouched).
+freecad-screenshot: setup freecad-deps
+	rm -rf out/freecad-home out/freecad-smoke && mkdir -p out/freecad-home docs/img
+	HOME=$(CURDIR)/out/freecad-home $(PY) cad_plugin/freecad/install.py --start-in-workbench
+	HOME=$(CURDIR)/out/freecad-home HYPERSTAT_SMOKE_OUT=$(CURDIR)/out/freecad-smoke QTWEBENGINE_CHROMIUM_FLAGS=--no-sandbox \
+	  xvfb-run -a -s "-screen 0 1700x1000x24" freecad cad_plugin/freecad/tools/gui_smoke.py >out/freecad-smoke.log 2>&1
+	$(PY) -c "import json, sys; r = json.load(open('out/freecad-smoke/report.json')); sys.exit(0 if r['ok'] else r.get('error'))"
+	cp out/freecad-smoke/freecad_workbench.png docs/img/freecad_workbench.png
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

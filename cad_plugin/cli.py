@@ -166,6 +166,29 @@ def _accuracy_section(mech, result, kin) -> dict | None:
     return None if builder is None else builder(mech, result, kin)
 
 
+def _cmd_parameters(args) -> int:
+    from solver.atomic import write_json
+    from solver.errors import HyperstatError
+
+    from .params import describe
+    from .templates import load_template, template_parameters
+
+    if Path(args.template).suffix.lower() != ".py":
+        raise HyperstatError(f"{args.template}: 'parameters' takes a template (.py).")
+    module = load_template(args.template)
+    doc = (module.__doc__ or "").strip().splitlines()
+    out = {"template": str(args.template), "title": doc[0] if doc else Path(args.template).stem,
+           "units": {"length": "mm", "angle": "rad"}, "parameters": describe(template_parameters(module))}
+    if args.json:
+        write_json(args.json, solver_cli.jsonable(out))
+    if not args.quiet:
+        for d in out["parameters"]:
+            print(f"{d['name']:<24} {d['default']:>12g} {d['unit']:<4} {d['doc']}")
+        if args.json:
+            print(f"wrote {args.json}")
+    return 0
+
+
 def build_parser():
     """The solver's parser plus the CAD commands."""
     parser = solver_cli.build_parser()
@@ -193,6 +216,11 @@ def build_parser():
     p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_report)
+    p = sub.add_parser("parameters", help="list a template's parameters: name, default, unit, meaning, bounds")
+    p.add_argument("template", help="template file (.py)")
+    p.add_argument("--json", metavar="OUT.json", help="write them as JSON")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_parameters)
     return parser
 
 

@@ -1,0 +1,343 @@
+"""The FreeCAD workbench in the real FreeCAD 0.20 (Debian ``freecad-python3``), headless and GUI.
+
+Units: lengths in mm, angles in rad.
+
+FreeCAD runs as subprocesses with ``HOME`` in a temporary folder, the workbench
+installed there by the real installer.  All FreeCAD runs start together (a
+module fixture) so that they share the two cores; each test waits for its own:
+
+* one ``freecadcmd`` scenario per template (``fc_scenario.py``): insert, analyse,
+  save, close, reopen; compared here with the solver run in-process on the template
+  (a second path: no STEP, no model file, no FreeCAD) and with the solver's own JSON;
+* ``freecadcmd -t TestHyperstatWorkbench``: the workbench's registered unit tests;
+* the GUI under Xvfb (``tools/gui_smoke.py``): FreeCAD starts in the workbench, the
+  Insert command's panel inserts and analyses the Tripteor X7, screenshot checked.
+
+``make test`` sets ``HYPERSTAT_REQUIRE_FREECAD=1`` after installing FreeCAD and Xvfb,
+so that a missing FreeCAD fails these tests there instead of skipping them.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ...conftest import ROOT, TEMPLATES
+
+WORKBENCH = ROOT / "cad_plugin" / "freecad"
+SCENARIO = Path(__file__).resolve().parent / "fc_scenario.py"
+GUI_SMOKE = WORKBENCH / "tools" / "gui_smoke.py"
+NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod"]
+REQUIRED = os.environ.get("HYPERSTAT_REQUIRE_FREECAD") == "1"
+TIMEOUT_S = 900
+
+sys.path.insert(0, str(WORKBENCH))  # the workbench's pure modules (no FreeCAD import) and installer
+from hyperstat_freecad.verdicts import VERDICT_COLORS as WB_COLORS  # noqa: E402
+from hyperstat_freecad.verdicts import element_verdicts as wb_element_verdicts  # noqa: E402
+from hyperstat_freecad.verdicts import parameter_class  # noqa: E402
+
+sys.path.pop(0)
+
+
+def _require(*tools: str) -> dict[str, str]:
+    found = {t: shutil.which(t) for t in tools}
+    missing = [t for t, p in found.items() if p is None]
+    if missing:
+        message = (f"{', '.join(missing)} not found: 'make test' installs them (Debian freecad-python3, xvfb, xauth)")
+        if REQUIRED:
+            pytest.fail(message)
+        pytest.skip(message)
+    return found
+
+
+def _cli() -> str:
+    cli = Path(sys.executable).parent / "hyperstat"
+    assert cli.is_file(), f"no hyperstat command next to {sys.executable}"
+    return str(cli)
+
+
+def _install(home: Path, *extra: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "HOME": str(home)}
+    return subprocess.run([sys.executable, str(WORKBENCH / "install.py"), "--cli", _cli(), *extra],
+                          capture_output=True, text=True, env=env, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> dict:
+    """A throwaway HOME with the workbench installed by the real installer."""
+    _require("freecadcmd")
+    home = tmp_path_factory.mktemp("fc_home")
+    proc = _install(home)
+    assert proc.returncode == 0, proc.stderr
+    spec = importlib.util.spec_from_file_location("hyperstat_freecad_install", WORKBENCH / "install.py")
+    installer = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(installer)
+    user_dir = installer.user_app_data_dir("freecadcmd", env={**os.environ, "HOME": str(home)})
+    return {"home": home, "user_dir": user_dir, "dest": user_dir / "Mod" / "Hyperstat", "stdout": proc.stdout}
+
+
+@dataclass
+class Job:
+    """A FreeCAD subprocess started by the fixture."""
+
+    name: str
+    proc: subprocess.Popen
+    out: Path
+    log: Path
+
+    def wait(self) -> tuple[int, str]:
+        try:
+            code = self.proc.wait(timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            pytest.fail(f"{self.name}: FreeCAD did not finish within {TIMEOUT_S} s")
+        return code, self.log.read_text(encoding="utf-8", errors="replace")
+
+
+def _start(name: str, command: list[str], env: dict, out: Path) -> Job:
+    out.mkdir(parents=True, exist_ok=True)
+    log = out / "log.txt"
+    with open(log, "w", encoding="utf-8") as fh:
+        # a session of its own, so that xvfb-run's Xvfb and FreeCAD's hyperstat children can be stopped with it
+        proc = subprocess.Popen(command, stdout=fh, stderr=subprocess.STDOUT, env=env, cwd=out, start_new_session=True)
+    return Job(name, proc, out, log)
+
+
+@pytest.fixture(scope="module")
+def jobs(installed, tmp_path_factory):
+    """Start every FreeCAD run at once (scenarios, registered unit tests, GUI); tests wait for theirs."""
+    tools = _require("freecadcmd", "freecad", "xvfb-run", "xauth")
+    root = tmp_path_factory.mktemp("fc_runs")
+    env = {**os.environ, "HOME": str(installed["home"])}
+    env.pop("HYPERSTAT_CLI", None)  # the workbench must find the command line through its install record
+    started: dict[str, Job] = {}
+    # the GUI first: it has the longest start-up; its own HOME, installed to start in the workbench
+    gui_home = root / "gui_home"
+    gui_home.mkdir()
+    proc = _install(gui_home, "--start-in-workbench")
+    assert proc.returncode == 0, proc.stderr
+    gui_env = {**env, "HOME": str(gui_home), "HYPERSTAT_SMOKE_OUT": str(root / "gui"),
+               "QTWEBENGINE_CHROMIUM_FLAGS": "--no-sandbox"}
+    started["gui"] = _start("gui", [tools["xvfb-run"], "-a", "-s", "-screen 0 1700x1000x24", tools["freecad"],
+                                    str(GUI_SMOKE)], gui_env, root / "gui")
+    for name in NAMES:
+        started[name] = _start(name, [tools["freecadcmd"], str(SCENARIO)],
+                               {**env, "HYPERSTAT_SCENARIO_TEMPLATE": name, "HYPERSTAT_SCENARIO_OUT": str(root / name)},
+                               root / name)
+    started["unit"] = _start("unit", [tools["freecadcmd"], "-t", "TestHyperstatWorkbench"], env, root / "unit")
+    yield started
+    for job in started.values():
+        try:
+            os.killpg(job.proc.pid, signal.SIGKILL)  # whatever is left of that run (Xvfb after xvfb-run...)
+        except ProcessLookupError:
+            pass
+        job.proc.wait()
+
+
+@pytest.fixture(scope="module")
+def expected(jobs, request) -> dict:
+    """Per template, from the solver in this process (template -> mechanism -> analysis), not through FreeCAD.
+
+    Computed while the FreeCAD runs of ``jobs`` are under way; reuses the session's analyses.
+    """
+    import warnings
+
+    from cad_plugin.assembly import sidecar
+    from cad_plugin.templates import build_template
+    from solver.stationarity import analyze
+
+    shared = {"slider_crank": "slider_crank_analysis", "tripteor_x7": "tripteor_analysis", "scara": "scara_analysis"}
+    out = {}
+    for name in NAMES:
+        skeleton = build_template(TEMPLATES / f"{name}.py")
+        if name in shared:
+            result = request.getfixturevalue(shared[name])
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                result = analyze(skeleton.mechanism(), n_configurations=24, seed=0)
+        nodes = sidecar(skeleton)["nodes"]
+        poses = {node: skeleton.poses[info.get("element") or info.get("frame")] for node, info in nodes.items()}
+        out[name] = {"analysis": result.to_dict(), "poses": poses, "marker_size": skeleton.marker_size}
+    return out
+
+
+def _template_parameters(name: str) -> list[dict]:
+    from cad_plugin import describe, load_template
+
+    return describe(load_template(TEMPLATES / f"{name}.py").Parameters)
+
+
+def _verdicts(analysis: dict) -> dict[str, tuple]:
+    return {p["name"]: (p["element"], p["verdict"], p.get("influential")) for p in analysis["parameters"]}
+
+
+# --------------------------------------------------------------------------- install
+def test_the_same_colours_and_classes_as_the_cad_side(slider_crank_analysis, tripteor_analysis, scara_analysis):
+    from cad_plugin.assembly import VERDICT_COLORS, element_verdicts
+
+    assert WB_COLORS == VERDICT_COLORS
+    for result in (slider_crank_analysis, tripteor_analysis, scara_analysis):
+        analysis = result.to_dict()
+        assert wb_element_verdicts(analysis) == element_verdicts(analysis)
+        assert {parameter_class(p) for p in analysis["parameters"]} <= set(WB_COLORS)
+
+
+def test_install_puts_the_workbench_where_freecad_looks_and_records_the_cli(installed):
+    dest = installed["dest"]
+    # FreeCAD 0.20 on Debian: the user data folder under HOME
+    assert installed["user_dir"] == installed["home"] / ".local" / "share" / "FreeCAD"
+    for item in ("Init.py", "InitGui.py", "package.xml", "TestHyperstatWorkbench.py", "Resources/icons/analyze.svg",
+                 "Resources/ui/preferences.ui", "hyperstat_freecad/operations.py"):
+        assert (dest / item).is_file(), item
+    assert not (dest / "install.py").exists() and not (dest / "tools").exists()
+    record = json.loads((dest / "hyperstat_freecad" / "install.json").read_text())
+    assert record["cli"] == str(Path(_cli()).resolve())
+    assert Path(record["templates"]) == TEMPLATES.resolve()
+    assert str(dest) in installed["stdout"]
+
+
+def test_install_again_replaces_and_a_bad_cli_is_one_sentence(installed):
+    dest = installed["dest"]
+    marker = dest / "stale.txt"
+    marker.write_text("from an older install")
+    proc = _install(installed["home"])
+    assert proc.returncode == 0, proc.stderr
+    assert not marker.exists()
+    assert sorted(p.name for p in dest.parent.iterdir()) == ["Hyperstat"]  # no staging left behind
+    before = (dest / "hyperstat_freecad" / "install.json").read_text()
+    bad = _install(installed["home"], "--cli", "/nonexistent/hyperstat")
+    assert bad.returncode == 2
+    assert bad.stderr.count("\n") == 1 and "/nonexistent/hyperstat" in bad.stderr
+    assert (dest / "hyperstat_freecad" / "install.json").read_text() == before
+
+
+# --------------------------------------------------------------------------- headless
+def _scenario(jobs, name: str) -> dict:
+    code, log = jobs[name].wait()
+    result = json.loads((jobs[name].out / "result.json").read_text())
+    assert code == 0, result.get("error") or log[-3000:]
+    return result
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_template_in_freecadcmd_verdicts_colours_and_reopen(jobs, expected, name):
+    result = _scenario(jobs, name)
+    before, after = result["before"], result["after"]
+    want = expected[name]
+    solver_json = json.loads((jobs[name].out / "solver_analysis.json").read_text())
+
+    # verdicts: stored in the document == the solver's JSON == the solver run here on the template
+    assert _verdicts(before["analysis"]) == _verdicts(solver_json) == _verdicts(want["analysis"])
+    assert before["parameter_verdicts"] == {p["name"]: parameter_class(p) for p in want["analysis"]["parameters"]}
+    assert before["mobility"] == want["analysis"]["mobility"]
+    assert before["overconstraint"] == want["analysis"]["overconstraint"]
+    assert before["status"] == "analysed" and not before["needs_rebuild"]
+
+    # markers: one per sidecar node, placed at the template's frame poses (mm)
+    assert set(before["markers"]) == set(want["poses"])
+    for node, matrix in before["markers"].items():
+        np.testing.assert_allclose(np.reshape(matrix, (4, 4)), want["poses"][node], atol=1e-6, err_msg=node)
+
+    # verdict spheres: one per element with defects, on its marker, coloured as the CAD side colours it
+    classes = wb_element_verdicts(want["analysis"])
+    assert set(before["spheres"]) == set(classes)
+    for element, sphere in before["spheres"].items():
+        assert sphere["verdict"] == classes[element]
+        np.testing.assert_allclose(sphere["color"], WB_COLORS[classes[element]], atol=1e-6)
+        assert sphere["marker"] == f"m_{element}"
+        np.testing.assert_allclose(sphere["center"], want["poses"][f"m_{element}"][:3, 3], atol=1e-6)
+        assert sphere["radius"] == pytest.approx(0.35 * want["marker_size"], rel=1e-3)
+
+    # parameters are bound to the spreadsheet, and equal the template's defaults (mm, rad)
+    assert before["parameters"] == pytest.approx({p["name"]: p["default"] for p in _template_parameters(name)},
+                                                 rel=1e-12, abs=1e-12)
+    assert set(before["expressions"]) == set(before["parameters"])
+    assert all(expr.startswith(f"{before['spreadsheet']}.") for expr in before["expressions"].values())
+
+    # save, close, reopen: the proxy is restored and everything else is as it was
+    assert result["skeletons_after_reopen"] == ["Skeleton"]
+    assert after["proxy"] == "SkeletonFeature" and after["proxy_module"] == "hyperstat_freecad.feature"
+    assert after["proxy_state"] == before["proxy_state"] == {"Type": "HyperstatSkeleton", "version": 1}
+    for key in ("type_id", "status", "mechanism", "summary", "parameters", "expressions", "analysis",
+                "verdict_counts", "parameter_verdicts", "mobility", "overconstraint", "marker_size", "needs_rebuild"):
+        assert after[key] == before[key], key
+    assert set(after["markers"]) == set(before["markers"])
+    for node, matrix in after["markers"].items():
+        np.testing.assert_allclose(matrix, before["markers"][node], atol=1e-9)
+    assert set(after["spheres"]) == set(before["spheres"])
+    for element, sphere in after["spheres"].items():
+        assert (sphere["verdict"], sphere["marker"]) == (before["spheres"][element]["verdict"], f"m_{element}")
+        # FreeCAD saves a colour as 8 bits per channel
+        np.testing.assert_allclose(sphere["color"], WB_COLORS[classes[element]], atol=0.5 / 255)
+        np.testing.assert_allclose(sphere["center"], before["spheres"][element]["center"], atol=1e-9)
+
+
+def test_tripteor_headless_report_is_written_or_its_absence_told(jobs):
+    result = _scenario(jobs, "tripteor_x7")
+    if "report" in result:
+        assert (Path(result["report"]) / "report.html").is_file()
+    else:
+        assert "'report'" in result["report_missing"] and "make freecad-install" in result["report_missing"]
+
+
+def test_registered_unit_tests_pass_in_freecadcmd(jobs):
+    code, log = jobs["unit"].wait()
+    assert code == 0, log[-4000:]
+    assert "\nOK" in log and "Ran 10 tests" in log, log[-2000:]
+
+
+# --------------------------------------------------------------------------- GUI
+def test_gui_starts_in_the_workbench_inserts_and_analyses_the_tripteor(jobs, expected):
+    import matplotlib.colors as mcolors
+    import matplotlib.image as mimage
+
+    code, log = jobs["gui"].wait()
+    report_path = jobs["gui"].out / "report.json"
+    assert report_path.is_file(), log[-3000:]
+    report = json.loads(report_path.read_text())
+    assert report["ok"], report.get("error")
+    assert report["active_workbench_at_start"] == "HyperstatWorkbench"
+    assert len(report["commands"]) == 9 and len(report["toolbar_actions"]) == 9
+    assert report["templates_offered"] == sorted(NAMES)
+    want = expected["tripteor_x7"]["analysis"]
+    assert report["results_panel"] == "ResultsPanel"
+    assert report["results_rows"] == len(want["parameters"])
+    assert report["results_verdict_cells"] == [parameter_class(p) for p in want["parameters"]]
+    classes = wb_element_verdicts(want)
+    assert set(report["spheres"]) == set(classes)
+    for element, sphere in report["spheres"].items():
+        np.testing.assert_allclose(sphere["view_color"], WB_COLORS[classes[element]], atol=1e-6)
+        assert sphere["visible"]
+
+    # the parameters panel: a value the template refuses is one message, and the panel stays alive;
+    # Cancel puts the value back and the object is as analysed before
+    assert report["parameters_panel_rows"] == sorted(p["name"] for p in _template_parameters("tripteor_x7"))
+    assert report["bad_value_accepted"] is False
+    assert len(report["bad_value_messages"]) == 1
+    title, text = report["bad_value_messages"][0]
+    assert title == "Hyperstat - Rebuild" and "'depth'" in text and "\n" not in text
+    assert report["panel_alive_after_error"] is True
+    assert report["status_after_error"] == f"error: {text}"
+    assert report["depth_after_cancel"] == 800.0 and report["status_after_cancel"] == "analysed"
+    assert report["preference_widgets"] == {"cliPath": "Gui::PrefFileChooser", "templatesDir": "Gui::PrefFileChooser"}
+
+    # the screenshot shows the verdict colours in the 3D view (right of the task panel), lit and shaded
+    image = mimage.imread(jobs["gui"].out / "freecad_workbench.png")[..., :3]
+    assert image.shape[0] >= 800 and image.shape[1] >= 1200
+    view = mcolors.rgb_to_hsv(image[:, int(0.4 * image.shape[1]):])
+    for cls in ("forced", "coupled", "free-influential"):
+        hue = mcolors.rgb_to_hsv(np.array(WB_COLORS[cls]))[0]
+        distance = np.minimum(abs(view[..., 0] - hue), 1 - abs(view[..., 0] - hue))
+        pixels = int(((distance < 0.03) & (view[..., 1] > 0.5) & (view[..., 2] > 0.3)).sum())
+        assert pixels > 30, (cls, pixels)
