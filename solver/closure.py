@@ -330,6 +330,43 @@ class Kinematics:
                 frames[chain.end] = t
         return frames, closing_end, parents, lframes, extras
 
+    def forward(
+        self,
+        q: np.ndarray,
+        xi: np.ndarray | None = None,
+        jacobian: bool = False,
+        threads: int | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Output pose (and its joint Jacobian) at many configurations, one geometry.
+
+        The lean path of :mod:`solver.fastfk`; no closure is solved: ``q`` holds every
+        joint (for a parallel mechanism, assembled configurations).
+
+        Parameters
+        ----------
+        q : ndarray, (K, n_q) or (n_q,)
+            Joint values (rad / mm).
+        xi : ndarray, (n_xi,), optional
+            Defects (rad / mm), the same for all configurations; nominal if omitted.
+        jacobian : bool
+            Also return ``dX/dq``: angular velocity and velocity of the output origin in
+            the base frame per unit joint velocity (paper 2, eq. 7).
+        threads : int, optional
+            Worker threads (default: the number of CPUs).
+
+        Returns
+        -------
+        pose : ndarray, (K, 4, 4)
+            Output frame in the base frame.
+        jac : ndarray, (K, 6, n_q) or None
+            Rows ``(omega, v)``.
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        plan = self.plan(None if xi is None else np.asarray(xi, dtype=float))
+        out = self.mechanism.output
+        run = plan.run(q, threads=threads, frames=[out], jacobian_at=out if jacobian else None)
+        return run.frames[out], run.jacobian
+
     def _joint_twists(self, lframes: dict, k: int) -> np.ndarray:
         """Spatial twist (K, n_q, 6) of every joint from its ``L`` frame (element-by-element path)."""
         tw_q = np.zeros((k, self.n_q, 6))

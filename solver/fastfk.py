@@ -43,9 +43,9 @@ from .model import Joint, Mechanism
 
 __all__ = ["FramePlan", "PlanResult", "DEFAULT_CHUNK"]
 
-#: Configurations per chunk: 3 * 2048 * 16 = 98,304 multiply-adds per BLAS call, below
-#: OpenBLAS's single-thread threshold (262,144), and two (3, 2048, 4) frames (393 KiB) fit in L2.
-DEFAULT_CHUNK = 2048
+#: Configurations per chunk: 3 * 4096 * 16 = 196,608 multiply-adds per BLAS call, below
+#: OpenBLAS's single-thread threshold (262,144), and two (3, 4096, 4) frames (786 KiB) fit in L2.
+DEFAULT_CHUNK = 4096
 
 _POOL: ThreadPoolExecutor | None = None
 
@@ -71,11 +71,15 @@ class PlanResult:
     joint_twists : ndarray, (K, n_q, 6) or None
         Spatial twist ``(omega, v)`` of every joint per unit joint velocity (rad/s or
         mm/s); ``v`` is the velocity of the point at the base origin.
+    jacobian : ndarray, (K, 6, n_q) or None
+        Jacobian of the frame named in ``run(jacobian_at=...)``, rows ``(omega, v)`` at
+        its origin, base axes.
     """
 
     frames: dict
     closing: dict
     joint_twists: np.ndarray | None = None
+    jacobian: np.ndarray | None = None
 
 
 class FramePlan:
@@ -157,8 +161,9 @@ class FramePlan:
         chunk: int = DEFAULT_CHUNK,
         threads: int | None = None,
         frames: list[str] | None = None,
+        jacobian_at: str | None = None,
     ) -> PlanResult:
-        """Frames at configurations ``q`` (and the joint twists).
+        """Frames at configurations ``q`` (and the joint twists, or a frame's Jacobian).
 
         Parameters
         ----------
@@ -173,6 +178,10 @@ class FramePlan:
             number of chunks).
         frames : list of str, optional
             Named frames to return (default: all, base included).
+        jacobian_at : str, optional
+            A named frame: also return its Jacobian ``(K, 6, n_q)``, rows ``(omega, v)``
+            (angular velocity, velocity of the frame origin, base axes) per unit joint
+            velocity; joints off its defining path have zero columns.
 
         Returns
         -------
@@ -183,6 +192,8 @@ class FramePlan:
             raise ValueError(f"q must have {self.n_q} columns (one per joint), got {q.shape[1]}.")
         k = q.shape[0]
         names = self.frame_names if frames is None else list(frames)
+        if jacobian_at is not None and jacobian_at not in names:
+            names.append(jacobian_at)
         out_frames = {}
         for name in names:
             buf = np.empty((k, 4, 4))
@@ -193,13 +204,23 @@ class FramePlan:
             buf = np.empty((k, 4, 4))
             buf[:, 3, :] = (0.0, 0.0, 0.0, 1.0)
             out_closing[ci] = buf
-        tw = np.zeros((k, self.n_q, 6)) if joint_twists else None
+        tw = np.empty((k, self.n_q, 6)) if joint_twists else None
+        jac = None
+        path = None
+        if jacobian_at is not None:
+            jac = np.empty((k, 6, self.n_q))
+            path = np.zeros(self.n_q, dtype=bool)
+            for ci, ei in self.mechanism.path_to(jacobian_at):
+                el = self.mechanism.chains[ci].elements[ei]
+                if isinstance(el, Joint):
+                    path[self.mechanism.joint_index[el.name]] = True
         qt = np.ascontiguousarray(q.T)  # (n_q, K): joint rows are contiguous
-        starts = list(range(0, k, max(int(chunk), 1)))
+        chunk = max(int(chunk), 1)
+        starts = list(range(0, k, chunk))
         n_threads = min(threads or os.cpu_count() or 1, len(starts))
 
         def work(s: int) -> None:
-            self._chunk(qt[:, s : s + chunk], s, out_frames, out_closing, tw)
+            self._chunk(qt[:, s : s + chunk], s, out_frames, out_closing, tw, jac, jacobian_at, path)
 
         if n_threads <= 1:
             for s in starts:
@@ -208,9 +229,11 @@ class FramePlan:
             list(_pool(n_threads).map(work, starts))
         if self.base in out_frames:
             out_frames[self.base][:, :3, :] = np.eye(4)[:3]
-        return PlanResult(out_frames, out_closing, tw)
+        if frames is not None and jacobian_at is not None and jacobian_at not in frames:
+            out_frames.pop(jacobian_at)
+        return PlanResult(out_frames, out_closing, tw, jac)
 
-    def _chunk(self, q: np.ndarray, s: int, out_frames: dict, out_closing: dict, tw: np.ndarray | None) -> None:
+    def _chunk(self, q, s, out_frames, out_closing, tw, jac, jacobian_at, path) -> None:
         """Evaluate one chunk ``q`` (n_q, k) and write its rows ``s:s+k`` of the outputs."""
         k = q.shape[1]
         e = None
@@ -224,9 +247,12 @@ class FramePlan:
             e = np.empty(h.shape, dtype=complex)
             np.multiply(h, u, out=e.imag)  # -sin
             np.subtract(-1.0, u, out=e.real)  # cos = 2 / (1 + t^2) - 1
-        axes = np.empty((self.n_q, 3, k, 2)) if tw is not None else None
+        need_axes = tw is not None or jac is not None
+        axis = np.empty((self.n_q, 3, k)) if need_axes else None  # z of every L_j
+        origin = np.empty((self.n_q, 3, k)) if need_axes else None  # origin of every L_j
         reached: dict[str, np.ndarray | None] = {self.base: None}  # None: identity
         rows = slice(s, s + k)
+        end_frame = None
         for start, ops, end, closing in self._chains:
             t = reached[start]
             for d, j, typ in ops:
@@ -236,8 +262,9 @@ class FramePlan:
                 else:
                     np.matmul(t.reshape(3 * k, 4), d, out=y.reshape(3 * k, 4))
                 if j >= 0:
-                    if axes is not None:
-                        axes[j] = y[:, :, 2:4]  # joint axis (z) and origin of L_j
+                    if need_axes:
+                        axis[j] = y[:, :, 2]
+                        origin[j] = y[:, :, 3]
                     if typ == "R":
                         z = y.view(complex)[:, :, 0]
                         np.multiply(z, e[self._rev_slot[j]], out=z)
@@ -247,20 +274,39 @@ class FramePlan:
             target = out_closing.get(closing) if closing is not None else out_frames.get(end)
             if closing is None:
                 reached[end] = t
+                if end == jacobian_at:
+                    end_frame = t
             if target is not None:
                 target[rows, :3, :] = np.eye(4)[:3] if t is None else t.transpose(1, 0, 2)
         if tw is not None:
-            z, o = axes[..., 0], axes[..., 1]  # (n_q, 3, k)
-            block = tw[rows]
+            block = np.zeros((self.n_q, 6, k))
             if self._rev.size:
-                zr, orr = z[self._rev], o[self._rev]
-                v = np.stack(
-                    [orr[:, 1] * zr[:, 2] - orr[:, 2] * zr[:, 1],
-                     orr[:, 2] * zr[:, 0] - orr[:, 0] * zr[:, 2],
-                     orr[:, 0] * zr[:, 1] - orr[:, 1] * zr[:, 0]],
-                    axis=1,
-                )
-                block[:, self._rev, :3] = zr.transpose(2, 0, 1)
-                block[:, self._rev, 3:] = v.transpose(2, 0, 1)
+                block[self._rev, :3] = axis[self._rev]
+                block[self._rev, 3:] = _cross(origin[self._rev], axis[self._rev])  # (z, o x z)
             if self._pri.size:
-                block[:, self._pri, 3:] = z[self._pri].transpose(2, 0, 1)
+                block[self._pri, 3:] = axis[self._pri]  # (0, z)
+            tw[rows] = block.transpose(2, 0, 1)
+        if jac is not None:
+            block = np.zeros((self.n_q, 6, k))
+            point = np.zeros((1, 3, k)) if end_frame is None else end_frame[None, :, :, 3]
+            rev = self._rev[path[self._rev]]
+            pri = self._pri[path[self._pri]]
+            if rev.size:
+                zr = axis[rev]
+                block[rev, :3] = zr
+                block[rev, 3:] = _cross(zr, point - origin[rev])  # (z, z x (p - o))
+            if pri.size:
+                block[pri, 3:] = axis[pri]
+            jac[rows] = block.transpose(2, 1, 0)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over axis 1 of (n, 3, k) arrays."""
+    res = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    np.multiply(a[:, 1], b[:, 2], out=res[:, 0])
+    res[:, 0] -= a[:, 2] * b[:, 1]
+    np.multiply(a[:, 2], b[:, 0], out=res[:, 1])
+    res[:, 1] -= a[:, 0] * b[:, 2]
+    np.multiply(a[:, 0], b[:, 1], out=res[:, 2])
+    res[:, 2] -= a[:, 1] * b[:, 0]
+    return res
