@@ -53,7 +53,9 @@ images: setup
 	  $(VENV)/bin/hyperstat view templates/$$t.py --analysis out/$$t.analysis.json --png docs/img/$$t.png || exit 1; \
 	done
 
+# Benchmarks with the peers (pinocchio, PyPI 'pin', in the optional 'bench' extra).
 bench: setup
+	$(PY) -m pip install --quiet -e '.[bench]'
 	$(PY) benchmarks/run.py
 
 clean:
