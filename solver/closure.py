@@ -459,10 +459,17 @@ class Kinematics:
         def rows(tw: np.ndarray, weights: np.ndarray, p: np.ndarray) -> np.ndarray:
             # tw (K, n, 6), weights (L, n), p (K, L, 3) -> (K, 6L, n): for each loop the
             # signed twists moved to the loop's frame origin, (omega, v + omega x p)
-            w = tw[:, None, :, :3] * weights[None, :, :, None]  # (K, L, n, 3)
-            v = tw[:, None, :, 3:] * weights[None, :, :, None] + cross(w, p[:, :, None, :])
-            out = np.concatenate([w, v], axis=3).transpose(0, 1, 3, 2)  # (K, L, 6, n)
-            return out.reshape(k, 6 * weights.shape[0], tw.shape[1])
+            n_loops, n = weights.shape
+            tw_t = tw.transpose(0, 2, 1)[:, None]  # (K, 1, 6, n)
+            out = np.empty((k, n_loops, 6, n))
+            w = out[:, :, :3]
+            np.multiply(tw_t[:, :, :3], weights[None, :, None, :], out=w)
+            np.multiply(tw_t[:, :, 3:], weights[None, :, None, :], out=out[:, :, 3:])
+            px, py, pz = (p[:, :, c, None] for c in range(3))  # (K, L, 1)
+            out[:, :, 3] += w[:, :, 1] * pz - w[:, :, 2] * py
+            out[:, :, 4] += w[:, :, 2] * px - w[:, :, 0] * pz
+            out[:, :, 5] += w[:, :, 0] * py - w[:, :, 1] * px
+            return out.reshape(k, 6 * n_loops, n)
 
         if closures:
             points = np.stack([frames[cl.frame][:, :3, 3] for cl in closures], axis=1)  # (K, L, 3)
