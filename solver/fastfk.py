@@ -74,12 +74,15 @@ class PlanResult:
     jacobian : ndarray, (K, 6, n_q) or None
         Jacobian of the frame named in ``run(jacobian_at=...)``, rows ``(omega, v)`` at
         its origin, base axes.
+    closure_q : ndarray, (K, 6 L, n_q) or None
+        ``dr/dq`` of the loop closures (``run(closure_rows=True)``).
     """
 
     frames: dict
     closing: dict
     joint_twists: np.ndarray | None = None
     jacobian: np.ndarray | None = None
+    closure_q: np.ndarray | None = None
 
 
 class FramePlan:
@@ -125,6 +128,18 @@ class FramePlan:
         self._rev = np.array([i for i, t in enumerate(types) if t == "R"], dtype=int)
         self._pri = np.array([i for i, t in enumerate(types) if t == "P"], dtype=int)
         self._rev_slot = {int(j): s for s, j in enumerate(self._rev)}
+        # loop closures (eq. 7): signed joints of the closing path minus the defining path
+        self._closures = []
+        for cl in m.closures:
+            sign = np.zeros(self.n_q)
+            for path, sgn in ((cl.path, 1.0), (cl.reference_path, -1.0)):
+                for ci, ei in path:
+                    el = m.chains[ci].elements[ei]
+                    if isinstance(el, Joint):
+                        sign[m.joint_index[el.name]] += sgn
+            rev = np.array([j for j in self._rev if sign[j] != 0], dtype=int)
+            pri = np.array([j for j in self._pri if sign[j] != 0], dtype=int)
+            self._closures.append((cl.frame, rev, sign[rev], pri, sign[pri]))
 
     # ------------------------------------------------------------------ flop count
     def flops_per_configuration(self) -> dict:
@@ -162,6 +177,7 @@ class FramePlan:
         threads: int | None = None,
         frames: list[str] | None = None,
         jacobian_at: str | None = None,
+        closure_rows: bool = False,
     ) -> PlanResult:
         """Frames at configurations ``q`` (and the joint twists, or a frame's Jacobian).
 
@@ -182,6 +198,9 @@ class FramePlan:
             A named frame: also return its Jacobian ``(K, 6, n_q)``, rows ``(omega, v)``
             (angular velocity, velocity of the frame origin, base axes) per unit joint
             velocity; joints off its defining path have zero columns.
+        closure_rows : bool
+            Also return ``dr/dq`` of the loop closures (eqs. 7, 9), ``(K, 6 L, n_q)``:
+            per loop the signed joint screws at the origin of the loop's frame.
 
         Returns
         -------
@@ -214,13 +233,14 @@ class FramePlan:
                 el = self.mechanism.chains[ci].elements[ei]
                 if isinstance(el, Joint):
                     path[self.mechanism.joint_index[el.name]] = True
+        rows_q = np.empty((k, 6 * len(self._closures), self.n_q)) if closure_rows else None
         qt = np.ascontiguousarray(q.T)  # (n_q, K): joint rows are contiguous
         chunk = max(int(chunk), 1)
         starts = list(range(0, k, chunk))
         n_threads = min(threads or os.cpu_count() or 1, len(starts))
 
         def work(s: int) -> None:
-            self._chunk(qt[:, s : s + chunk], s, out_frames, out_closing, tw, jac, jacobian_at, path)
+            self._chunk(qt[:, s : s + chunk], s, out_frames, out_closing, tw, jac, jacobian_at, path, rows_q)
 
         if n_threads <= 1:
             for s in starts:
@@ -231,9 +251,9 @@ class FramePlan:
             out_frames[self.base][:, :3, :] = np.eye(4)[:3]
         if frames is not None and jacobian_at is not None and jacobian_at not in frames:
             out_frames.pop(jacobian_at)
-        return PlanResult(out_frames, out_closing, tw, jac)
+        return PlanResult(out_frames, out_closing, tw, jac, rows_q)
 
-    def _chunk(self, q, s, out_frames, out_closing, tw, jac, jacobian_at, path) -> None:
+    def _chunk(self, q, s, out_frames, out_closing, tw, jac, jacobian_at, path, rows_q) -> None:
         """Evaluate one chunk ``q`` (n_q, k) and write its rows ``s:s+k`` of the outputs."""
         k = q.shape[1]
         e = None
@@ -247,7 +267,7 @@ class FramePlan:
             e = np.empty(h.shape, dtype=complex)
             np.multiply(h, u, out=e.imag)  # -sin
             np.subtract(-1.0, u, out=e.real)  # cos = 2 / (1 + t^2) - 1
-        need_axes = tw is not None or jac is not None
+        need_axes = tw is not None or jac is not None or rows_q is not None
         axis = np.empty((self.n_q, 3, k)) if need_axes else None  # z of every L_j
         origin = np.empty((self.n_q, 3, k)) if need_axes else None  # origin of every L_j
         reached: dict[str, np.ndarray | None] = {self.base: None}  # None: identity
@@ -298,6 +318,17 @@ class FramePlan:
             if pri.size:
                 block[pri, 3:] = axis[pri]
             jac[rows] = block.transpose(2, 1, 0)
+        if rows_q is not None and self._closures:
+            block = np.zeros((len(self._closures), self.n_q, 6, k))
+            for c, (frame, rev, rsign, pri, psign) in enumerate(self._closures):
+                point = np.zeros((1, 3, k)) if reached[frame] is None else reached[frame][None, :, :, 3]
+                if rev.size:
+                    zr = axis[rev] * rsign[:, None, None]
+                    block[c, rev, :3] = zr
+                    block[c, rev, 3:] = _cross(zr, point - origin[rev])  # s (z, z x (p - o))
+                if pri.size:
+                    block[c, pri, 3:] = axis[pri] * psign[:, None, None]
+            rows_q[rows].reshape(k, len(self._closures), 6, self.n_q)[...] = block.transpose(3, 0, 2, 1)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
