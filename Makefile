@@ -56,7 +56,7 @@ images: setup
 # Benchmarks with the peers (pinocchio, PyPI 'pin', in the optional 'bench' extra).
 bench: setup
 	$(PY) -m pip install --quiet -e '.[bench]'
-	$(PY) benchmarks/run.py
+	$(PY) benchmarks/run.py --markdown out/bench.md
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

@@ -386,16 +386,28 @@ def _report_tripteor():
 
 # ---------------------------------------------------------------------------- runner
 _CHILD_PEAK: list[float] = []
+_CHILD_TIME: list[float] = []
+
+# A small launcher runs the command and reports its wall time and maximum resident set: measured
+# from this (large) process, a forked child would be charged this process's memory.
+_LAUNCHER = (
+    "import os, subprocess, sys, time\n"
+    "t0 = time.perf_counter()\n"
+    "p = subprocess.Popen(sys.argv[1:], stdout=subprocess.DEVNULL)\n"
+    "_, status, usage = os.wait4(p.pid, 0)\n"
+    "print(time.perf_counter() - t0, usage.ru_maxrss, os.waitstatus_to_exitcode(status))\n"
+)
 
 
 def _child(cmd: list[str]) -> None:
-    """Run a new process; record its maximum resident set size (MiB)."""
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL)
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode:
-        raise subprocess.CalledProcessError(proc.returncode, cmd)
-    _CHILD_PEAK.append(usage.ru_maxrss / 1024)  # KiB -> MiB
+    """Run a new process; record its wall time (s) and maximum resident set size (MiB)."""
+    out = subprocess.run([sys.executable, "-S", "-c", _LAUNCHER, *cmd], cwd=ROOT, check=True,
+                         capture_output=True, text=True).stdout.split()
+    elapsed, maxrss, code = float(out[0]), int(out[1]), int(out[2])
+    if code:
+        raise subprocess.CalledProcessError(code, cmd)
+    _CHILD_TIME.append(elapsed)
+    _CHILD_PEAK.append(maxrss / 1024)  # KiB -> MiB
 
 
 def _value(unit: str, med: float, count) -> float:
@@ -416,10 +428,13 @@ def run(names: list[str], repeat: int) -> dict:
             work()  # warm-up
             times = []
             _CHILD_PEAK.clear()
+            _CHILD_TIME.clear()
             for _ in range(repeat):
                 t0 = time.perf_counter()
                 work()
                 times.append(time.perf_counter() - t0)
+            if _CHILD_TIME:
+                times = _CHILD_TIME[-repeat:]  # the new process alone, without the launcher
             if _CHILD_PEAK:
                 peak = max(_CHILD_PEAK)
             else:
