@@ -55,8 +55,10 @@ images: setup
 	  $(VENV)/bin/hyperstat view templates/$$t.py --analysis out/$$t.analysis.json --png docs/img/$$t.png || exit 1; \
 	done
 
+# Benchmarks with the peers (pinocchio, PyPI 'pin', in the optional 'bench' extra).
 bench: setup
-	$(PY) benchmarks/run.py
+	$(PY) -m pip install --quiet -e '.[bench]'
+	$(PY) benchmarks/run.py --markdown out/bench.md
 
 # FreeCAD 0.20 (Debian freecad-python3: freecadcmd and the freecad GUI) and Xvfb for the workbench tests.
 # Installed with apt-get only when a tool is missing (sudo when not root), so running it again is a no-op.

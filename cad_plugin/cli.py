@@ -6,6 +6,7 @@ Units: lengths in mm, angles in rad.
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 from solver import cli as solver_cli
@@ -188,6 +189,41 @@ def _cmd_parameters(args) -> int:
             print(f"wrote {args.json}")
     return 0
 
+def _cmd_sweep(args) -> int:
+    import importlib.util
+
+    from solver.errors import HyperstatError
+
+    from .sweep import sweep_template, write_table
+
+    if Path(args.template).suffix.lower() != ".py":
+        raise HyperstatError(f"{args.template}: 'sweep' takes a template (.py).")
+    if Path(args.out).suffix.lower() != ".csv":
+        raise HyperstatError(f"--out '{args.out}': the sweep table is written as CSV; give a file name ending in .csv.")
+    if args.configurations < 1:
+        raise HyperstatError(f"--configurations must be at least 1, got {args.configurations}.")
+    montecarlo = None
+    if args.montecarlo:
+        if importlib.util.find_spec("solver.montecarlo") is None:
+            raise HyperstatError("--montecarlo needs the Monte Carlo module (solver.montecarlo), "
+                                 "which this installation does not have.")
+        if args.samples < 1:
+            raise HyperstatError(f"--samples must be at least 1, got {args.samples}.")
+        montecarlo = {"samples": args.samples, "angle_tolerance": args.angle_tolerance,
+                      "length_tolerance": args.length_tolerance}
+    t0 = time.perf_counter()
+    rows, units = sweep_template(args.template, args.grid, args.param, configurations=args.configurations,
+                                 seed=args.seed, montecarlo=montecarlo, scheduler=args.scheduler,
+                                 progress=not args.quiet)
+    out = write_table(args.out, rows, units)
+    failed = sum(bool(r["error"]) for r in rows)
+    if not args.quiet:
+        where = f"on {args.scheduler}" if args.scheduler else "serially"
+        print(f"{len(rows)} variant(s) analysed {where} in {time.perf_counter() - t0:.1f} s, {failed} failed "
+              f"(see the 'error' column)")
+        print(f"wrote {out}")
+    return 1 if rows and failed == len(rows) else 0
+
 
 def build_parser():
     """The solver's parser plus the CAD commands."""
@@ -221,6 +257,22 @@ def build_parser():
     p.add_argument("--json", metavar="OUT.json", help="write them as JSON")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_parameters)
+
+    p = sub.add_parser("sweep", help="stationarity analysis over a grid of template parameters (CSV table)")
+    p.add_argument("template", help="template file (.py)")
+    p.add_argument("--grid", action="append", required=True, metavar="NAME=LOW:HIGH:COUNT",
+                   help="sweep a parameter over COUNT evenly spaced values (units as for -p); repeat for a product")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="fixed template parameter override")
+    p.add_argument("--configurations", type=int, default=24, help="configurations sampled per analysis (default 24)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample (the same for every variant)")
+    p.add_argument("--montecarlo", action="store_true", help="add Monte Carlo pose-error columns per variant")
+    p.add_argument("--samples", type=int, default=10000, help="Monte Carlo samples per variant (default 10000)")
+    p.add_argument("--angle-tolerance", type=float, default=2e-4, help="Monte Carlo angular tolerance (rad)")
+    p.add_argument("--length-tolerance", type=float, default=0.05, help="Monte Carlo length tolerance (mm)")
+    p.add_argument("--out", required=True, metavar="TABLE.csv", help="output table, one row per variant")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run the variants on this Dask scheduler")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+    p.set_defaults(func=_cmd_sweep)
     return parser
 
 

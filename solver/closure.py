@@ -17,11 +17,13 @@ velocity of the frame origin ``p``.  Everything is vectorised over configuration
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import AssemblyError
+from .fastfk import FramePlan
 from .frames import (
     cross,
     make_transform,
@@ -95,6 +97,34 @@ class AssemblyResult:
     converged: np.ndarray
 
 
+class _LazyElementFrames(Mapping):
+    """``element_frames`` of a state computed by the batched path: filled on first access.
+
+    The batched path (:mod:`solver.fastfk`) does not keep the ``L`` frame of every
+    element; the few callers that want them (pictures, hypotheses, the length scale)
+    get them from the element-by-element pass, run once on demand.
+    """
+
+    def __init__(self, kin: "Kinematics", q: np.ndarray, xi: np.ndarray) -> None:
+        self._args = (kin, q, xi)
+        self._frames: dict | None = None
+
+    def _get(self) -> dict:
+        if self._frames is None:
+            kin, q, xi = self._args
+            self._frames = kin._walk(q, xi)[3]  # noqa: SLF001 - same class family
+        return self._frames
+
+    def __getitem__(self, key):
+        return self._get()[key]
+
+    def __iter__(self):
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+
 def batched_lstsq(a: np.ndarray, rhs: np.ndarray, damping: float = 1e-12) -> np.ndarray:
     """Least-squares solutions of a stack of small systems ``a[k] x = rhs[k]``.
 
@@ -111,8 +141,9 @@ def batched_lstsq(a: np.ndarray, rhs: np.ndarray, damping: float = 1e-12) -> np.
     -------
     ndarray, (K, n, p)
     """
-    ata = np.einsum("kji,kjl->kil", a, a)
-    atb = np.einsum("kji,kjp->kip", a, rhs)
+    at = np.ascontiguousarray(np.swapaxes(a, 1, 2))  # contiguous: the stacked product is 3x faster
+    ata = at @ a
+    atb = at @ rhs
     diag = np.einsum("kii->ki", ata)
     lam = damping * np.maximum(diag.max(axis=1), 1e-300)
     idx = np.arange(ata.shape[1])
@@ -172,6 +203,10 @@ class Kinematics:
             self._output_member[self._key_index[e]] = 1.0
         self._param_el_idx = np.array([self._key_index[k] for k in self._param_element], dtype=int)
         self._joint_el_idx = np.array([self._key_index[k] for k in self._joint_element], dtype=int)
+        self._plans: dict = {}
+        #: use :class:`solver.fastfk.FramePlan` for frames and joint Jacobians when the
+        #: defects are the same for every configuration (False: element-by-element path)
+        self.use_plan = True
         self.length_scale = self._characteristic_length()
 
     # ------------------------------------------------------------------ helpers
@@ -184,14 +219,51 @@ class Kinematics:
         return max(rms, 1.0)
 
     def _broadcast(self, q: np.ndarray, xi: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """``q`` as (K, n_q); ``xi`` as (1, n_xi) when it is the same for every configuration."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         k = q.shape[0]
         if xi is None:
-            xi = np.zeros((k, self.n_xi))
+            xi = np.zeros((1, self.n_xi))
         else:
             xi = np.asarray(xi, dtype=float)
-            xi = np.broadcast_to(xi, (k, self.n_xi)) if xi.ndim == 1 else xi
+            if xi.ndim == 1:
+                xi = xi[None, :]
+            elif xi.shape[0] not in (1, k):
+                raise ValueError(f"xi must have 1 or {k} rows (one per configuration), got {xi.shape[0]}.")
         return q, xi
+
+    def element_matrices(self, xi: np.ndarray | None = None) -> dict:
+        """Matrix ``D(xi)`` of every element for one defect vector (rad / mm), shape (4, 4).
+
+        Parameters
+        ----------
+        xi : ndarray, (n_xi,), optional
+            Defects; the nominal geometry if omitted.
+
+        Returns
+        -------
+        dict
+            ``(chain, element)`` -> (4, 4) array.
+        """
+        _, xi2 = self._broadcast(np.zeros((1, self.n_q)), xi)
+        if xi2.shape[0] != 1:
+            raise ValueError("element_matrices takes one defect vector.")
+        return {key: self._element_matrix(info, xi2)[0][0] for key, info in self._elements.items()}
+
+    def plan(self, xi: np.ndarray | None = None) -> FramePlan:
+        """The lean batched forward model (:class:`solver.fastfk.FramePlan`) for one geometry.
+
+        Plans are cached for the last few defect vectors, so repeated evaluations at the
+        same geometry (assembly iterations, sampling) compile once.
+        """
+        key = None if xi is None or not np.any(xi) else np.asarray(xi, dtype=float).tobytes()
+        plan = self._plans.get(key)
+        if plan is None:
+            plan = FramePlan(self.mechanism, self.element_matrices(None if key is None else np.asarray(xi, float)))
+            if len(self._plans) >= 8:
+                self._plans.pop(next(iter(self._plans)))
+            self._plans[key] = plan
+        return plan
 
     def _element_matrix(self, info: dict, xi: np.ndarray) -> tuple[np.ndarray, dict]:
         """``D(xi)`` for one element, shape (K, 4, 4), plus intermediate values."""
@@ -229,27 +301,9 @@ class Kinematics:
         return make_transform(rot, info["p0"] + dp), extra
 
     # ------------------------------------------------------------------ evaluation
-    def evaluate(
-        self, q: np.ndarray, xi: np.ndarray | None = None, jacobians: bool | str = True
-    ) -> KinematicState:
-        """Frames, closure residuals and (optionally) Jacobians at configurations ``q``.
-
-        Parameters
-        ----------
-        q : ndarray, (K, n_q) or (n_q,)
-            Joint values (rad / mm), all joints.
-        xi : ndarray, (n_xi,) or (K, n_xi), optional
-            Defect values (rad / mm); zero (nominal geometry) if omitted.
-        jacobians : bool or "joints"
-            Also compute ``dr/dxi``, ``dr/dq`` and the output Jacobians; ``"joints"``
-            computes only ``dr/dq`` (what assembly needs).
-
-        Returns
-        -------
-        KinematicState
-        """
+    def _walk(self, q: np.ndarray, xi: np.ndarray) -> tuple[dict, dict, dict, dict, dict]:
+        """Element-by-element forward pass: frames, closing ends, parents, L frames, extras."""
         m = self.mechanism
-        q, xi = self._broadcast(q, xi)
         k = q.shape[0]
         frames: dict[str, np.ndarray] = {m.base: np.broadcast_to(np.eye(4), (k, 4, 4))}
         closing_end: dict[int, np.ndarray] = {}
@@ -274,6 +328,88 @@ class Kinematics:
                 closing_end[ci] = t
             else:
                 frames[chain.end] = t
+        return frames, closing_end, parents, lframes, extras
+
+    def forward(
+        self,
+        q: np.ndarray,
+        xi: np.ndarray | None = None,
+        jacobian: bool = False,
+        threads: int | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Output pose (and its joint Jacobian) at many configurations, one geometry.
+
+        The lean path of :mod:`solver.fastfk`; no closure is solved: ``q`` holds every
+        joint (for a parallel mechanism, assembled configurations).
+
+        Parameters
+        ----------
+        q : ndarray, (K, n_q) or (n_q,)
+            Joint values (rad / mm).
+        xi : ndarray, (n_xi,), optional
+            Defects (rad / mm), the same for all configurations; nominal if omitted.
+        jacobian : bool
+            Also return ``dX/dq``: angular velocity and velocity of the output origin in
+            the base frame per unit joint velocity (paper 2, eq. 7).
+        threads : int, optional
+            Worker threads (default: the number of CPUs).
+
+        Returns
+        -------
+        pose : ndarray, (K, 4, 4)
+            Output frame in the base frame.
+        jac : ndarray, (K, 6, n_q) or None
+            Rows ``(omega, v)``.
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        plan = self.plan(None if xi is None else np.asarray(xi, dtype=float))
+        out = self.mechanism.output
+        run = plan.run(q, threads=threads, frames=[out], jacobian_at=out if jacobian else None)
+        return run.frames[out], run.jacobian
+
+    def _joint_twists(self, lframes: dict, k: int) -> np.ndarray:
+        """Spatial twist (K, n_q, 6) of every joint from its ``L`` frame (element-by-element path)."""
+        tw_q = np.zeros((k, self.n_q, 6))
+        for ji, key in enumerate(self._joint_element):
+            lf = lframes[key]
+            z = lf[:, :3, 2]
+            if self._elements[key]["type"] == "R":
+                tw_q[:, ji, :3] = z
+                tw_q[:, ji, 3:] = cross(lf[:, :3, 3], z)
+            else:
+                tw_q[:, ji, 3:] = z
+        return tw_q
+
+    def evaluate(
+        self, q: np.ndarray, xi: np.ndarray | None = None, jacobians: bool | str = True
+    ) -> KinematicState:
+        """Frames, closure residuals and (optionally) Jacobians at configurations ``q``.
+
+        Parameters
+        ----------
+        q : ndarray, (K, n_q) or (n_q,)
+            Joint values (rad / mm), all joints.
+        xi : ndarray, (n_xi,) or (K, n_xi), optional
+            Defect values (rad / mm); zero (nominal geometry) if omitted.
+        jacobians : bool or "joints"
+            Also compute ``dr/dxi``, ``dr/dq`` and the output Jacobians; ``"joints"``
+            computes only ``dr/dq`` (what assembly needs).
+
+        Returns
+        -------
+        KinematicState
+        """
+        m = self.mechanism
+        q, xi = self._broadcast(q, xi)
+        k = q.shape[0]
+        fast_rows = None
+        if self.use_plan and xi.shape[0] == 1 and jacobians in (False, "joints"):
+            # one geometry for all configurations: the lean batched path (solver.fastfk)
+            run = self.plan(xi[0]).run(q, closure_rows=jacobians == "joints")
+            frames, closing_end, fast_rows = run.frames, run.closing, run.closure_q
+            lframes = _LazyElementFrames(self, q, xi)
+        else:
+            frames, closing_end, parents, lframes, extras = self._walk(q, xi)
 
         closures = m.closures
         residual = np.zeros((k, 6 * len(closures)))
@@ -306,6 +442,7 @@ class Kinematics:
                 proj = (eye[None] - b[:, :, None] * b[:, None, :]) / norm[:, :, None]
                 db = np.stack([proj[:, :, _COMP_INDEX[c]] for c, _ in orient], axis=1)  # (K, n, 3)
                 w_par = minimal_rotation_velocity(np.broadcast_to(info["n0"], b.shape), b, db)
+                w_par = np.broadcast_to(w_par, (rp.shape[0],) + w_par.shape[1:])
                 w = np.einsum("kij,knj->kni", rp, w_par)
                 for j, (_, pi) in enumerate(orient):
                     tw_xi[:, pi, :3] = w[:, j]
@@ -317,35 +454,36 @@ class Kinematics:
                 w = lf[:, :3, 2]
                 tw_xi[:, params["G"], :3] = w
                 tw_xi[:, params["G"], 3:] = cross(origin, w)
-        tw_q = np.zeros((k, self.n_q, 6))
-        for ji, key in enumerate(self._joint_element):
-            lf = lframes[key]
-            z = lf[:, :3, 2]
-            if self._elements[key]["type"] == "R":
-                tw_q[:, ji, :3] = z
-                tw_q[:, ji, 3:] = cross(lf[:, :3, 3], z)
-            else:
-                tw_q[:, ji, 3:] = z
+        if fast_rows is not None:  # jacobians == "joints" on the batched path
+            return KinematicState(residual, None, fast_rows, out_pose, None, None, frames, lframes, None)
+        tw_q = self._joint_twists(lframes, k)
 
         def rows(tw: np.ndarray, weights: np.ndarray, p: np.ndarray) -> np.ndarray:
-            # tw (K, n, 6), weights (n,), p (K, 3) -> (K, 6, n)
-            w = tw[:, :, :3] * weights[None, :, None]
-            v = tw[:, :, 3:] * weights[None, :, None] + cross(w, p[:, None, :])
-            return np.concatenate([w, v], axis=2).transpose(0, 2, 1)
+            # tw (K, n, 6), weights (L, n), p (K, L, 3) -> (K, 6L, n): for each loop the
+            # signed twists moved to the loop's frame origin, (omega, v + omega x p)
+            n_loops, n = weights.shape
+            tw_t = tw.transpose(0, 2, 1)[:, None]  # (K, 1, 6, n)
+            out = np.empty((k, n_loops, 6, n))
+            w = out[:, :, :3]
+            np.multiply(tw_t[:, :, :3], weights[None, :, None, :], out=w)
+            np.multiply(tw_t[:, :, 3:], weights[None, :, None, :], out=out[:, :, 3:])
+            px, py, pz = (p[:, :, c, None] for c in range(3))  # (K, L, 1)
+            out[:, :, 3] += w[:, :, 1] * pz - w[:, :, 2] * py
+            out[:, :, 4] += w[:, :, 2] * px - w[:, :, 0] * pz
+            out[:, :, 5] += w[:, :, 0] * py - w[:, :, 1] * px
+            return out.reshape(k, 6 * n_loops, n)
 
-        a = np.zeros((k, 6 * len(closures), self.n_xi))
-        bq = np.zeros((k, 6 * len(closures), self.n_q))
-        for c, cl in enumerate(closures):
-            p = frames[cl.frame][:, :3, 3]
-            sign = self._closure_sign[c]
-            if not only_joints:
-                a[:, 6 * c : 6 * c + 6] = rows(tw_xi, sign[self._param_el_idx], p)
-            bq[:, 6 * c : 6 * c + 6] = rows(tw_q, sign[self._joint_el_idx], p)
+        if closures:
+            points = np.stack([frames[cl.frame][:, :3, 3] for cl in closures], axis=1)  # (K, L, 3)
+        else:
+            points = np.zeros((k, 0, 3))
+        bq = rows(tw_q, self._closure_sign[:, self._joint_el_idx], points)
         if only_joints:
             return KinematicState(residual, None, bq, out_pose, None, None, frames, lframes, None)
-        po = out_pose[:, :3, 3]
-        o_xi = rows(tw_xi, self._output_member[self._param_el_idx], po)
-        o_q = rows(tw_q, self._output_member[self._joint_el_idx], po)
+        a = rows(tw_xi, self._closure_sign[:, self._param_el_idx], points)
+        po = out_pose[:, None, :3, 3]
+        o_xi = rows(tw_xi, self._output_member[None, self._param_el_idx], po)
+        o_q = rows(tw_q, self._output_member[None, self._joint_el_idx], po)
         return KinematicState(residual, a, bq, out_pose, o_xi, o_q, frames, lframes, tw_xi)
 
     # ------------------------------------------------------------------ assembly

@@ -29,8 +29,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
-from scipy.optimize import least_squares
 
 from .closure import Kinematics, batched_lstsq
 from .errors import DataError
@@ -434,6 +432,8 @@ def base_parameters(jacobian: np.ndarray, preferred: list, rank_tol: float = 1e-
     visible : ndarray of bool
         Columns with a non-zero effect.
     """
+    import scipy.linalg  # imported here: import solver stays fast
+
     norms = np.linalg.norm(jacobian, axis=0)
     visible = norms > 1e-12 * max(norms.max(), 1e-300)
     jn = np.zeros_like(jacobian)
@@ -630,6 +630,8 @@ def identify(
     # optimum; a relative decrease below 0.01 / n_rows changes it by less than 0.01 (a
     # chi-square unit), i.e. moves the estimates by well under a tenth of their std.
     ftol = 0.01 / n_rows
+    from scipy.optimize import least_squares  # imported here: import solver stays fast
+
     fit = least_squares(lambda x: evaluate(x)[0], x0, jac=lambda x: evaluate(x)[1], method="lm",
                         x_scale=1.0 / scale[base_idx], max_nfev=max_nfev * (len(x0) + 1), xtol=1e-10, ftol=ftol)
     theta = unpack(fit.x)

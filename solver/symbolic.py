@@ -24,7 +24,19 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 import numpy as np
-import sympy as sp
+
+
+class _LazySympy:
+    """``sympy``, imported on first use: it takes about a second to import and only
+    ``--exact`` needs it, so ``import solver`` stays fast."""
+
+    def __getattr__(self, name: str):
+        import sympy
+
+        return getattr(sympy, name)
+
+
+sp = _LazySympy()
 
 from .closure import Kinematics
 from .model import Joint, Mechanism
