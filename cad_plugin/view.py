@@ -36,13 +36,17 @@ LEGEND_LABELS = {
 }
 
 
-def _scene(plotter, mech: Mechanism, verdicts: dict, size: float, label: bool) -> None:
+def _scene_meshes(mech: Mechanism, verdicts: dict, size: float) -> tuple[list, list, list]:
+    """The scene's geometry, built once for all views: ``(mesh, options)`` pairs merged by colour
+    (one actor per colour instead of one per arrow: the views render several times faster),
+    and the label points and names of the joint frames."""
     import pyvista as pv
 
     kin = Kinematics(mech)
     st = kin.evaluate(mech.home[None, :], jacobians=False)
     frames = {k: v[0] for k, v in st.frames.items()}
     elems = {k: v[0] for k, v in st.element_frames.items()}
+    tubes = []
     for ci, chain in enumerate(mech.chains):
         pts = [frames[chain.start][:3, 3]] + [elems[(ci, ei)][:3, 3] for ei in range(len(chain.elements))]
         pts.append(frames[chain.end][:3, 3])
@@ -50,33 +54,42 @@ def _scene(plotter, mech: Mechanism, verdicts: dict, size: float, label: bool) -
         keep = np.r_[True, np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-9]
         pts = pts[keep]
         if len(pts) > 1:
-            line = pv.lines_from_points(pts)
-            plotter.add_mesh(line.tube(radius=0.08 * size), color=(0.62, 0.62, 0.66), smooth_shading=True)
+            tubes.append(pv.lines_from_points(pts).tube(radius=0.08 * size))
+    arrows = {a: [] for a in "xyz"}
 
     def triad(t: np.ndarray, scale: float) -> None:
         for i, a in enumerate("xyz"):
-            arrow = pv.Arrow(start=t[:3, 3], direction=t[:3, i], scale=scale * size, tip_radius=0.12,
-                             shaft_radius=0.04)
-            plotter.add_mesh(arrow, color=AXIS_COLORS[a])
+            arrows[a].append(pv.Arrow(start=t[:3, 3], direction=t[:3, i], scale=scale * size, tip_radius=0.12,
+                                      shaft_radius=0.04))
 
-    names = []
-    points = []
+    balls: dict[str, list] = {}
+    names, points = [], []
     for ci, chain in enumerate(mech.chains):
         for ei, el in enumerate(chain.elements):
             if el.kind == "frame":
                 continue
             t = elems[(ci, ei)]
             triad(t, 1.0)
-            cls = verdicts.get(el.name)
             if verdicts:
-                color = VERDICT_COLORS[cls or "none"]
+                color = VERDICT_COLORS[verdicts.get(el.name) or "none"]
                 # off the origin along the joint axis, so that frames sharing a point stay apart
-                ball = pv.Sphere(radius=0.2 * size, center=t[:3, 3] + 0.45 * size * t[:3, 2])
-                plotter.add_mesh(ball, color=color, lighting=False)
+                balls.setdefault(color, []).append(pv.Sphere(radius=0.2 * size,
+                                                             center=t[:3, 3] + 0.45 * size * t[:3, 2]))
             names.append(el.name)
             points.append(t[:3, 3] + 0.3 * size * np.array([1.0, 1.0, 1.0]))
-    for name, t in frames.items():
+    for t in frames.values():
         triad(t, 1.6)
+    meshes = []
+    if tubes:
+        meshes.append((pv.merge(tubes), {"color": (0.62, 0.62, 0.66), "smooth_shading": True}))
+    meshes += [(pv.merge(m), {"color": AXIS_COLORS[a]}) for a, m in arrows.items() if m]
+    meshes += [(pv.merge(m), {"color": c, "lighting": False}) for c, m in balls.items()]
+    return meshes, points, names
+
+
+def _scene(plotter, meshes: list, points: list, names: list, label: bool) -> None:
+    for mesh, options in meshes:
+        plotter.add_mesh(mesh, **options)
     if label and points:
         plotter.add_point_labels(np.array(points), names, font_size=11, point_size=1, shape_opacity=0.0,
                                  text_color="black", show_points=False, always_visible=True)
@@ -122,10 +135,11 @@ def render_png(
     n = len(views)
     shape = (1, 1) if n == 1 else (2, 2) if n <= 4 else (2, (n + 1) // 2)
     plotter = pv.Plotter(off_screen=True, shape=shape, window_size=list(window_size), border=False)
+    meshes, points, names = _scene_meshes(mech, verdicts, size)
     for k, view in enumerate(views):
         plotter.subplot(k // shape[1], k % shape[1])
         plotter.set_background("white")
-        _scene(plotter, mech, verdicts, size, label=(view == "iso"))
+        _scene(plotter, meshes, points, names, label=(view == "iso"))
         plotter.add_text(view if k else (title or mech.name) + "  (iso)", font_size=12, color="black")
         if view == "iso":
             plotter.view_isometric()
