@@ -463,17 +463,18 @@ class Kinematics:
 
         def rows(tw: np.ndarray, weights: np.ndarray, p: np.ndarray) -> np.ndarray:
             # tw (K, n, 6), weights (L, n), p (K, L, 3) -> (K, 6L, n): for each loop the
-            # signed twists moved to the loop's frame origin, (omega, v + omega x p)
+            # signed twists moved to the loop's frame origin, (omega, v + omega x p);
+            # v - [p]x omega as one stacked (3, 3) x (3, n) product per loop
             n_loops, n = weights.shape
-            tw_t = tw.transpose(0, 2, 1)[:, None]  # (K, 1, 6, n)
+            tw_t = np.ascontiguousarray(tw.transpose(0, 2, 1))  # (K, 6, n)
+            skew = np.zeros((k, n_loops, 3, 3))
+            px, py, pz = p[..., 0], p[..., 1], p[..., 2]
+            skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = -pz, py, -px
+            skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = pz, -py, px
             out = np.empty((k, n_loops, 6, n))
-            w = out[:, :, :3]
-            np.multiply(tw_t[:, :, :3], weights[None, :, None, :], out=w)
-            np.multiply(tw_t[:, :, 3:], weights[None, :, None, :], out=out[:, :, 3:])
-            px, py, pz = (p[:, :, c, None] for c in range(3))  # (K, L, 1)
-            out[:, :, 3] += w[:, :, 1] * pz - w[:, :, 2] * py
-            out[:, :, 4] += w[:, :, 2] * px - w[:, :, 0] * pz
-            out[:, :, 5] += w[:, :, 0] * py - w[:, :, 1] * px
+            np.subtract(tw_t[:, None, 3:], skew @ tw_t[:, None, :3], out=out[:, :, 3:])
+            out[:, :, :3] = tw_t[:, None, :3]
+            out *= weights[None, :, None, :]
             return out.reshape(k, 6 * n_loops, n)
 
         if closures:
