@@ -141,6 +141,9 @@ class _Screen:
     q: np.ndarray | None = None  # assembled configurations at the rigid solution (warm start)
 
 
+AMBIGUOUS_SHARE = 0.8  # a second candidate explaining this share of what the best explains is reported as ambiguous
+
+
 def _cv_rms(screen: _Screen, extra: np.ndarray | None, extra_prior: np.ndarray | None) -> tuple[float, float, int]:
     """Cross-validated RMS (mm), BIC and rank of the refit with the base columns plus ``extra``."""
     jac = screen.base_jac if extra is None else np.concatenate([screen.base_jac, extra], axis=2)
@@ -162,11 +165,26 @@ def _cv_rms(screen: _Screen, extra: np.ndarray | None, extra_prior: np.ndarray |
             held = screen.resid[test] + jac[test] @ delta
             sq += float(np.sum(held**2))
             count += int(test.sum())
-    delta = np.linalg.solve(jw.T @ jw + reg, -jw.T @ rw)
+    delta = _refit(jw, rw, reg)
     chi = float(np.sum((rw + jw @ delta) ** 2))
     s = np.linalg.svd(jw / np.linalg.norm(jw, axis=0).clip(min=1e-300), compute_uv=False)
     rank = int(np.sum(s > 1e-8 * s[0]))
     return float(np.sqrt(sq / max(count, 1))), chi + rank * np.log(3 * k), rank
+
+
+def _refit(jw: np.ndarray, rw: np.ndarray, reg: np.ndarray) -> np.ndarray:
+    """Regularised Gauss-Newton step (weighted columns ``jw``, weighted residuals ``rw``, prior ``reg``)."""
+    return np.linalg.solve(jw.T @ jw + reg, -jw.T @ rw)
+
+
+def _extra_estimate(screen: _Screen, extra: np.ndarray, extra_prior: np.ndarray) -> np.ndarray:
+    """Estimates of the ``extra`` parameters refitted with the base columns on all the data."""
+    jac = np.concatenate([screen.base_jac, extra], axis=2)
+    k, _, n = jac.shape
+    jw = (jac * screen.w[:, None, None]).reshape(3 * k, n)
+    rw = (screen.resid * screen.w[:, None]).reshape(3 * k)
+    reg = np.diag(1.0 / np.r_[screen.base_prior, extra_prior] ** 2)
+    return _refit(jw, rw, reg)[-extra.shape[2]:]
 
 
 def _absorbed(screen: _Screen, extra: np.ndarray) -> float:
@@ -351,7 +369,7 @@ def diagnose(
             continue
         if name == "violated-constraint":
             # one forced defect at a time: the best explains the gap with one parameter and is named
-            violated = _name_violated(mechanism, analysis, kin, rigid, data, screen, [])
+            violated = _name_violated(mechanism, analysis, kin, rigid, data, screen, base_cv)
             effect = make_effect(name, mechanism, analysis, data, only=[violated["defect"]])
         else:
             effect = make_effect(name, mechanism, analysis, data)
@@ -399,7 +417,7 @@ def diagnose(
             gain = current_cv**2 - cv**2
             for cv2, _, name2, ex2, pr2 in trials[1:2]:
                 gain2 = current_cv**2 - cv2**2
-                if gain2 >= 0.8 * gain:
+                if gain2 >= AMBIGUOUS_SHARE * gain:
                     both, _, _ = _cv_rms(screen, np.concatenate([ex, columns[name2][0]], axis=2),
                                          np.r_[pr, columns[name2][1]])
                     if cv**2 - both**2 < 0.2 * gain2:
@@ -426,7 +444,8 @@ def diagnose(
                                                                                            "std", "identifiable")}})
         if violated is not None:
             est = next(p for p in final.parameters if p["name"] == f"violated_{violated['defect']}")
-            violated.update({"estimate": est["estimate"], "std": est["std"], "unit": est["unit"]})
+            violated.update({"estimate": est["estimate"], "std": est["std"], "unit": est["unit"],
+                             "times_realistic": abs(est["estimate"]) / violated["realistic_magnitude"]})
     before = rigid.validation
     noise = rigid.noise_rms
     share = None
@@ -447,9 +466,17 @@ def diagnose(
                      time.perf_counter() - t0)
 
 
-def _name_violated(mech, analysis, kin, rigid, data, screen, selected) -> dict:
-    """The single forced defect whose violation best explains the residuals (blocked CV)."""
-    scores = []
+def _name_violated(mech, analysis, kin, rigid, data, screen, base_cv: float) -> dict:
+    """The single forced defect whose violation best explains the residuals (blocked CV).
+
+    Each forced defect is tried alone (one parameter, refitted with the geometry).  Those
+    that explain at least ``AMBIGUOUS_SHARE`` of the gap the best one explains
+    (``base_cv**2 - cv**2``) cannot be told apart by the data; among them the one that needs
+    the smallest violation relative to its realistic magnitude (5e-4 rad or 0.05 mm) is
+    named, the most probable a priori, and the others are listed in ``ambiguous_with``.
+    The runner-ups are returned with their CV RMS and estimate (in the defect's own unit).
+    """
+    entries = []
     for p in analysis.parameters:
         if p.verdict != "forced":
             continue
@@ -458,7 +485,16 @@ def _name_violated(mech, analysis, kin, rigid, data, screen, selected) -> dict:
         if not np.any(je):
             continue
         cv, _, _ = _cv_rms(screen, je, pe)
-        scores.append((cv, p.name))
-    scores.sort()
-    return {"defect": scores[0][1], "cv_rms": scores[0][0],
-            "alternatives": [{"defect": n, "cv_rms": c} for c, n in scores[1:4]]}
+        estimate = float(_extra_estimate(screen, je, pe)[0])
+        realistic = float(effect.magnitude[0])
+        entries.append({"defect": p.name, "cv_rms": cv, "estimate": estimate, "unit": p.unit,
+                        "realistic_magnitude": realistic, "times_realistic": abs(estimate) / realistic})
+    entries.sort(key=lambda e: e["cv_rms"])
+    best_gain = base_cv**2 - entries[0]["cv_rms"] ** 2
+    tied = [e for e in entries if e is entries[0]
+            or (best_gain > 0 and base_cv**2 - e["cv_rms"] ** 2 >= AMBIGUOUS_SHARE * best_gain)]
+    named = min(tied, key=lambda e: e["times_realistic"])
+    rest = [e for e in entries if e is not named]
+    how = "cross-validation" if named is entries[0] else "smallest violation among the candidates the data cannot tell apart"
+    return {**named, "named_by": how, "alternatives": rest[:3],
+            "ambiguous_with": [e["defect"] for e in tied if e is not named]}

@@ -53,10 +53,12 @@ class CaseResult:
     violated_defect: str | None
     elapsed: float
     truth_defect: str | None = None
+    violated_ambiguous_with: tuple = ()
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (mm)."""
-        return dict(self.__dict__, truth=list(self.truth), selected=list(self.selected))
+        return dict(self.__dict__, truth=list(self.truth), selected=list(self.selected),
+                    violated_ambiguous_with=list(self.violated_ambiguous_with))
 
 
 def suite_cases(mechanism: Mechanism, analysis: StationarityResult, pairs: bool = True) -> list[tuple]:
@@ -136,16 +138,15 @@ def run_case(mechanism, analysis, kin, case: tuple, seed: int, violated: str | N
     if len(case) == 1 and d.effect_parameters and case[0] in d.selected:
         true_mag = float(np.linalg.norm(effects[0].truth))
         found = [p["estimate"] for p in d.effect_parameters if p["effect"] == case[0]]
-        if case[0] == "violated-constraint":
-            idx = effects[0].defects.index(d.violated_defect["defect"]) if d.violated_defect["defect"] in \
-                effects[0].defects else None
-            true_mag = float(abs(effects[0].truth[idx])) if idx is not None else true_mag
         found_mag = float(np.linalg.norm(found))
+        if case[0] == "violated-constraint" and d.violated_defect["defect"] != violated:
+            found_mag = None  # another defect (maybe of another unit) was named: no magnitude to compare
     return CaseResult(mechanism.name, seed, tuple(case), d.gap_significant, first, tuple(d.selected), bool(correct),
                       d.validation_before["rms"], None if d.validation_after is None else d.validation_after["rms"],
                       d.rigid.noise_rms, true_mag, found_mag,
                       None if d.violated_defect is None else d.violated_defect["defect"], time.perf_counter() - t0,
-                      violated if "violated-constraint" in case else None)
+                      violated if "violated-constraint" in case else None,
+                      () if d.violated_defect is None else tuple(d.violated_defect["ambiguous_with"]))
 
 
 def run_suite(sources: list[tuple[Mechanism, StationarityResult]], seeds: int = 5, pairs: bool = True,
@@ -203,6 +204,9 @@ def summarize(results: list[CaseResult]) -> dict:
         "violated_defect_named": sorted({r.violated_defect for r in results if r.violated_defect}),
         "violated_defect_named_right": [r.violated_defect == r.truth_defect for r in results
                                         if r.truth == ("violated-constraint",) and r.violated_defect],
+        "violated_defect_named_right_or_ambiguous": [
+            r.violated_defect == r.truth_defect or r.truth_defect in r.violated_ambiguous_with for r in results
+            if r.truth == ("violated-constraint",) and r.violated_defect],
         "confusion": confusion,
     }
 
@@ -224,6 +228,9 @@ def to_markdown(results: list[CaseResult], summary: dict, command: str) -> str:
         f"| violated forced defect named right (when selected) | "
         f"{pct(np.mean(summary['violated_defect_named_right']) if summary['violated_defect_named_right'] else None)} | "
         f"{len(summary['violated_defect_named_right'])} |",
+        f"| violated forced defect named right, or reported ambiguous with the right one | "
+        f"{pct(np.mean(summary['violated_defect_named_right_or_ambiguous']) if summary['violated_defect_named_right_or_ambiguous'] else None)} | "
+        f"{len(summary['violated_defect_named_right_or_ambiguous'])} |",
         f"| both effects of a pair selected | {pct(summary['pairs_both_found'])} | {summary['pairs_n']} |",
         f"| single effects below the noise floor (validation before < {VISIBLE}x noise): no gap or named | "
         f"{pct(summary['below_noise_floor_no_gap'])} | {len(summary['below_noise_floor'])} |",
@@ -242,7 +249,11 @@ def to_markdown(results: list[CaseResult], summary: dict, command: str) -> str:
               "| mechanism | seed | true | gap | first | selected | val. before (um) | after (um) | noise (um) | "
               "magnitude true / found | time (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
-        mag = "-" if r.magnitude_true is None else f"{r.magnitude_true:.3g} / {r.magnitude_found:.3g}"
+        mag = "-" if r.magnitude_true is None else f"{r.magnitude_true:.3g} / " + (
+            f"{r.magnitude_found:.3g}" if r.magnitude_found is not None else f"({r.violated_defect} named)")
+        if r.truth_defect is not None and r.violated_defect is not None:
+            mag += f" [{r.truth_defect} -> {r.violated_defect}" + (
+                f", ambiguous with {', '.join(r.violated_ambiguous_with)}]" if r.violated_ambiguous_with else "]")
         after = "-" if r.validation_after is None else f"{1000 * r.validation_after:.1f}"
         lines.append(f"| {r.mechanism} | {r.seed} | {'+'.join(r.truth) or 'none'} | {'yes' if r.gap_significant else 'no'}"
                      f" | {r.ranked_first} | {'+'.join(r.selected) or '-'} | {1000 * r.validation_before:.1f} | {after} | "

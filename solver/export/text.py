@@ -146,8 +146,16 @@ def format_diagnosis(diag) -> str:
         lines.append(f"  ambiguous between {a['effects'][0]} and {a['effects'][1]}: {a['note']}")
     if diag.violated_defect:
         v = diag.violated_defect
-        est = f" = {v['estimate']:.4g} +- {v['std']:.2g} {v['unit']}" if "estimate" in v else ""
+        est = f" = {v['estimate']:.4g} +- {v['std']:.2g} {v['unit']}" if "std" in v else ""
         lines.append(f"  violated forced defect: {v['defect']}{est}")
+        if v.get("ambiguous_with"):
+            lines.append("    ambiguous with " + ", ".join(v["ambiguous_with"]) + ": the data explain the gap "
+                         f"almost as well with it; {v['defect']} is named: it needs the smallest violation "
+                         f"({v['times_realistic']:.0f}x its realistic magnitude)")
+        if v.get("alternatives"):
+            lines.append("    next candidates: " + ", ".join(
+                f"{a['defect']} = {a['estimate']:.3g} {a['unit']} ({a['times_realistic']:.0f}x, "
+                f"CV RMS {um * a['cv_rms']:.1f} um)" for a in v["alternatives"]))
     for p in diag.effect_parameters:
         std = "-" if p["std"] is None else f"{p['std']:.2g}"
         lines.append(f"    {p['name']:<22} {p['estimate']:.4g} +- {std} {p['unit']}")
