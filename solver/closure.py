@@ -30,7 +30,7 @@ from .frames import (
     make_transform,
     minimal_rotation,
     minimal_rotation_velocity,
-    motion_matrix,
+    apply_motion,
     so3_log,
 )
 from .model import ConfigurationFrame, Joint, Mechanism
@@ -320,11 +320,15 @@ class Kinematics:
                 info = self._elements[(ci, ei)]
                 d, extra = self._element_matrix(info, xi)
                 parents[(ci, ei)] = t
-                lf = t @ d
+                if d.shape[0] == 1 and t.shape[0] == k:
+                    # one geometry: a single (4K, 4) x (4, 4) product instead of K small ones
+                    lf = (np.reshape(t, (4 * k, 4)) @ d[0]).reshape(k, 4, 4)
+                else:
+                    lf = t @ d
                 lframes[(ci, ei)] = lf
                 extras[(ci, ei)] = extra
                 if info["joint"] is not None:
-                    t = lf @ motion_matrix(info["type"], q[:, info["joint"]])
+                    t = apply_motion(lf, info["type"], q[:, info["joint"]])
                 else:
                     t = lf
             if chain.end in frames:

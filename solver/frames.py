@@ -47,6 +47,7 @@ __all__ = [
     "minimal_rotation_velocity",
     "defect_rotation",
     "motion_matrix",
+    "apply_motion",
 ]
 
 _EPS = 1e-12
@@ -212,6 +213,34 @@ def trans_z(x: np.ndarray) -> np.ndarray:
 def motion_matrix(kind: str, q: np.ndarray) -> np.ndarray:
     """``M`` for a joint of type ``"R"`` (angle, rad) or ``"P"`` (length, mm)."""
     return rot_z(q) if kind == "R" else trans_z(q)
+
+
+def apply_motion(frame: np.ndarray, kind: str, q: np.ndarray) -> np.ndarray:
+    """``frame @ M(q)`` without forming ``M`` (paper 1, eq. 5), for stacks of frames.
+
+    A rotation about z mixes the first two columns of ``frame``; a translation along z adds
+    ``q`` times its third column to its origin.  The same as ``frame @ motion_matrix(kind, q)``
+    to round-off, about twice as fast for a (K, 4, 4) stack.
+
+    Parameters
+    ----------
+    frame : ndarray, (K, 4, 4)
+        Frames ``L`` of the joint.
+    kind : {"R", "P"}
+        Joint type.
+    q : ndarray, (K,)
+        Joint values (rad or mm).
+    """
+    q = np.asarray(q, dtype=float)[..., None]
+    out = np.array(frame, dtype=float, copy=True)
+    if kind == "R":
+        c, s = np.cos(q), np.sin(q)
+        x, y = frame[..., :, 0], frame[..., :, 1]
+        out[..., :, 0] = c * x + s * y
+        out[..., :, 1] = c * y - s * x
+    else:
+        out[..., :3, 3] += q * frame[..., :3, 2]
+    return out
 
 
 def axis_frame(axis: np.ndarray, x_hint: np.ndarray | None = None) -> np.ndarray:

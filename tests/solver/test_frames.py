@@ -5,10 +5,12 @@ import pytest
 
 from solver.frames import (
     adjoint,
+    apply_motion,
     axis_frame,
     invert_transform,
     minimal_rotation,
     minimal_rotation_velocity,
+    motion_matrix,
     se3_exp,
     se3_log,
     skew,
@@ -121,3 +123,15 @@ def test_skew_unskew():
 def test_so3_log_small_and_large_angles(angle):
     axis = np.array([1.0, 2.0, 2.0]) / 3.0
     assert np.allclose(so3_log(so3_exp(angle * axis)), angle * axis, atol=1e-7)
+
+
+@pytest.mark.parametrize("kind", ["R", "P"])
+def test_apply_motion_equals_the_product_with_the_motion_matrix(kind):
+    frames = se3_exp(rng.normal(size=(50, 6)) * [1, 1, 1, 100, 100, 100])
+    q = rng.uniform(-4, 4, size=50) * (1 if kind == "R" else 50)
+    moved = apply_motion(frames, kind, q)
+    assert np.allclose(moved, frames @ motion_matrix(kind, q), rtol=0, atol=1e-12 * np.abs(frames).max())
+    # the joint moves along or about the z axis of its frame: that axis and, for R, the origin stay
+    assert np.array_equal(moved[:, :, 2], frames[:, :, 2])
+    if kind == "R":
+        assert np.array_equal(moved[:, :, 3], frames[:, :, 3])
