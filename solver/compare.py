@@ -141,7 +141,7 @@ def compare(mechanism: Mechanism, result: StationarityResult, reference: dict,
         matrix_of[m["element"]] = m["matrix"]
         group_of[m["element"]] = m.get("group", "")
     zero, ident = set(reference["zero"]), set(reference["identified"])
-    by_check = {c.subject: c for c in checks or [] if c.kind == "parameter"}
+    by_check = {c.subject: c for c in checks or [] if c.kind in ("parameter", "gauge")}
     relation_of = {}
     for rel in result.relations:
         for n in rel.terms:
@@ -156,7 +156,9 @@ def compare(mechanism: Mechanism, result: StationarityResult, reference: dict,
         ev = ""
         c = by_check.get(p.name)
         if c is not None:
-            if c.expected == "does not assemble":
+            if c.kind == "gauge":
+                ev = f"same mechanism as its equivalent to {c.residual:.1e} mm"
+            elif c.expected == "does not assemble":
                 ev = f"residual {c.residual:.2e} mm (linear {c.predicted:.2e})"
             else:
                 ev = f"residual {c.residual:.1e} mm; tool moves {c.output_change:.2e} mm"

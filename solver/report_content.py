@@ -99,7 +99,7 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
         seen = set(design_identifiable or ())
     classes = tolerance_classes(analysis, seen)
     counts = {k: sum(1 for v in classes.values() if v == k) for k in TOLERANCE_CLASSES}
-    checks_by = {c.subject: c for c in (checks or []) if c.kind == "parameter"}
+    checks_by = {c.subject: c for c in (checks or []) if c.kind in ("parameter", "gauge")}
     joints = []
     by_element: dict = {}
     for p in analysis.parameters:

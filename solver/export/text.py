@@ -26,7 +26,7 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
     ]
     by_name = {}
     for ch in checks or []:
-        if ch.kind == "parameter":
+        if ch.kind in ("parameter", "gauge"):
             by_name[ch.subject] = ch
     header = f"{'element':<10}{'parameter':<11}{'unit':<5}{'verdict':<9}{'effect on output':<18}"
     if checks:
@@ -39,7 +39,11 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
         previous = p.element
         effect = "-" if p.influential is None else ("influential" if p.influential else "non-influent")
         row = f"{el:<10}{p.name:<11}{p.unit:<5}{p.verdict:<9}{effect:<18}"
-        if p.name in by_name:
+        if p.name in by_name and by_name[p.name].kind == "gauge":
+            ch = by_name[p.name]
+            mark = "confirmed" if ch.confirmed else "NOT CONFIRMED"
+            row += f"{mark}: same as its equivalent to {ch.residual:.1e} mm; {p.reason}"
+        elif p.name in by_name:
             ch = by_name[p.name]
             mark = "confirmed" if ch.confirmed else "NOT CONFIRMED"
             row += f"{mark}: residual {ch.residual:.2e} mm"
@@ -57,7 +61,7 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
         lines.append("relations between coupled defects (coefficients per rad or per mm):")
         for r in result.relations:
             lines.append(f"  {r.text}")
-    rel_checks = [ch for ch in checks or [] if ch.kind != "parameter"]
+    rel_checks = [ch for ch in checks or [] if ch.kind.startswith("relation")]
     for ch in rel_checks:
         mark = "confirmed" if ch.confirmed else "NOT CONFIRMED"
         lines.append(f"  {ch.kind}: {ch.subject}: {mark}, residual {ch.residual:.2e} mm")

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from solver import Kinematics, MechanismBuilder, analyze, exact_check, verify
 from solver.stationarity import gauge_parameters
+from solver.verify import gauge_equivalent, reassembly_residual
 
 
 def _planar_screw_prediction(mech, normal):
@@ -67,6 +68,7 @@ def test_every_slider_crank_verdict_is_confirmed_by_nonlinear_reassembly(slider_
     checks = verify(slider_crank, slider_crank_analysis)
     non_gauge = [p.name for p in slider_crank_analysis.parameters if p.verdict != "gauge"]
     assert sorted(c.subject for c in checks if c.kind == "parameter") == sorted(non_gauge)
+    assert sorted(c.subject for c in checks if c.kind == "gauge") == ["dI4", "dK2", "dK3", "dc2"]
     failed = [(c.subject, c.note) for c in checks if not c.confirmed]
     assert not failed
     for c in checks:
@@ -76,6 +78,35 @@ def test_every_slider_crank_verdict_is_confirmed_by_nonlinear_reassembly(slider_
             assert 8.0 < c.residual / c.residual_small < 12.0
         else:
             assert c.residual < 1e-6 * c.delta * 100
+
+
+def test_gauge_dc2_is_the_forced_dc3_under_another_name(slider_crank, slider_crank_analysis):
+    """dc2 alone does not assemble, exactly as dc3 alone: the gauge check compares with dc3, not with nothing."""
+    kin = Kinematics(slider_crank)
+    q0 = slider_crank_analysis.configurations[:4]
+    index = slider_crank.parameter_index
+    shift = 1e-3  # mm
+    equivalent = gauge_equivalent(slider_crank, "dc2", shift)
+    assert equivalent[index["dc2"]] == 0.0 and equivalent[index["dc3"]] == pytest.approx(shift)
+    alone = np.zeros(kin.n_xi)
+    alone[index["dc2"]] = shift
+    r_alone, _ = reassembly_residual(kin, q0, alone)
+    r_equivalent, _ = reassembly_residual(kin, q0, equivalent)
+    assert r_alone > 0.5 * shift and r_alone == pytest.approx(r_equivalent, rel=1e-9)
+
+
+def test_every_gauge_of_the_tripteor_is_equivalent_to_the_other_parameters(tripteor, tripteor_analysis):
+    """22 gauges; most move the tool when applied alone, yet the rebuilt equivalent matches to round-off."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        checks = [c for c in verify(tripteor, tripteor_analysis) if c.kind == "gauge"]
+    assert len(checks) == len(tripteor_analysis.by_verdict("gauge")) == 22
+    floor = 1e-9 * Kinematics(tripteor).length_scale
+    assert all(c.confirmed and c.residual < floor for c in checks), [c.note for c in checks if not c.confirmed]
+    moving = [c.subject for c in checks if c.output_change > 1e3 * floor]
+    assert len(moving) >= 5  # a comparison with the nominal mechanism would have failed for these
+    with pytest.raises(ValueError, match="not a gauge"):
+        gauge_equivalent(tripteor, "dK13", 1e-4)
 
 
 def test_non_influent_verdict_is_second_order_in_the_nonlinear_model(slider_crank, slider_crank_analysis):
