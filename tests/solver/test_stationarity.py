@@ -198,3 +198,17 @@ def test_without_a_roll_defect_on_the_last_frame_eq_1_loses_one():
         warnings.simplefilter("ignore")
         res = analyze(mech, n_configurations=30)
     assert res.influential_rank == 4 * 3 + 2 * 1 + 6 - 1
+
+
+def test_a_gauge_without_an_equivalent_is_reported_not_confirmed(slider_crank, slider_crank_analysis, monkeypatch):
+    import importlib
+
+    verify_module = importlib.import_module("solver.verify")  # the package re-exports the function under that name
+
+    def no_equivalent(mechanism, name, size):
+        raise ValueError("needs component 'J', which its element does not carry.")
+
+    monkeypatch.setattr(verify_module, "gauge_equivalent", no_equivalent)
+    checks = [c for c in verify(slider_crank, slider_crank_analysis) if c.kind == "gauge"]
+    assert len(checks) == 4 and not any(c.confirmed for c in checks)
+    assert all("no equivalent" in c.note for c in checks)
