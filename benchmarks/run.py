@@ -184,27 +184,58 @@ def _fk_generic():
     return (lambda: kin.evaluate(q, xi, jacobians=False)), len(q)
 
 
-@bench("FK 6R: pinocchio, one call per configuration", unit="configs/s")
-def _fk_pinocchio():
-    arm = _pinocchio()
-    pin, model, data, fid = arm["pin"], arm["model"], arm["data"], arm["fid"]
-    q = list(arm["q"][:N_PINOCCHIO])
+def _pinocchio_loop(make_call):
+    """Benchmark setup: ``make_call(pin)(model, data, q, frame_id)`` once per configuration
+    (everything that does not depend on the configuration is looked up before timing)."""
 
-    def work():
-        for qk in q:
-            pin.forwardKinematics(model, data, qk)
-            pin.updateFramePlacement(model, data, fid)
+    def setup():
+        arm = _pinocchio()
+        model, data, fid = arm["model"], arm["data"], arm["fid"]
+        call = make_call(arm["pin"])
+        q = list(arm["q"][:N_PINOCCHIO])
 
-    return work, len(q)
+        def work():
+            for qk in q:
+                call(model, data, qk, fid)
+
+        return work, len(q)
+
+    return setup
 
 
-@bench("FK 6R: naive numpy loop per configuration", unit="configs/s")
-def _fk_naive():
-    from serial6r import naive_fk
+def _naive_loop(function_name: str):
+    """Benchmark setup: ``serial6r.<function_name>(geometry, q)``, a per-configuration numpy loop."""
 
-    arm = _arm()
-    geometry, q = arm["geometry"], arm["q"][:N_NAIVE]
-    return (lambda: naive_fk(geometry, q)), len(q)
+    def setup():
+        import serial6r
+
+        arm = _arm()
+        geometry, q = arm["geometry"], arm["q"][:N_NAIVE]
+        function = getattr(serial6r, function_name)
+        return (lambda: function(geometry, q)), len(q)
+
+    return setup
+
+
+def _pin_fk(pin):
+    forward, place = pin.forwardKinematics, pin.updateFramePlacement
+
+    def call(model, data, qk, fid):
+        forward(model, data, qk)
+        place(model, data, fid)
+
+    return call
+
+
+def _pin_jacobian(pin):
+    jacobian, ref = pin.computeFrameJacobian, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    return lambda model, data, qk, fid: jacobian(model, data, qk, fid, ref)
+
+
+bench("FK 6R: pinocchio, one call per configuration", unit="configs/s")(_pinocchio_loop(_pin_fk))
+
+
+bench("FK 6R: naive numpy loop per configuration", unit="configs/s")(_naive_loop("naive_fk"))
 
 
 @bench("trig only: tan(q/2) of 6 joints (part of batched FK)", unit="configs/s")
@@ -222,27 +253,11 @@ def _jac_batched():
     return (lambda: kin.forward(q, xi, jacobian=True)), len(q)
 
 
-@bench("FK+Jacobian 6R: pinocchio computeFrameJacobian per configuration", unit="configs/s")
-def _jac_pinocchio():
-    arm = _pinocchio()
-    pin, model, data, fid = arm["pin"], arm["model"], arm["data"], arm["fid"]
-    q = list(arm["q"][:N_PINOCCHIO])
-    ref = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-
-    def work():
-        for qk in q:
-            pin.computeFrameJacobian(model, data, qk, fid, ref)
-
-    return work, len(q)
+bench("FK+Jacobian 6R: pinocchio computeFrameJacobian per configuration", unit="configs/s")(
+    _pinocchio_loop(_pin_jacobian))
 
 
-@bench("FK+Jacobian 6R: naive numpy loop per configuration", unit="configs/s")
-def _jac_naive():
-    from serial6r import naive_fk_jacobian
-
-    arm = _arm()
-    geometry, q = arm["geometry"], arm["q"][:N_NAIVE]
-    return (lambda: naive_fk_jacobian(geometry, q)), len(q)
+bench("FK+Jacobian 6R: naive numpy loop per configuration", unit="configs/s")(_naive_loop("naive_fk_jacobian"))
 
 
 # ---------------------------------------------------------------------------- Tripteor

@@ -144,8 +144,10 @@ class _Screen:
 AMBIGUOUS_SHARE = 0.8  # a second candidate explaining this share of what the best explains is reported as ambiguous
 
 
-def _cv_rms(screen: _Screen, extra: np.ndarray | None, extra_prior: np.ndarray | None) -> tuple[float, float, int]:
-    """Cross-validated RMS (mm), BIC and rank of the refit with the base columns plus ``extra``."""
+def _cv_rms(screen: _Screen, extra: np.ndarray | None,
+            extra_prior: np.ndarray | None) -> tuple[float, float, int, np.ndarray]:
+    """Cross-validated RMS (mm), BIC and rank of the refit with the base columns plus ``extra``,
+    and the estimates of the ``extra`` parameters refitted on all the data."""
     jac = screen.base_jac if extra is None else np.concatenate([screen.base_jac, extra], axis=2)
     prior = screen.base_prior if extra is None else np.r_[screen.base_prior, extra_prior]
     k, _, n = jac.shape
@@ -165,26 +167,12 @@ def _cv_rms(screen: _Screen, extra: np.ndarray | None, extra_prior: np.ndarray |
             held = screen.resid[test] + jac[test] @ delta
             sq += float(np.sum(held**2))
             count += int(test.sum())
-    delta = _refit(jw, rw, reg)
+    delta = np.linalg.solve(jw.T @ jw + reg, -jw.T @ rw)
     chi = float(np.sum((rw + jw @ delta) ** 2))
     s = np.linalg.svd(jw / np.linalg.norm(jw, axis=0).clip(min=1e-300), compute_uv=False)
     rank = int(np.sum(s > 1e-8 * s[0]))
-    return float(np.sqrt(sq / max(count, 1))), chi + rank * np.log(3 * k), rank
-
-
-def _refit(jw: np.ndarray, rw: np.ndarray, reg: np.ndarray) -> np.ndarray:
-    """Regularised Gauss-Newton step (weighted columns ``jw``, weighted residuals ``rw``, prior ``reg``)."""
-    return np.linalg.solve(jw.T @ jw + reg, -jw.T @ rw)
-
-
-def _extra_estimate(screen: _Screen, extra: np.ndarray, extra_prior: np.ndarray) -> np.ndarray:
-    """Estimates of the ``extra`` parameters refitted with the base columns on all the data."""
-    jac = np.concatenate([screen.base_jac, extra], axis=2)
-    k, _, n = jac.shape
-    jw = (jac * screen.w[:, None, None]).reshape(3 * k, n)
-    rw = (screen.resid * screen.w[:, None]).reshape(3 * k)
-    reg = np.diag(1.0 / np.r_[screen.base_prior, extra_prior] ** 2)
-    return _refit(jw, rw, reg)[-extra.shape[2]:]
+    estimates = delta[len(screen.base_prior):]
+    return float(np.sqrt(sq / max(count, 1))), chi + rank * np.log(3 * k), rank, estimates
 
 
 def _absorbed(screen: _Screen, extra: np.ndarray) -> float:
@@ -358,7 +346,7 @@ def diagnose(
                       for j in base_idx])
     screen = _Screen(w, rigid.residuals, full.jacobian[:, :, base_idx], prior, schemes, full.q)
     where = _where(mechanism, rigid, data, schemes[0][1])
-    base_cv, base_bic, _ = _cv_rms(screen, None, None)
+    base_cv, base_bic, _, _ = _cv_rms(screen, None, None)
 
     violated = None
     not_applicable = {k: v for k, v in applicable_effects(mechanism, analysis, data).items() if k in candidates}
@@ -378,7 +366,7 @@ def diagnose(
             continue
         jac_e, prior_e = _effect_columns(mechanism, analysis, kin, rigid, data, effect, screen.q)
         free = _absorbed(screen, jac_e)
-        cv, bic, _ = _cv_rms(screen, jac_e, prior_e)
+        cv, bic, _, _ = _cv_rms(screen, jac_e, prior_e)
         columns[name] = (jac_e, prior_e)
         entry = {"effect": name, "cv_rms": cv, "criterion": bic - base_bic, "criterion_name": "delta BIC",
                  "parameters": len(prior_e), "unexplained_by_geometry": free}
@@ -406,7 +394,7 @@ def diagnose(
                 je, pe = columns[name]
                 ex = je if extra is None else np.concatenate([extra, je], axis=2)
                 pr = pe if extra_prior is None else np.r_[extra_prior, pe]
-                cv, bic, _ = _cv_rms(screen, ex, pr)
+                cv, bic, _, _ = _cv_rms(screen, ex, pr)
                 trials.append((cv, bic, name, ex, pr))
             trials.sort(key=lambda t: t[0])
             if not trials:
@@ -418,7 +406,7 @@ def diagnose(
             for cv2, _, name2, ex2, pr2 in trials[1:2]:
                 gain2 = current_cv**2 - cv2**2
                 if gain2 >= AMBIGUOUS_SHARE * gain:
-                    both, _, _ = _cv_rms(screen, np.concatenate([ex, columns[name2][0]], axis=2),
+                    both, *_ = _cv_rms(screen, np.concatenate([ex, columns[name2][0]], axis=2),
                                          np.r_[pr, columns[name2][1]])
                     if cv**2 - both**2 < 0.2 * gain2:
                         ambiguous.append({"effects": [name, name2], "cv_rms": [cv, cv2],
@@ -484,8 +472,8 @@ def _name_violated(mech, analysis, kin, rigid, data, screen, base_cv: float) -> 
         je, pe = _effect_columns(mech, analysis, kin, rigid, data, effect, screen.q)
         if not np.any(je):
             continue
-        cv, _, _ = _cv_rms(screen, je, pe)
-        estimate = float(_extra_estimate(screen, je, pe)[0])
+        cv, _, _, estimates = _cv_rms(screen, je, pe)
+        estimate = float(estimates[0])
         realistic = float(effect.magnitude[0])
         entries.append({"defect": p.name, "cv_rms": cv, "estimate": estimate, "unit": p.unit,
                         "realistic_magnitude": realistic, "times_realistic": abs(estimate) / realistic})
