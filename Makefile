@@ -15,11 +15,16 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 TEMPLATE_NAMES := slider_crank tripteor_x7 triflex_ii scara hexapod
 
+# pip's and setuptools' own chatter goes to .venv/pip.log (shown only if the install fails).
+PIPLOG := $(VENV)/pip.log
+export PIP_DISABLE_PIP_VERSION_CHECK := 1
+
 $(STAMP): pyproject.toml
-	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
-	touch $(STAMP)
+	@echo "setting up $(VENV) (Python packages; log in $(PIPLOG))"
+	@$(PYTHON) -m venv $(VENV)
+	@$(PY) -m pip install --quiet --upgrade pip >$(PIPLOG) 2>&1 || { cat $(PIPLOG); exit 1; }
+	@$(PY) -m pip install --quiet -e '.[test]' >>$(PIPLOG) 2>&1 || { cat $(PIPLOG); exit 1; }
+	@touch $(STAMP)
 
 setup: $(STAMP)
 

@@ -21,11 +21,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 warnings.simplefilter("ignore")
 
-from cad_plugin.templates import build_template  # noqa: E402
-from solver import Kinematics, analyze  # noqa: E402
-from solver.identify import MeasurementModel, identify  # noqa: E402
-from solver.poses import select_poses  # noqa: E402
-from solver.virtual import VirtualMachine  # noqa: E402
+from hyperstat.cad_plugin.templates import build_template  # noqa: E402
+from hyperstat.solver import Kinematics, analyze  # noqa: E402
+from hyperstat.solver.calibration.identify import MeasurementModel, identify  # noqa: E402
+from hyperstat.solver.calibration.poses import select_poses  # noqa: E402
+from hyperstat.solver.calibration.virtual import VirtualMachine  # noqa: E402
 
 
 def main(seeds: int = 5) -> None:

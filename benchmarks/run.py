@@ -72,7 +72,7 @@ def bench(name: str, unit: str = "s", hook: bool = False):
 
 
 def _mech(name: str):
-    from cad_plugin.templates import build_template
+    from hyperstat.cad_plugin.templates import build_template
 
     return build_template(ROOT / "templates" / f"{name}.py").mechanism()
 
@@ -112,7 +112,7 @@ def _arm():
         import numpy as np
 
         from serial6r import arm_6r, arm_geometry, naive_fk_jacobian
-        from solver import Kinematics
+        from hyperstat.solver import Kinematics
 
         mech = arm_6r()
         kin = Kinematics(mech)
@@ -175,7 +175,7 @@ def _fk_batched_1():
 
 @bench("FK 6R: hyperstat element-by-element path (before fastfk)", unit="configs/s")
 def _fk_generic():
-    from solver import Kinematics
+    from hyperstat.solver import Kinematics
 
     arm = _arm()
     kin = Kinematics(arm["mech"])
@@ -268,7 +268,7 @@ def _tripteor():
     if not _TRIPTEOR:
         import numpy as np
 
-        from solver import Kinematics, analyze
+        from hyperstat.solver import Kinematics, analyze
 
         mech = _mech("tripteor_x7")
         kin = Kinematics(mech)
@@ -309,7 +309,7 @@ def _assembly_tripteor():
 for _t in TEMPLATES:
     def _make(t=_t):
         def setup():
-            from solver import Kinematics, analyze
+            from hyperstat.solver import Kinematics, analyze
 
             mech = _mech(t)
             kin = Kinematics(mech)
@@ -321,16 +321,16 @@ for _t in TEMPLATES:
 @bench("stationarity analysis, tripteor_x7 (cold, new process)")
 def _cold_tripteor():
     code = ("import warnings; warnings.simplefilter('ignore');"
-            "from cad_plugin.templates import build_template; from solver import analyze;"
+            "from hyperstat.cad_plugin.templates import build_template; from hyperstat.solver import analyze;"
             f"analyze(build_template(r'{ROOT / 'templates' / 'tripteor_x7.py'}').mechanism())")
     return (lambda: _child([sys.executable, "-c", code])), None
 
 
 @bench("identification, tripteor_x7, 107 + 30 validation points (warm)")
 def _identify_tripteor():
-    from solver import Kinematics, analyze
-    from solver.identify import identify
-    from solver.virtual import VirtualMachine
+    from hyperstat.solver import Kinematics, analyze
+    from hyperstat.solver.calibration.identify import identify
+    from hyperstat.solver.calibration.virtual import VirtualMachine
 
     mech = _mech("tripteor_x7")
     kin = Kinematics(mech)
@@ -343,10 +343,10 @@ def _identify_tripteor():
 
 @bench("D-optimal choice of 107 poses among 1000, tripteor_x7")
 def _select_tripteor():
-    from solver import Kinematics, analyze
-    from solver.identify import MeasurementModel
-    from solver.poses import select_poses
-    from solver.virtual import VirtualMachine
+    from hyperstat.solver import Kinematics, analyze
+    from hyperstat.solver.calibration.identify import MeasurementModel
+    from hyperstat.solver.calibration.poses import select_poses
+    from hyperstat.solver.calibration.virtual import VirtualMachine
 
     mech = _mech("tripteor_x7")
     kin = Kinematics(mech)
@@ -361,8 +361,8 @@ def _select_tripteor():
 def _triflex_configurations(n: int):
     import numpy as np
 
-    from solver import Kinematics
-    from solver.accuracy import sample_workspace
+    from hyperstat.solver import Kinematics
+    from hyperstat.solver.tolerances.accuracy import sample_workspace
 
     mech = _mech("triflex_ii")
     kin = Kinematics(mech)
@@ -372,7 +372,7 @@ def _triflex_configurations(n: int):
 
 @bench("accuracy coefficients, triflex_ii, 100,000 configurations")
 def _accuracy_triflex():
-    from solver.accuracy import accuracy_maps
+    from hyperstat.solver.tolerances.accuracy import accuracy_maps
 
     mech, kin, q = _triflex_configurations(100_000)
     return (lambda: accuracy_maps(mech, q, kinematics=kin)), None
@@ -380,7 +380,7 @@ def _accuracy_triflex():
 
 @bench("Monte Carlo, triflex_ii, 100,000 samples (nonlinear re-assembly)")
 def _montecarlo_triflex():
-    from solver.montecarlo import monte_carlo
+    from hyperstat.solver.tolerances.montecarlo import monte_carlo
 
     mech, kin, q = _triflex_configurations(2000)
     tolerances = {p.name: (6.76e-3 if p.unit == "rad" else 5e-3) for p in mech.parameters}  # rad / mm
@@ -389,7 +389,7 @@ def _montecarlo_triflex():
 
 @bench("hyperstat report, tripteor_x7 (cold, new process)")
 def _report_tripteor():
-    from cad_plugin.cli import build_parser
+    from hyperstat.cad_plugin.cli import build_parser
 
     sub = next(a for a in build_parser()._actions if a.dest == "command")
     if "report" not in sub.choices:
@@ -544,7 +544,7 @@ def main() -> None:
             out.append(f"| {n} | {note} | | |" if v is None else f"| {n} | {v:.4g} | {u} | {m:.1f} |")
         out += [""] + lines + ["", f"Machine: {machine}.", "",
                                f"Command: `{' '.join([Path(sys.executable).name, 'benchmarks/run.py'] + sys.argv[1:])}`"]
-        from solver.atomic import write_text
+        from hyperstat.solver.atomic import write_text
 
         write_text(args.markdown, "\n".join(out) + "\n")
 

@@ -4,8 +4,8 @@ Units: lengths in mm, angles in rad.
 
 One arm, three implementations of its forward kinematics and Jacobian:
 
-* hyperstat, batched over configurations (:meth:`solver.closure.Kinematics.forward`,
-  :mod:`solver.fastfk`);
+* hyperstat, batched over configurations (:meth:`hyperstat.solver.kinematics.closure.Kinematics.forward`,
+  :mod:`hyperstat.solver.kinematics.fastfk`);
 * pinocchio (PyPI ``pin``), called once per configuration from Python, with a model
   built joint by joint from the *same* ``D`` matrices (``Kinematics.element_matrices``);
 * a naive loop over configurations that multiplies 4x4 numpy matrices
@@ -13,7 +13,7 @@ One arm, three implementations of its forward kinematics and Jacobian:
   column by column from the joint screws.
 
 The arm is an industrial-like anthropomorphic 6R (shoulder offset, upper arm, forearm,
-spherical-like wrist) drawn at home with :class:`solver.build.MechanismBuilder`; the
+spherical-like wrist) drawn at home with :class:`hyperstat.solver.kinematics.build.MechanismBuilder`; the
 benchmark evaluates it at a random small defect vector so that every ``D`` is a general
 rigid transform (tilted axes, shifted origins), not an axis-aligned one.
 """
@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from solver import Kinematics, Mechanism, MechanismBuilder
-from solver.frames import motion_matrix
-from solver.model import Joint
+from hyperstat.solver import Kinematics, Mechanism, MechanismBuilder
+from hyperstat.solver.kinematics.frames import motion_matrix
+from hyperstat.solver.kinematics.model import Joint
 
 __all__ = ["arm_6r", "arm_geometry", "pinocchio_arm", "naive_fk", "naive_fk_jacobian"]
 

@@ -4,9 +4,9 @@ Units: lengths in mm, angles in rad.  CadQuery and pyvista are imported lazily, 
 the functions that need them.
 """
 
-from .params import describe, param, parse_overrides, parse_value
-from .skeleton import Link, Skeleton
-from .templates import build_template, list_templates, load_template
+from hyperstat.cad_plugin.params import describe, param, parse_overrides, parse_value
+from hyperstat.cad_plugin.skeleton import Link, Skeleton
+from hyperstat.cad_plugin.templates import build_template, list_templates, load_template
 
 __all__ = [
     "describe",

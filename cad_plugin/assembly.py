@@ -15,7 +15,7 @@ Node layout (names legal in CadQuery queries, ``[A-Za-z][A-Za-z0-9_]*``):
 STEP keeps node names, placements and colours but drops metadata, so
 :func:`export_step` writes a *sidecar* JSON next to the STEP file with the joint
 types, roles, ranges, defects and chains, keyed by node name.  The placements are
-read back from the STEP file itself (:mod:`cad_plugin.extract`).
+read back from the STEP file itself (:mod:`hyperstat.cad_plugin.extract`).
 """
 
 from __future__ import annotations
@@ -27,14 +27,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from solver.atomic import dumps_json, write_bytes, write_text
-from solver.build import FrameSpec, JointSpec
-from solver.errors import TemplateError
+from hyperstat.solver.atomic import dumps_json, write_bytes, write_text
+from hyperstat.solver.kinematics.build import FrameSpec, JointSpec
+from hyperstat.solver.errors import TemplateError
 
 if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
 
-    from .skeleton import Skeleton
+    from hyperstat.cad_plugin.skeleton import Skeleton
 
 __all__ = [
     "AXIS_COLORS",

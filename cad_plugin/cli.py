@@ -9,14 +9,14 @@ import sys
 import time
 from pathlib import Path
 
-from solver import cli as solver_cli
-from solver.model import Mechanism
+from hyperstat.solver import cli as solver_cli
+from hyperstat.solver.kinematics.model import Mechanism
 
 __all__ = ["main"]
 
 
 def _load_template(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]:
-    from .templates import build_template
+    from hyperstat.cad_plugin.templates import build_template
 
     skeleton = build_template(path, overrides)
     mech = skeleton.mechanism()
@@ -24,9 +24,9 @@ def _load_template(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]:
 
 
 def _load_step(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]:
-    from solver.errors import HyperstatError
+    from hyperstat.solver.errors import HyperstatError
 
-    from .extract import extract_from_step
+    from hyperstat.cad_plugin.extract import extract_from_step
 
     if overrides:
         raise HyperstatError(f"{path}: parameter overrides (-p) apply to templates, not to STEP files.")
@@ -35,13 +35,13 @@ def _load_step(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]:
 
 
 def _plot_diagnosis(diag, data, directory):
-    from .plots import write_diagnosis_plots
+    from hyperstat.cad_plugin.plots import write_diagnosis_plots
 
     return write_diagnosis_plots(diag, data, directory)
 
 
 def _plot_accuracy(*args, **kwargs):
-    from .plots import accuracy_map_png
+    from hyperstat.cad_plugin.plots import accuracy_map_png
 
     return accuracy_map_png(*args, **kwargs)
 
@@ -54,11 +54,11 @@ solver_cli.register_source(".stp", _load_step)
 
 
 def _cmd_build(args) -> int:
-    from solver.errors import HyperstatError
-    from solver.modelfile import save_model
+    from hyperstat.solver.errors import HyperstatError
+    from hyperstat.solver.kinematics.modelfile import save_model
 
-    from .assembly import export_step
-    from .templates import build_template
+    from hyperstat.cad_plugin.assembly import export_step
+    from hyperstat.cad_plugin.templates import build_template
 
     if Path(args.template).suffix.lower() != ".py":
         raise HyperstatError(f"{args.template}: 'build' takes a template (.py).")
@@ -69,37 +69,48 @@ def _cmd_build(args) -> int:
         wrote.append(save_model(mech, args.model))
     if args.step:
         wrote += list(export_step(skeleton, args.step))
-    counts = mech.count()
-    print(f"{mech.name}: {counts['R']} R + {counts['P']} P joints ({counts['actuated']} actuated), "
-          f"{counts['parameters']} defect parameters, {counts['closures']} loop closure(s)")
-    for w in wrote:
-        print(f"wrote {w}")
+    if not args.quiet:
+        counts = mech.count()
+        print(f"{mech.name}: {counts['R']} R + {counts['P']} P joints ({counts['actuated']} actuated), "
+              f"{counts['parameters']} defect parameters, {counts['closures']} loop closure(s)")
+        for w in wrote:
+            print(f"wrote {w}")
     return 0
 
 
 def _cmd_view(args) -> int:
+    from hyperstat.cad_plugin.view import render_png
+
+    with solver_cli.stages(args, ["model", "rendering"]) as progress:
+        progress.next("model")
+        mech, provenance = solver_cli.load_source(args.source, args.param)
+        analysis = _analysis_file(args.analysis, mech)
+        progress.next("rendering")
+        out = render_png(mech, args.png, analysis=analysis)
+    if not args.quiet:
+        print(f"wrote {out}")
+    return 0
+
+
+def _analysis_file(path: str | None, mech: Mechanism) -> dict | None:
+    """The JSON of ``hyperstat analyze --json`` at ``path``, checked against ``mech``."""
     import json
 
-    from solver.errors import HyperstatError
+    from hyperstat.solver.errors import HyperstatError
 
-    from .view import render_png
-
-    mech, provenance = solver_cli.load_source(args.source, args.param)
     analysis = None
-    if args.analysis:
+    if path:
         try:
-            analysis = json.loads(Path(args.analysis).read_text(encoding="utf-8"))
+            analysis = json.loads(Path(path).read_text(encoding="utf-8"))
         except (OSError, json.JSONDecodeError) as exc:
-            raise HyperstatError(f"{args.analysis}: cannot be read as an analysis JSON ({exc.__class__.__name__}).") from None
+            raise HyperstatError(f"{path}: cannot be read as an analysis JSON ({exc.__class__.__name__}).") from None
         if not isinstance(analysis, dict) or not isinstance(analysis.get("parameters"), list):
-            raise HyperstatError(f"{args.analysis}: field 'parameters' is missing: not a 'hyperstat analyze --json' output.")
+            raise HyperstatError(f"{path}: field 'parameters' is missing: not a 'hyperstat analyze --json' output.")
         known = {p.name for p in mech.parameters}
         unknown = [p.get("name") for p in analysis["parameters"] if p.get("name") not in known]
         if unknown:
-            raise HyperstatError(f"{args.analysis}: parameter '{unknown[0]}' is not a defect of '{mech.name}'.")
-    out = render_png(mech, args.png, analysis=analysis)
-    print(f"wrote {out}")
-    return 0
+            raise HyperstatError(f"{path}: parameter '{unknown[0]}' is not a defect of '{mech.name}'.")
+    return analysis
 
 
 def _cmd_report(args) -> int:
@@ -107,47 +118,54 @@ def _cmd_report(args) -> int:
 
     import numpy as np
 
-    from solver.identify import MeasurementModel
-    from solver.measurements import read_measurements
-    from solver.report_content import identifiable_by_design, report_document
-    from solver.verify import verify
-    from solver.virtual import VirtualMachine
+    from hyperstat.solver.calibration.identify import MeasurementModel
+    from hyperstat.solver.calibration.measurements import read_measurements
+    from hyperstat.solver.export.report_content import identifiable_by_design, report_document
+    from hyperstat.solver.analysis.verify import verify
+    from hyperstat.solver.calibration.virtual import VirtualMachine
 
-    from .plots import diagnosis_figures
-    from .report import write_report
+    from hyperstat.cad_plugin.plots import diagnosis_figures
+    from hyperstat.cad_plugin.report import write_report
 
-    mech, provenance, kin, result = solver_cli._analysis(args)
-    data = read_measurements(args.data, mech) if args.data else None
-    validation = read_measurements(args.validation, mech) if args.validation else None
-    hypotheses = None
-    if args.hypotheses:
-        from solver.hypotheses import check_hypotheses, load_hypotheses
+    stages = ["stationarity analysis", "verification", "calibration and diagnosis", "accuracy", "layout and pictures"]
+    with solver_cli.stages(args, stages) as progress:
+        progress.next("stationarity analysis")
+        mech, provenance, kin, result = solver_cli.analysis_of(args)
+        data = read_measurements(args.data, mech) if args.data else None
+        validation = read_measurements(args.validation, mech) if args.validation else None
+        hypotheses = None
+        if args.hypotheses:
+            from hyperstat.solver.analysis.hypotheses import check_hypotheses, load_hypotheses
 
-        axes, points, hyps = load_hypotheses(args.hypotheses, mech)
-        hypotheses = check_hypotheses(mech, result, axes, points, hyps, kinematics=kin)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        checks = verify(mech, result, kinematics=kin)
-        nominal = VirtualMachine.random(mech, result, seed=0, angle_tolerance=0.0, length_tolerance=0.0,
-                                        kinematics=kin)
-        design = identifiable_by_design(MeasurementModel(mech, result, kin), mech, nominal.poses(60, seed=0))
-        diagnosis = identification = None
-        images = {}
-        if data is not None:
-            from solver.diagnose import diagnose
+            axes, points, hyps = load_hypotheses(args.hypotheses, mech)
+            hypotheses = check_hypotheses(mech, result, axes, points, hyps, kinematics=kin)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            progress.next("verification")
+            checks = verify(mech, result, kinematics=kin)
+            nominal = VirtualMachine.random(mech, result, seed=0, angle_tolerance=0.0, length_tolerance=0.0,
+                                            kinematics=kin)
+            design = identifiable_by_design(MeasurementModel(mech, result, kin), mech, nominal.poses(60, seed=0))
+            progress.next("calibration and diagnosis")
+            diagnosis = identification = None
+            images = {}
+            if data is not None:
+                from hyperstat.solver.diagnosis.diagnose import diagnose
 
-            if data.noise is not None:
-                diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
-                identification = diagnosis.final or diagnosis.rigid
-                images.update(diagnosis_figures(diagnosis, data))
-            else:
-                from solver.identify import identify
+                if data.noise is not None:
+                    diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
+                    identification = diagnosis.final or diagnosis.rigid
+                    images.update(diagnosis_figures(diagnosis, data))
+                else:
+                    from hyperstat.solver.calibration.identify import identify
 
-                identification = identify(mech, result, data, validation, kinematics=kin)
-    accuracy = _accuracy_section(mech, result, kin)
-    doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, design, accuracy)
-    analysis_json = solver_cli.jsonable(result.to_dict())
-    written = write_report(doc, args.out, mech, analysis_json, images)
+                    identification = identify(mech, result, data, validation, kinematics=kin)
+        progress.next("accuracy")
+        accuracy = _accuracy_section(mech, result, kin)
+        doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, design, accuracy)
+        progress.next("layout and pictures")
+        analysis_json = solver_cli.jsonable(result.to_dict())
+        written = write_report(doc, args.out, mech, analysis_json, images)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
@@ -158,21 +176,18 @@ def _cmd_report(args) -> int:
 
 
 def _accuracy_section(mech, result, kin) -> dict | None:
-    """Accuracy coefficients and allocation for the report, when the accuracy module is present."""
-    try:
-        from solver import accuracy as accuracy_module  # noqa: F401
-    except ImportError:
-        return None
-    builder = getattr(accuracy_module, "report_section", None)
-    return None if builder is None else builder(mech, result, kin)
+    """Accuracy coefficients and allocation for the report."""
+    from hyperstat.solver.tolerances.accuracy import report_section
+
+    return report_section(mech, result, kin)
 
 
 def _cmd_parameters(args) -> int:
-    from solver.atomic import write_json
-    from solver.errors import HyperstatError
+    from hyperstat.solver.atomic import write_json
+    from hyperstat.solver.errors import HyperstatError
 
-    from .params import describe
-    from .templates import load_template, template_parameters
+    from hyperstat.cad_plugin.params import describe
+    from hyperstat.cad_plugin.templates import load_template, template_parameters
 
     if Path(args.template).suffix.lower() != ".py":
         raise HyperstatError(f"{args.template}: 'parameters' takes a template (.py).")
@@ -190,11 +205,10 @@ def _cmd_parameters(args) -> int:
     return 0
 
 def _cmd_sweep(args) -> int:
-    import importlib.util
 
-    from solver.errors import HyperstatError
+    from hyperstat.solver.errors import HyperstatError
 
-    from .sweep import sweep_template, write_table
+    from hyperstat.cad_plugin.sweep import sweep_template, write_table
 
     if Path(args.template).suffix.lower() != ".py":
         raise HyperstatError(f"{args.template}: 'sweep' takes a template (.py).")
@@ -204,9 +218,6 @@ def _cmd_sweep(args) -> int:
         raise HyperstatError(f"--configurations must be at least 1, got {args.configurations}.")
     montecarlo = None
     if args.montecarlo:
-        if importlib.util.find_spec("solver.montecarlo") is None:
-            raise HyperstatError("--montecarlo needs the Monte Carlo module (solver.montecarlo), "
-                                 "which this installation does not have.")
         if args.samples < 1:
             raise HyperstatError(f"--samples must be at least 1, got {args.samples}.")
         montecarlo = {"samples": args.samples, "angle_tolerance": args.angle_tolerance,
@@ -234,12 +245,14 @@ def build_parser():
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
     p.add_argument("--step", metavar="OUT.step", help="write the CAD skeleton as STEP (+ OUT.step.json sidecar)")
     p.add_argument("--model", metavar="OUT.json", help="write the model file")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_build)
     p = sub.add_parser("view", help="render the skeleton with its markers (PNG, off-screen)")
     p.add_argument("source", help="template (.py), model file (.json) or STEP file")
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
     p.add_argument("--analysis", metavar="RESULT.json", help="colour markers by the verdicts of this analysis")
     p.add_argument("--png", required=True, metavar="OUT.png", help="output picture")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_view)
     p = sub.add_parser("report", help="tolerance report: report.html (self-contained), report.md, report.json")
     p.add_argument("source", help="template (.py), model file (.json) or STEP file")

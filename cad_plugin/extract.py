@@ -6,7 +6,7 @@ Every frame pose comes from the CAD data itself: the placement of each marker no
 (``m_<element>``, ``f_<frame>``), which STEP stores.  The sidecar (or, for an
 in-memory assembly, the node metadata) gives what STEP cannot hold: joint types,
 roles, ranges, defects and the chains.  The poses go through the same
-:class:`solver.build.MechanismBuilder` as the template, with the x axes taken from
+:class:`hyperstat.solver.kinematics.build.MechanismBuilder` as the template, with the x axes taken from
 the markers, so the extracted model equals the template's to the precision of the
 STEP file (13 significant digits).  A marker that is missing, or whose arrows do not
 lie along its frame's axes, is a clear error naming it.
@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.build import MechanismBuilder
-from solver.errors import ModelError
-from solver.model import Mechanism
+from hyperstat.solver.kinematics.build import MechanismBuilder
+from hyperstat.solver.errors import ModelError
+from hyperstat.solver.kinematics.model import Mechanism
 
-from .assembly import SIDECAR_FORMAT, matrix_from_location, sidecar_path
+from hyperstat.cad_plugin.assembly import SIDECAR_FORMAT, matrix_from_location, sidecar_path
 
 __all__ = ["extract_from_assembly", "extract_from_step", "read_sidecar", "step_length_unit"]
 
@@ -91,7 +91,7 @@ def _rebuild(meta: dict, poses: dict[str, np.ndarray], where: str) -> Mechanism:
 
 
 def extract_from_assembly(assy) -> Mechanism:
-    """Model of an in-memory assembly built by :func:`cad_plugin.assembly.build_assembly`."""
+    """Model of an in-memory assembly built by :func:`hyperstat.cad_plugin.assembly.build_assembly`."""
     meta = dict(assy.metadata or {})
     nodes = {}
     poses = {}

@@ -13,7 +13,7 @@ import math
 import re
 from typing import Any
 
-from solver.errors import TemplateError
+from hyperstat.solver.errors import TemplateError
 
 __all__ = ["param", "describe", "parse_value", "parse_overrides", "make_parameters"]
 

@@ -1,7 +1,7 @@
 """Residual plots of a diagnosis (PNG, matplotlib with the Agg backend; residuals in um, joints in mm / rad).
 
 Plotting lives on the CAD / presentation side: ``solver`` stays numpy / scipy / sympy only
-and reaches these through :func:`solver.cli.register_plotter`.
+and reaches these through :func:`hyperstat.solver.cli.register_plotter`.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.atomic import write_bytes
+from hyperstat.solver.atomic import write_bytes
 
 __all__ = ["write_diagnosis_plots", "diagnosis_figures"]
 
@@ -102,8 +102,8 @@ def accuracy_map_png(mech, analysis, axes: tuple, slices: list, path, coefficien
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from solver.accuracy import accuracy_maps, grid_slice
-    from solver.closure import Kinematics
+    from hyperstat.solver.tolerances.accuracy import accuracy_maps, grid_slice
+    from hyperstat.solver.kinematics.closure import Kinematics
 
     kin = kinematics or Kinematics(mech)
     slices = slices or [{}]

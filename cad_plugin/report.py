@@ -2,7 +2,7 @@
 
 Units: lengths in mm, angles in rad; residuals printed in um.
 
-:func:`write_report` lays out the document of :func:`solver.report_content.report_document`:
+:func:`write_report` lays out the document of :func:`hyperstat.solver.export.report_content.report_document`:
 the HTML inlines its images (base64 PNG: pyvista views of the skeleton with markers
 coloured by verdict, residual plots) and its style, loads nothing from the network,
 reads on a projector (large type, high contrast) and prints on A4 (print CSS, page
@@ -18,8 +18,8 @@ import json
 import tempfile
 from pathlib import Path
 
-from solver.atomic import dumps_json, write_bytes, write_text
-from solver.report_content import TOLERANCE_CLASSES
+from hyperstat.solver.atomic import dumps_json, write_bytes, write_text
+from hyperstat.solver.export.report_content import TOLERANCE_CLASSES
 
 __all__ = ["write_report", "render_html", "render_markdown", "SECTIONS"]
 
@@ -240,7 +240,7 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
     out_dir.mkdir(parents=True, exist_ok=True)
     images = dict(images or {})
     if mechanism is not None and "views" not in images:
-        from .view import render_png
+        from hyperstat.cad_plugin.view import render_png
 
         with tempfile.TemporaryDirectory() as tmp:
             path = render_png(mechanism, Path(tmp) / "views.png", analysis_json, window_size=(1400, 1050))

@@ -7,11 +7,10 @@ world coordinates: each joint by a point of its axis and the axis direction (the
 frame ``L_i``), configuration frames (base, platform, tool) by an origin and two
 axes, links as bars between named points.  The skeleton turns into
 
-* the solver's :class:`~solver.model.Mechanism` (:meth:`Skeleton.mechanism`), through
-  :class:`solver.build.MechanismBuilder`, and
+* the solver's :class:`~hyperstat.solver.kinematics.model.Mechanism` (:meth:`Skeleton.mechanism`), through
+  :class:`hyperstat.solver.kinematics.build.MechanismBuilder`, and
 * a CadQuery assembly with one marker (a small x/y/z triad) per joint frame and per
-  configuration frame, and the link solids (:meth:`Skeleton.assembly`, see
-  :mod:`cad_plugin.assembly`).
+  configuration frame, and the link solids (:func:`hyperstat.cad_plugin.assembly.build_assembly`).
 """
 
 from __future__ import annotations
@@ -22,8 +21,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from solver.build import MechanismBuilder
-from solver.model import Mechanism
+from hyperstat.solver.kinematics.build import MechanismBuilder
+from hyperstat.solver.kinematics.model import Mechanism
 
 __all__ = ["Skeleton", "Link"]
 
@@ -83,8 +82,3 @@ class Skeleton(MechanismBuilder):
             self._mechanism = self.build()
         return self._mechanism
 
-    def assembly(self, analysis: dict | None = None):
-        """CadQuery assembly of links and markers (imports CadQuery)."""
-        from .assembly import build_assembly
-
-        return build_assembly(self, analysis)

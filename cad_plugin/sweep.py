@@ -27,11 +27,11 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from solver.atomic import write_text
-from solver.errors import HyperstatError
+from hyperstat.solver.atomic import write_text
+from hyperstat.solver.errors import HyperstatError
 
-from .params import parse_value
-from .templates import load_template, template_parameters
+from hyperstat.cad_plugin.params import parse_value
+from hyperstat.cad_plugin.templates import load_template, template_parameters
 
 __all__ = ["parse_grid", "grid_variants", "analyze_variant", "run_sweep", "sweep_template", "write_table",
            "RESULT_COLUMNS"]
@@ -95,8 +95,8 @@ def grid_variants(grid: dict[str, list[float]], fixed: dict[str, float] | None =
 
 
 def _montecarlo_columns(mech, analysis, samples: int, angle_tol: float, length_tol: float) -> dict:
-    """Monte Carlo summary of one variant (hook into :mod:`solver.montecarlo`, built separately)."""
-    from solver.montecarlo import monte_carlo
+    """Monte Carlo summary of one variant (hook into :mod:`hyperstat.solver.tolerances.montecarlo`, built separately)."""
+    from hyperstat.solver.tolerances.montecarlo import monte_carlo
 
     tolerances = {p.name: angle_tol if p.unit == "rad" else length_tol for p in mech.parameters}
     result = monte_carlo(mech, analysis.configurations, tolerances, samples=samples, analysis=analysis)
@@ -129,7 +129,7 @@ def analyze_variant(
         Sample of the stationarity analysis.
     montecarlo : dict, optional
         ``{"samples": N, "angle_tolerance": rad, "length_tolerance": mm}`` to add Monte
-        Carlo columns (needs :mod:`solver.montecarlo`).
+        Carlo columns (needs :mod:`hyperstat.solver.tolerances.montecarlo`).
 
     Returns
     -------
@@ -137,9 +137,9 @@ def analyze_variant(
         The row: the result columns; ``error`` holds one sentence when the variant failed
         (its other results are then empty).
     """
-    from solver import Kinematics, analyze
+    from hyperstat.solver import Kinematics, analyze
 
-    from .templates import build_template
+    from hyperstat.cad_plugin.templates import build_template
 
     t0 = time.perf_counter()
     row: dict[str, Any] = {}
@@ -282,7 +282,7 @@ def sweep_template(
     **kwargs: Any,
 ) -> tuple[list[dict[str, Any]], dict[str, str]]:
     """Parse grids and fixed overrides for ``template``, run the sweep; rows and parameter units."""
-    from .params import parse_overrides
+    from hyperstat.cad_plugin.params import parse_overrides
 
     module = load_template(template)
     cls = template_parameters(module)

@@ -4,7 +4,7 @@ Units: lengths in mm, angles in rad.
 
 Trust boundary: a template is Python and runs as code with the user's rights, like
 any script; only load templates you trust.  Parameter values from the command line
-are parsed as numbers (:mod:`cad_plugin.params`), never evaluated.
+are parsed as numbers (:mod:`hyperstat.cad_plugin.params`), never evaluated.
 """
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from solver.errors import HyperstatError, TemplateError
+from hyperstat.solver.errors import HyperstatError, TemplateError
 
-from .params import make_parameters, parse_overrides
-from .skeleton import Skeleton
+from hyperstat.cad_plugin.params import make_parameters, parse_overrides
+from hyperstat.cad_plugin.skeleton import Skeleton
 
 __all__ = ["load_template", "template_parameters", "build_template", "TEMPLATE_DIR", "list_templates"]
 
@@ -67,7 +67,7 @@ def load_template(path: str | Path) -> ModuleType:
     if not callable(getattr(module, "build", None)):
         raise TemplateError(f"{path}: a template must define a function build(**parameters).")
     if not dataclasses.is_dataclass(getattr(module, "Parameters", None)):
-        raise TemplateError(f"{path}: a template must define a dataclass Parameters (see cad_plugin.params.param).")
+        raise TemplateError(f"{path}: a template must define a dataclass Parameters (see hyperstat.cad_plugin.params.param).")
     return module
 
 
@@ -107,6 +107,6 @@ def build_template(path: str | Path, overrides: list[str] | dict[str, Any] | Non
         line = _user_line(exc, path)
         raise TemplateError(f"{path}: build() failed{line}: {exc.__class__.__name__}: {exc}.") from None
     if not isinstance(skeleton, Skeleton):
-        raise TemplateError(f"{path}: build() must return a cad_plugin.skeleton.Skeleton, got {type(skeleton).__name__}.")
+        raise TemplateError(f"{path}: build() must return a hyperstat.cad_plugin.skeleton.Skeleton, got {type(skeleton).__name__}.")
     skeleton.metadata.setdefault("template", path.name)
     return skeleton

@@ -7,7 +7,7 @@ source (template, model file, STEP file) gives the same view: each chain as a tu
 through its frame origins, a small x/y/z triad (red, green, blue) at every joint
 frame ``L_i`` and fixed transform, a larger triad at every configuration frame, and,
 when an analysis is given, a sphere at each joint frame coloured by the most severe
-verdict among its defects (:data:`cad_plugin.assembly.VERDICT_COLORS`), with a legend.
+verdict among its defects (:data:`hyperstat.cad_plugin.assembly.VERDICT_COLORS`), with a legend.
 Spheres are drawn unlit so that their colour reaches the image unshaded.
 """
 
@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.atomic import write_bytes
-from solver.closure import Kinematics
-from solver.model import Mechanism
+from hyperstat.solver.atomic import write_bytes
+from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.model import Mechanism
 
-from .assembly import AXIS_COLORS, VERDICT_COLORS, element_verdicts
+from hyperstat.cad_plugin.assembly import AXIS_COLORS, VERDICT_COLORS, element_verdicts
 
 __all__ = ["render_png", "VIEWS", "LEGEND_LABELS"]
 
@@ -34,6 +34,14 @@ LEGEND_LABELS = {
     "free-non-influent": "free, non-influent",
     "none": "no defect / gauge only",
 }
+
+
+def _quiet_vtk() -> None:
+    """Keep VTK's own log (e.g. "bad X server connection" before it falls back to off-screen
+    rendering, with terminal colour codes) off the user's terminal; VTK errors still show."""
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
 
 
 def _scene_meshes(mech: Mechanism, verdicts: dict, size: float) -> tuple[list, list, list]:
@@ -129,6 +137,7 @@ def render_png(
     """
     import pyvista as pv
 
+    _quiet_vtk()
     pv.OFF_SCREEN = True
     verdicts = element_verdicts(analysis)
     size = marker_size or 0.12 * Kinematics(mech).length_scale

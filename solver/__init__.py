@@ -3,9 +3,9 @@
 Units: lengths in mm, angles in rad.
 """
 
-from .build import MechanismBuilder
-from .closure import AssemblyResult, Kinematics, KinematicState
-from .errors import (
+from hyperstat.solver.kinematics.build import MechanismBuilder
+from hyperstat.solver.kinematics.closure import AssemblyResult, Kinematics, KinematicState
+from hyperstat.solver.errors import (
     AnalysisError,
     AssemblyError,
     DataError,
@@ -13,7 +13,7 @@ from .errors import (
     ModelError,
     TemplateError,
 )
-from .model import (
+from hyperstat.solver.kinematics.model import (
     Chain,
     ConfigurationFrame,
     Defect,
@@ -24,15 +24,15 @@ from .model import (
     Placement,
     full_defects,
 )
-from .modelfile import dumps_model, load_model, mechanism_from_dict, mechanism_to_dict, save_model
-from .sampling import ConfigurationSample, sample_configurations
-from .stationarity import ParameterVerdict, Relation, StationarityResult, analyze, gauge_parameters
-from .identify import IdentificationResult, MeasurementModel, identify
-from .measurements import MeasurementSet, NoiseModel, read_measurements, write_measurements
-from .poses import PoseSelection, select_poses
-from .virtual import VirtualMachine
-from .symbolic import ExactCheck, exact_check, find_rational_configurations
-from .verify import Check, verify
+from hyperstat.solver.kinematics.modelfile import dumps_model, load_model, mechanism_from_dict, mechanism_to_dict, save_model
+from hyperstat.solver.kinematics.sampling import ConfigurationSample, sample_configurations
+from hyperstat.solver.analysis.stationarity import ParameterVerdict, Relation, StationarityResult, analyze, gauge_parameters
+from hyperstat.solver.calibration.identify import IdentificationResult, MeasurementModel, identify
+from hyperstat.solver.calibration.measurements import MeasurementSet, NoiseModel, read_measurements, write_measurements
+from hyperstat.solver.calibration.poses import PoseSelection, select_poses
+from hyperstat.solver.calibration.virtual import VirtualMachine
+from hyperstat.solver.analysis.symbolic import ExactCheck, exact_check, find_rational_configurations
+from hyperstat.solver.analysis.verify import Check, verify
 
 __all__ = [
     "MechanismBuilder",

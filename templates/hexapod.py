@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cad_plugin.params import make_parameters, param
-from cad_plugin.skeleton import Skeleton
+from hyperstat.cad_plugin.params import make_parameters, param
+from hyperstat.cad_plugin.skeleton import Skeleton
 
 
 @dataclass
@@ -93,4 +93,6 @@ def build(**overrides: float) -> Skeleton:
 
 
 if "show_object" in globals():  # CQ-editor
-    show_object(build().assembly())  # noqa: F821
+    from hyperstat.cad_plugin.assembly import build_assembly
+
+    show_object(build_assembly(build()))  # noqa: F821

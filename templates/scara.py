@@ -15,8 +15,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cad_plugin.params import make_parameters, param
-from cad_plugin.skeleton import Skeleton
+from hyperstat.cad_plugin.params import make_parameters, param
+from hyperstat.cad_plugin.skeleton import Skeleton
 
 
 @dataclass
@@ -58,4 +58,6 @@ def build(**overrides: float) -> Skeleton:
 
 
 if "show_object" in globals():  # CQ-editor
-    show_object(build().assembly())  # noqa: F821
+    from hyperstat.cad_plugin.assembly import build_assembly
+
+    show_object(build_assembly(build()))  # noqa: F821

@@ -17,8 +17,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cad_plugin.params import param
-from cad_plugin.skeleton import Skeleton
+from hyperstat.cad_plugin.params import param
+from hyperstat.cad_plugin.skeleton import Skeleton
 
 
 @dataclass
@@ -47,11 +47,11 @@ def build(**overrides: float) -> Skeleton:
     -------
     Skeleton
     """
-    from cad_plugin.params import make_parameters
+    from hyperstat.cad_plugin.params import make_parameters
 
     p = make_parameters(Parameters, overrides)
     if p.L2 <= p.L1:
-        from solver.errors import TemplateError
+        from hyperstat.solver.errors import TemplateError
 
         raise TemplateError(f"parameter 'L2' ({p.L2:g} mm) must exceed 'L1' ({p.L1:g} mm) for the crank to turn.")
     t1 = p.home_angle
@@ -81,4 +81,6 @@ def build(**overrides: float) -> Skeleton:
 
 
 if "show_object" in globals():  # CQ-editor
-    show_object(build().assembly())  # noqa: F821
+    from hyperstat.cad_plugin.assembly import build_assembly
+
+    show_object(build_assembly(build()))  # noqa: F821

@@ -48,8 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cad_plugin.params import make_parameters, param
-from cad_plugin.skeleton import Skeleton
+from hyperstat.cad_plugin.params import make_parameters, param
+from hyperstat.cad_plugin.skeleton import Skeleton
 
 
 @dataclass
@@ -79,7 +79,7 @@ def _elbow(start: np.ndarray, end: np.ndarray, l1: float, l2: float, normal: np.
     d = end - start
     r = float(np.linalg.norm(d))
     if not abs(l1 - l2) < r < l1 + l2:
-        from solver.errors import TemplateError
+        from hyperstat.solver.errors import TemplateError
 
         raise TemplateError(f"the home position is out of reach of a leg (needs {abs(l1 - l2):.3g} < {r:.3g} "
                             f"< {l1 + l2:.3g} l.u.)")
@@ -157,4 +157,6 @@ def build(**overrides: float) -> Skeleton:
 
 
 if "show_object" in globals():  # CQ-editor
-    show_object(build().assembly())  # noqa: F821
+    from hyperstat.cad_plugin.assembly import build_assembly
+
+    show_object(build_assembly(build()))  # noqa: F821

@@ -66,8 +66,8 @@ def _template(tmp: Path, name: str, text: str) -> Path:
 
 GOOD_TEMPLATE_TAIL = '''
 from dataclasses import dataclass
-from cad_plugin.params import param
-from cad_plugin.skeleton import Skeleton
+from hyperstat.cad_plugin.params import param
+from hyperstat.cad_plugin.skeleton import Skeleton
 @dataclass
 class Parameters:
     length: float = param(10.0, "mm", "a length")
@@ -209,9 +209,9 @@ def goods(tmp: Path) -> dict:
     """Good inputs every case starts from (slider-crank model, STEP, data, hypotheses, a controller file)."""
     import warnings
 
-    from cad_plugin.cli import main
-    from cad_plugin.templates import build_template
-    from solver.modelfile import save_model
+    from hyperstat.cad_plugin.cli import main
+    from hyperstat.cad_plugin.templates import build_template
+    from hyperstat.solver.kinematics.modelfile import save_model
 
     tmp.mkdir(parents=True, exist_ok=True)
     sk = build_template(SC)
@@ -239,7 +239,7 @@ def run_case(case: Case, tmp: Path, good: dict) -> tuple[int, str, str, list]:
     import contextlib
     import io
 
-    from cad_plugin.cli import main
+    from hyperstat.cad_plugin.cli import main
 
     tmp.mkdir(parents=True, exist_ok=True)
     argv = case.make(tmp, good)

@@ -14,7 +14,7 @@ TEMPLATES = ROOT / "templates"
 @pytest.fixture(scope="session")
 def slider_crank():
     """The slider-crank mechanism of paper 1, section 4.1 (template defaults)."""
-    from cad_plugin.templates import build_template
+    from hyperstat.cad_plugin.templates import build_template
 
     return build_template(TEMPLATES / "slider_crank.py").mechanism()
 
@@ -22,7 +22,7 @@ def slider_crank():
 @pytest.fixture(scope="session")
 def slider_crank_analysis(slider_crank):
     """Stationarity analysis of the slider-crank."""
-    from solver.stationarity import analyze
+    from hyperstat.solver.analysis.stationarity import analyze
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -32,7 +32,7 @@ def slider_crank_analysis(slider_crank):
 @pytest.fixture(scope="session")
 def tripteor():
     """The Tripteor X7 (paper 1, section 4.2) at the template defaults."""
-    from cad_plugin.templates import build_template
+    from hyperstat.cad_plugin.templates import build_template
 
     return build_template(TEMPLATES / "tripteor_x7.py").mechanism()
 
@@ -40,7 +40,7 @@ def tripteor():
 @pytest.fixture(scope="session")
 def tripteor_analysis(tripteor):
     """Stationarity analysis of the Tripteor X7."""
-    from solver.stationarity import analyze
+    from hyperstat.solver.analysis.stationarity import analyze
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -50,7 +50,7 @@ def tripteor_analysis(tripteor):
 @pytest.fixture(scope="session")
 def scara():
     """The SCARA template (a serial chain: R R R P)."""
-    from cad_plugin.templates import build_template
+    from hyperstat.cad_plugin.templates import build_template
 
     return build_template(TEMPLATES / "scara.py").mechanism()
 
@@ -58,7 +58,7 @@ def scara():
 @pytest.fixture(scope="session")
 def scara_analysis(scara):
     """Stationarity analysis of the SCARA."""
-    from solver.stationarity import analyze
+    from hyperstat.solver.analysis.stationarity import analyze
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -11,7 +11,7 @@ import warnings
 
 import pytest
 
-from .catalogue import CASES, ROOT, clean, goods, markdown, run_case
+from tests.catalogue import CASES, ROOT, clean, goods, markdown, run_case
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def test_errors_doc_is_current(results):
 
 def test_real_process_exit_code(tmp_path):
     """The console script, not only main(): exit status 2 and one line."""
-    proc = subprocess.run([sys.executable, "-m", "cad_plugin.cli", "analyze", str(tmp_path / "absent.json")],
+    proc = subprocess.run([sys.executable, "-m", "hyperstat.cad_plugin.cli", "analyze", str(tmp_path / "absent.json")],
                           capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "absent.json" in proc.stderr

@@ -13,10 +13,10 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from solver.errors import HyperstatError
-from solver.hypotheses import parse_hypotheses
-from solver.measurements import parse_measurements
-from solver.modelfile import mechanism_from_dict, mechanism_to_dict
+from hyperstat.solver.errors import HyperstatError
+from hyperstat.solver.analysis.hypotheses import parse_hypotheses
+from hyperstat.solver.calibration.measurements import parse_measurements
+from hyperstat.solver.kinematics.modelfile import mechanism_from_dict, mechanism_to_dict
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 

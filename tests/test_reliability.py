@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cad_plugin.cli import main
+from hyperstat.cad_plugin.cli import main
 
 from .conftest import ROOT, TEMPLATES
 
@@ -24,7 +24,7 @@ SC = str(TEMPLATES / "slider_crank.py")
 
 
 def _run(args, **env):
-    return subprocess.Popen([sys.executable, "-m", "cad_plugin.cli", *args], cwd=ROOT, stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-m", "hyperstat.cad_plugin.cli", *args], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ, **env))
 
 
@@ -63,7 +63,7 @@ def test_killed_report_leaves_previous_files_intact(tmp_path):
 
 
 def test_killed_controller_export_keeps_the_previous_file(tmp_path):
-    from solver.controller import read_controller
+    from hyperstat.solver.export.controller import read_controller
 
     data = tmp_path / "d.csv"
     assert main(["simulate", SC, "--poses", "30", "--validation", "0", "--out", str(data), "--quiet"]) == 0
@@ -97,7 +97,7 @@ def test_same_inputs_give_byte_identical_outputs(tmp_path):
 
 
 def test_verdicts_are_stable_across_seeds_and_sample_sizes(tripteor, tripteor_analysis):
-    from solver.stationarity import analyze
+    from hyperstat.solver.analysis.stationarity import analyze
 
     reference = [(p.name, p.verdict, p.influential) for p in tripteor_analysis.parameters]
     with warnings.catch_warnings():
@@ -110,8 +110,8 @@ def test_verdicts_are_stable_across_seeds_and_sample_sizes(tripteor, tripteor_an
 
 def test_rank_deficient_data_names_what_it_cannot_see(tripteor, tripteor_analysis):
     """Poses that move only one leg: identification lists the parameters it cannot see, estimates no number."""
-    from solver.identify import identify
-    from solver.virtual import VirtualMachine
+    from hyperstat.solver.calibration.identify import identify
+    from hyperstat.solver.calibration.virtual import VirtualMachine
 
     vm = VirtualMachine.random(tripteor, tripteor_analysis, seed=0)
     with warnings.catch_warnings():
@@ -133,9 +133,9 @@ def test_rank_deficient_data_names_what_it_cannot_see(tripteor, tripteor_analysi
 
 def test_a_mechanism_that_cannot_move_is_reported():
     """Three parallel revolutes in one loop form a rigid triangle: mobility 0, said in one sentence."""
-    from solver.build import MechanismBuilder
-    from solver.errors import AnalysisError
-    from solver.stationarity import analyze
+    from hyperstat.solver.kinematics.build import MechanismBuilder
+    from hyperstat.solver.errors import AnalysisError
+    from hyperstat.solver.analysis.stationarity import analyze
 
     b = MechanismBuilder("triangle")
     b.revolute("1", (0, 0, 0), (0, 0, 1), home=0.0)
@@ -149,9 +149,9 @@ def test_a_mechanism_that_cannot_move_is_reported():
 
 def test_configurations_near_singularities_are_left_out_with_a_warning(slider_crank):
     """A sample forced to include near-singular configurations: they are dropped and reported."""
-    from solver.closure import Kinematics
-    from solver.errors import AnalysisError
-    from solver.sampling import passive_conditioning, sample_configurations
+    from hyperstat.solver.kinematics.closure import Kinematics
+    from hyperstat.solver.errors import AnalysisError
+    from hyperstat.solver.kinematics.sampling import passive_conditioning, sample_configurations
 
     kin = Kinematics(slider_crank)
     threshold = float(np.median(passive_conditioning(kin, sample_configurations(kin, 40, seed=5).q)))

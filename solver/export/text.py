@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..stationarity import StationarityResult
+from hyperstat.solver.analysis.stationarity import StationarityResult
 
 __all__ = ["format_analysis", "format_identification", "format_diagnosis"]
 
@@ -83,7 +83,7 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
 
 
 def format_identification(result) -> str:
-    """Readable summary of an :class:`~solver.identify.IdentificationResult` (units: mm, rad; residuals in um)."""
+    """Readable summary of an :class:`~hyperstat.solver.calibration.identify.IdentificationResult` (units: mm, rad; residuals in um)."""
     lines = [
         f"Identification: {result.rank} identifiable of {result.n_unknowns} unknowns "
         f"(singular-value gap {_fmt_gap(result.singular_value_gap)}), condition number "
@@ -120,7 +120,7 @@ def format_identification(result) -> str:
 
 
 def format_diagnosis(diag) -> str:
-    """Readable summary of a :class:`~solver.diagnose.Diagnosis` (residuals in um)."""
+    """Readable summary of a :class:`~hyperstat.solver.diagnosis.diagnose.Diagnosis` (residuals in um)."""
     um = 1000.0
     t = diag.gap_test
     lines = ["Is there a gap?"]

@@ -4,10 +4,10 @@ import json
 
 import pytest
 
-from cad_plugin import describe, load_template
-from cad_plugin.cli import main
+from hyperstat.cad_plugin import describe, load_template
+from hyperstat.cad_plugin.cli import main
 
-from ..conftest import TEMPLATES
+from tests.conftest import TEMPLATES
 
 
 @pytest.mark.parametrize("name", ["slider_crank", "tripteor_x7"])

@@ -6,14 +6,14 @@ import warnings
 import numpy as np
 import pytest
 
-from cad_plugin import build_template
-from cad_plugin.assembly import build_assembly, export_step, sidecar_path
-from cad_plugin.cli import main
-from cad_plugin.extract import extract_from_assembly, extract_from_step
-from solver import ModelError, save_model
+from hyperstat.cad_plugin import build_template
+from hyperstat.cad_plugin.assembly import build_assembly, export_step, sidecar_path
+from hyperstat.cad_plugin.cli import main
+from hyperstat.cad_plugin.extract import extract_from_assembly, extract_from_step
+from hyperstat.solver import ModelError, save_model
 
-from ..conftest import TEMPLATES
-from .test_templates import NAMES
+from tests.conftest import TEMPLATES
+from tests.cad_plugin.test_templates import NAMES
 
 
 def _compare(a, b):

@@ -13,10 +13,10 @@ import subprocess
 import numpy as np
 import pytest
 
-from cad_plugin.cli import main
-from cad_plugin.report import SECTIONS
+from hyperstat.cad_plugin.cli import main
+from hyperstat.cad_plugin.report import SECTIONS
 
-from ..conftest import TEMPLATES
+from tests.conftest import TEMPLATES
 
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
                   "--disable-component-update", "--disable-sync", "--hide-scrollbars"]

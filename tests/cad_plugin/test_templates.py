@@ -6,11 +6,11 @@ import json
 import numpy as np
 import pytest
 
-from cad_plugin import build_template, describe, list_templates, load_template
-from cad_plugin.cli import main
-from solver import TemplateError
+from hyperstat.cad_plugin import build_template, describe, list_templates, load_template
+from hyperstat.cad_plugin.cli import main
+from hyperstat.solver import TemplateError
 
-from ..conftest import TEMPLATES
+from tests.conftest import TEMPLATES
 
 NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod"]
 
@@ -32,7 +32,7 @@ def test_template_parameters_are_typed_and_documented(name):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_template_builds_and_closes_at_home(name):
-    from solver import Kinematics
+    from hyperstat.solver import Kinematics
 
     mech = build_template(TEMPLATES / f"{name}.py").mechanism()
     Kinematics(mech).check_home()
@@ -58,7 +58,7 @@ def test_template_errors_name_the_file(tmp_path):
         build_template(bad)
     boom = tmp_path / "boom.py"
     boom.write_text(
-        "from dataclasses import dataclass\nfrom cad_plugin.params import param\n"
+        "from dataclasses import dataclass\nfrom hyperstat.cad_plugin.params import param\n"
         "@dataclass\nclass Parameters:\n    L: float = param(1.0, 'mm', 'a length in mm')\n"
         "def build(**kw):\n    raise ValueError('no luck')\n"
     )

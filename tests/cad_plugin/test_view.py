@@ -6,13 +6,13 @@ import warnings
 import numpy as np
 from PIL import Image
 
-from cad_plugin import build_template
-from cad_plugin.assembly import VERDICT_COLORS, element_verdicts
-from cad_plugin.view import render_png
-from solver import analyze
-from solver.cli import jsonable
+from hyperstat.cad_plugin import build_template
+from hyperstat.cad_plugin.assembly import VERDICT_COLORS, element_verdicts
+from hyperstat.cad_plugin.view import render_png
+from hyperstat.solver import analyze
+from hyperstat.solver.cli import jsonable
 
-from ..conftest import TEMPLATES
+from tests.conftest import TEMPLATES
 
 
 def _pixels_of(img: np.ndarray, rgb) -> int:

@@ -5,11 +5,11 @@ import warnings
 import numpy as np
 import pytest
 
-from cad_plugin import build_template
-from solver import Kinematics, analyze, verify
-from solver.hypotheses import check_hypotheses, load_hypotheses
+from hyperstat.cad_plugin import build_template
+from hyperstat.solver import Kinematics, analyze, verify
+from hyperstat.solver.analysis.hypotheses import check_hypotheses, load_hypotheses
 
-from ..conftest import TEMPLATES
+from tests.conftest import TEMPLATES
 
 
 def test_mobility_and_overconstraint(tripteor_analysis):
@@ -94,7 +94,7 @@ def _doc_rows(text: str, begin: str) -> list[tuple[str, ...]]:
 
 def test_the_document_shows_what_the_commands_print(tripteor, tripteor_analysis):
     """docs/tripteor_x7.md embeds the output of `hyperstat compare` and `check-hypotheses`: still true."""
-    from solver.compare import compare, load_reference
+    from hyperstat.solver.analysis.compare import compare, load_reference
 
     text = (TEMPLATES.parent / "docs" / "tripteor_x7.md").read_text()
     comp = compare(tripteor, tripteor_analysis, load_reference(TEMPLATES / "tripteor_x7.paper.yaml"))

@@ -152,9 +152,9 @@ def expected(jobs, request) -> dict:
     """
     import warnings
 
-    from cad_plugin.assembly import sidecar
-    from cad_plugin.templates import build_template
-    from solver.stationarity import analyze
+    from hyperstat.cad_plugin.assembly import sidecar
+    from hyperstat.cad_plugin.templates import build_template
+    from hyperstat.solver.analysis.stationarity import analyze
 
     shared = {"slider_crank": "slider_crank_analysis", "tripteor_x7": "tripteor_analysis", "scara": "scara_analysis"}
     out = {}
@@ -173,7 +173,7 @@ def expected(jobs, request) -> dict:
 
 
 def _template_parameters(name: str) -> list[dict]:
-    from cad_plugin import describe, load_template
+    from hyperstat.cad_plugin import describe, load_template
 
     return describe(load_template(TEMPLATES / f"{name}.py").Parameters)
 
@@ -184,7 +184,7 @@ def _verdicts(analysis: dict) -> dict[str, tuple]:
 
 # --------------------------------------------------------------------------- install
 def test_the_same_colours_and_classes_as_the_cad_side(slider_crank_analysis, tripteor_analysis, scara_analysis):
-    from cad_plugin.assembly import VERDICT_COLORS, element_verdicts
+    from hyperstat.cad_plugin.assembly import VERDICT_COLORS, element_verdicts
 
     assert WB_COLORS == VERDICT_COLORS
     for result in (slider_crank_analysis, tripteor_analysis, scara_analysis):

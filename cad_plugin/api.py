@@ -1,0 +1,289 @@
+"""The public API for notebooks and scripts, re-exported as ``import hyperstat as hs``.
+
+Units: lengths in mm, angles in rad.
+
+One function per pipeline stage, each taking what the stage before returned:
+
+>>> import hyperstat as hs
+>>> mech = hs.load("slider_crank")                      # a bundled template, by name
+>>> result = hs.analyze(mech)
+>>> result.counts()["forced"], result.rank
+(6, 6)
+
+The command line (``hyperstat analyze ...``) runs the same functions.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+from hyperstat.solver.analysis.stationarity import StationarityResult
+from hyperstat.solver.calibration.identify import IdentificationResult
+from hyperstat.solver.calibration.measurements import MeasurementSet, read_measurements
+from hyperstat.solver.diagnosis.diagnose import Diagnosis
+from hyperstat.solver.errors import HyperstatError
+from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.model import Mechanism
+
+__all__ = ["load", "analyze", "accuracy", "identify", "diagnose", "report", "template_path"]
+
+
+def template_path(name: str) -> Path:
+    """Path of a bundled template from its name (``"tripteor_x7"``) or of a file as given.
+
+    >>> template_path("slider_crank").name
+    'slider_crank.py'
+    """
+    from hyperstat.cad_plugin.templates import TEMPLATE_DIR
+
+    path = Path(name)
+    if path.suffix or path.exists():
+        return path
+    bundled = TEMPLATE_DIR / f"{name}.py"
+    if not bundled.is_file():
+        known = ", ".join(p.stem for p in sorted(TEMPLATE_DIR.glob("[!_]*.py")))
+        raise HyperstatError(f"'{name}' is neither a file nor a bundled template ({known}).")
+    return bundled
+
+
+def load(source: str | Path, **parameters: Any) -> Mechanism:
+    """The mechanism of a template, a model file or a STEP file (with its sidecar).
+
+    Parameters
+    ----------
+    source : str or Path
+        A bundled template's name (``"tripteor_x7"``), a template file (``*.py``, run as
+        code: only templates you trust), a model file (``*.json``) or a STEP file
+        (``*.step`` with ``*.step.json`` beside it).
+    **parameters
+        Template parameter overrides in the template's units (mm, rad), e.g. ``L1=50``.
+
+    Returns
+    -------
+    Mechanism
+        The joint-invariant model (paper 1, section 2, eq. (2)).
+
+    Examples
+    --------
+    >>> import hyperstat as hs
+    >>> mech = hs.load("slider_crank", L1=50.0)
+    >>> mech.name, len(mech.parameters)
+    ('slider_crank', 15)
+    """
+    from hyperstat.cad_plugin import cli  # registers the template and STEP readers
+
+    overrides = [f"{k}={v}" for k, v in parameters.items()]
+    mech, _ = cli.solver_cli.load_source(template_path(str(source)), overrides)
+    return mech
+
+
+def analyze(mechanism: Mechanism, configurations: int = 24, seed: int = 0) -> StationarityResult:
+    """Stationarity analysis: which defects are forced, coupled, free (paper 1, sections 3-4).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        From :func:`load`.
+    configurations : int
+        Actuated configurations sampled over the workspace.
+    seed : int
+        Seed of that sample.
+
+    Returns
+    -------
+    StationarityResult
+        A verdict per defect parameter, the relations between coupled ones, the rank of
+        the stacked constraint (eq. (11)) with its singular-value gap.
+
+    Examples
+    --------
+    >>> import hyperstat as hs
+    >>> result = hs.analyze(hs.load("slider_crank"))
+    >>> result.parameter("dI2").verdict
+    'forced'
+    >>> result.gap > 1e6
+    True
+    """
+    from hyperstat.solver.analysis.stationarity import analyze as _analyze
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _analyze(mechanism, n_configurations=configurations, seed=seed, kinematics=Kinematics(mechanism))
+
+
+def accuracy(mechanism: Mechanism, analysis: StationarityResult | None = None, configurations: int = 2000,
+             seed: int = 0, ranges: dict | None = None, orientation_accuracy: float | None = None,
+             position_accuracy: float | None = None) -> dict:
+    """Accuracy coefficients over the workspace and the tolerance allocation (paper 2).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        From :func:`load`.
+    analysis : StationarityResult, optional
+        From :func:`analyze`; for an over-constrained mechanism only its admissible
+        influential defects are geometric errors (the forced ones are assembly conditions).
+    configurations : int
+        Configurations sampled over the actuated ranges.
+    ranges : dict, optional
+        ``{actuated joint: (low, high)}`` in mm or rad.
+    orientation_accuracy, position_accuracy : float, optional
+        Required ``|dphi|max`` (rad) and ``||dO_p||max`` (mm) for the allocation
+        (eqs. 19, 30-31).
+
+    Returns
+    -------
+    dict
+        ``coefficients`` (min / max / mean of each coefficient, eqs. 16-18),
+        ``allocation`` (tolerance per class), ``configurations`` (how many assembled).
+
+    Examples
+    --------
+    >>> import hyperstat as hs
+    >>> mech = hs.load("slider_crank")
+    >>> acc = hs.accuracy(mech, hs.analyze(mech), configurations=50, position_accuracy=0.01)
+    >>> acc["configurations"], acc["coefficients"]["epsilon_gP"]["max"] > 0
+    (50, True)
+    """
+    from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate, sample_workspace
+
+    kin = Kinematics(mechanism)
+    analysis = analysis if analysis is not None else analyze(mechanism)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        q = sample_workspace(mechanism, configurations, seed=seed, ranges=ranges, kinematics=kin)
+    if len(q) == 0:
+        raise HyperstatError(f"no configuration of '{mechanism.name}' assembles in the actuated ranges.")
+    over = analysis.overconstraint > 0
+    maps = accuracy_maps(mechanism, q, analysis if over else None, kinematics=kin)
+    return {"configurations": int(len(q)), "coefficients": maps.summary(), "coefficient_units": maps.units,
+            "allocation": allocate(maps, orientation_accuracy, position_accuracy), "maps": maps}
+
+
+def _measurements(data: MeasurementSet | str | Path | None, mechanism: Mechanism) -> MeasurementSet | None:
+    if data is None or isinstance(data, MeasurementSet):
+        return data
+    return read_measurements(data, mechanism)
+
+
+def identify(mechanism: Mechanism, data: MeasurementSet | str | Path,
+             validation: MeasurementSet | str | Path | None = None,
+             analysis: StationarityResult | None = None) -> IdentificationResult:
+    """Identify the influential admissible defects, the tracker frame and the target (paper 1, eq. (10)).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        From :func:`load`.
+    data, validation : MeasurementSet or path
+        Identification measurements and, optionally, validation points never fitted
+        (CSV, see ``docs/identification.md``).
+    analysis : StationarityResult, optional
+        From :func:`analyze` (computed when omitted).
+
+    Returns
+    -------
+    IdentificationResult
+        Estimates with standard deviations, rank, condition number, residuals in mm.
+
+    Examples
+    --------
+    >>> import hyperstat as hs
+    >>> from hyperstat.solver.calibration.virtual import VirtualMachine
+    >>> mech = hs.load("slider_crank")
+    >>> result = hs.analyze(mech)
+    >>> machine = VirtualMachine.random(mech, result, seed=1)
+    >>> fit = hs.identify(mech, machine.measure(machine.poses(20, seed=2), seed=3), analysis=result)
+    >>> fit.rank <= len(fit.names)
+    True
+    """
+    from hyperstat.solver.calibration.identify import identify as _identify
+
+    analysis = analysis if analysis is not None else analyze(mechanism)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _identify(mechanism, analysis, _measurements(data, mechanism), _measurements(validation, mechanism))
+
+
+def diagnose(mechanism: Mechanism, data: MeasurementSet | str | Path,
+             validation: MeasurementSet | str | Path | None = None,
+             analysis: StationarityResult | None = None) -> Diagnosis:
+    """Diagnose the sim-to-real gap the identified rigid model leaves: is there one, where, which effect.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        From :func:`load`.
+    data, validation : MeasurementSet or path
+        Measurements with a stated noise model; validation points are never fitted.
+    analysis : StationarityResult, optional
+        From :func:`analyze` (computed when omitted).
+
+    Returns
+    -------
+    Diagnosis
+        The gap test, where the residual lies, the candidate effects ranked by
+        cross-validation, and how far the selected ones shrink the validation error.
+
+    Examples
+    --------
+    >>> import hyperstat as hs
+    >>> from hyperstat.solver.calibration.virtual import VirtualMachine
+    >>> mech = hs.load("slider_crank")
+    >>> result = hs.analyze(mech)
+    >>> machine = VirtualMachine.random(mech, result, seed=1)
+    >>> data = machine.measure(machine.poses(40, seed=2), seed=3)
+    >>> diag = hs.diagnose(mech, data, analysis=result)   # a rigid machine: noise only
+    >>> diag.gap_significant
+    False
+    """
+    from hyperstat.solver.diagnosis.diagnose import diagnose as _diagnose
+
+    analysis = analysis if analysis is not None else analyze(mechanism)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _diagnose(mechanism, analysis, _measurements(data, mechanism), _measurements(validation, mechanism),
+                         kinematics=Kinematics(mechanism))
+
+
+def report(source: str | Path, out: str | Path, data: str | Path | None = None,
+           validation: str | Path | None = None, **parameters: Any) -> list[Path]:
+    """Write the tolerance report (``report.html``, ``report.md``, ``report.json``) into ``out``.
+
+    Parameters
+    ----------
+    source : str or Path
+        As for :func:`load` (a bundled template's name, a template, model or STEP file).
+    out : str or Path
+        Output directory (created).
+    data, validation : path, optional
+        Measurement files: the report then has calibration and sim-to-real sections.
+    **parameters
+        Template parameter overrides (mm, rad).
+
+    Returns
+    -------
+    list of Path
+        The files written (atomically).
+
+    Examples
+    --------
+    >>> import hyperstat as hs, tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp())
+    >>> sorted(p.name for p in hs.report("slider_crank", out))
+    ['report.html', 'report.json', 'report.md']
+    """
+    from hyperstat.cad_plugin import cli
+
+    argv = ["report", str(template_path(str(source))), "--out", str(out), "--quiet"]
+    argv += [a for k, v in parameters.items() for a in ("-p", f"{k}={v}")]
+    if data is not None:
+        argv += ["--data", str(data)]
+    if validation is not None:
+        argv += ["--validation", str(validation)]
+    if cli.main(argv) != 0:
+        raise HyperstatError(f"the report of {source} could not be written (see the message above).")
+    return [Path(out) / name for name in ("report.html", "report.md", "report.json")]
+

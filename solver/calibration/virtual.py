@@ -1,0 +1,200 @@
+"""A virtual machine: the nominal model plus chosen defects, a tracker, a target and noise.
+
+Units: lengths in mm, angles in rad.
+
+It stands in for a real machine and its laser tracker: a "true" defect vector
+(admissible defects only, drawn within tolerances), a tracker frame and a target
+offset, a noise model ``sigma = a + b * distance`` per axis, and optionally
+unmodelled effects (:mod:`hyperstat.solver.diagnosis.effects`) that a fitted model need not contain.  It
+generates measurement sets over the workspace (random or grid poses); everything is
+seeded and reproducible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.errors import AnalysisError
+from hyperstat.solver.calibration.identify import MeasurementModel
+from hyperstat.solver.calibration.measurements import MeasurementSet, NoiseModel
+from hyperstat.solver.kinematics.model import Mechanism
+from hyperstat.solver.kinematics.sampling import passive_conditioning
+from hyperstat.solver.analysis.stationarity import StationarityResult
+
+__all__ = ["VirtualMachine", "default_tracker", "workshop_metadata"]
+
+
+def workshop_metadata(mechanism: Mechanism, n: int, seed: int = 0, sessions: int = 2) -> dict:
+    """Plausible metadata of ``n`` measured poses: what a measurement campaign records.
+
+    * ``time[s]``: one pose every 60 s;
+    * ``temperature[degC]``: a slow drift from 18 to 26 degC over the campaign plus 0.3 degC noise;
+    * ``payload[kg]``: 0, 10 or 25 kg, random per pose;
+    * ``dir<joint>``: approach direction of every actuator, random +-1;
+    * ``session``: ``sessions`` consecutive blocks (the tracker is set up again between them).
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 60.0
+    meta = {
+        "time": t,
+        "temperature": 18.0 + 8.0 * t / max(t[-1], 1.0) + rng.normal(0.0, 0.3, n),
+        "payload": rng.choice([0.0, 10.0, 25.0], n),
+        "session": np.floor(np.arange(n) * sessions / n) + 1.0,
+    }
+    for i in mechanism.actuated:
+        meta[f"dir{mechanism.joints[i].name}"] = rng.choice([-1.0, 1.0], n)
+    return meta
+
+
+def default_tracker(kin: Kinematics) -> np.ndarray:
+    """A plausible tracker pose ``(x, y, z, rx, ry, rz)``: 3 length scales away, turned 0.4 rad about z."""
+    direction = np.array([1.0, -0.6, -0.3]) / np.linalg.norm([1.0, -0.6, -0.3])
+    return np.r_[3.0 * kin.length_scale * direction, 0.0, 0.0, 0.4]
+
+
+@dataclass
+class VirtualMachine:
+    """A simulated machine with known ("true") parameters.
+
+    Attributes
+    ----------
+    model : MeasurementModel
+        Model of the truth: every defect parameter, tracker, target, effects.
+    theta : ndarray
+        True parameters in ``model``'s layout.
+    noise : NoiseModel
+        Tracker noise.
+    metadata : dict
+        How the truth was drawn (seed, tolerances).
+    """
+
+    model: MeasurementModel
+    theta: np.ndarray
+    noise: NoiseModel = field(default_factory=NoiseModel)
+    metadata: dict = field(default_factory=dict)
+
+    @classmethod
+    def random(
+        cls,
+        mechanism: Mechanism,
+        analysis: StationarityResult,
+        seed: int = 0,
+        angle_tolerance: float = 2e-4,
+        length_tolerance: float = 0.05,
+        noise: NoiseModel | None = None,
+        tracker: np.ndarray | None = None,
+        target: np.ndarray | None = None,
+        effects: tuple = (),
+        extra_defects: dict | None = None,
+        kinematics: Kinematics | None = None,
+    ) -> "VirtualMachine":
+        """Draw a true machine: every admissible defect uniform within +-tolerance.
+
+        Parameters
+        ----------
+        mechanism, analysis : Mechanism, StationarityResult
+            Nominal model and its analysis (which defects are admissible).
+        seed : int
+            Random seed.
+        angle_tolerance, length_tolerance : float
+            Half-widths of the uniform draws (rad, mm).
+        noise : NoiseModel, optional
+            Tracker noise (default 5 um + 5 um/m per axis).
+        tracker : ndarray, (6,), optional
+            True tracker pose ``(x, y, z, rx, ry, rz)`` (mm, rad); :func:`default_tracker` if omitted.
+        target : ndarray, (3,), optional
+            True target offset in the output frame (mm); default ``(12, -8, -25)``.
+        effects : tuple
+            Unmodelled effects, each carrying its true parameters (``effect.truth``).
+        extra_defects : dict, optional
+            Defects added on top, by name (rad / mm), e.g. a violated forced defect.
+        """
+        rng = np.random.default_rng(seed)
+        kin = kinematics or Kinematics(mechanism)
+        names, matrix = analysis.parameterization(mechanism, influential_only=False)
+        units = {p.name: p.unit for p in mechanism.parameters}
+        u = np.array([rng.uniform(-1, 1) * (length_tolerance if units[n] == "mm" else angle_tolerance) for n in names])
+        xi = matrix @ u if names else np.zeros(len(mechanism.parameters))
+        for name, value in (extra_defects or {}).items():
+            xi[mechanism.parameter_index[name]] += value
+        model = MeasurementModel(mechanism, analysis, kin, effects, geometry="full")
+        theta = model.initial(default_tracker(kin) if tracker is None else np.asarray(tracker, float),
+                              np.array([12.0, -8.0, -25.0]) if target is None else np.asarray(target, float))
+        theta[model.sl_geometry] = xi
+        for eff, sl in zip(model.effects, model._effect_slices):
+            theta[sl] = eff.truth
+        return cls(model, theta, noise or NoiseModel(),
+                   {"seed": seed, "angle_tolerance": angle_tolerance, "length_tolerance": length_tolerance})
+
+    @property
+    def defects(self) -> np.ndarray:
+        """True defect vector ``xi`` (rad / mm)."""
+        return self.theta[self.model.sl_geometry]
+
+    def truth(self) -> dict:
+        """True value of every parameter by name (defects, tracker, target, effects)."""
+        return dict(zip(self.model.names, self.theta))
+
+    # ------------------------------------------------------------------ poses
+    def poses(self, n: int, seed: int = 0, mode: str = "random", margin: float = 0.05) -> np.ndarray:
+        """``n`` actuated configurations the true machine reaches (random or grid), shape (n, n_actuated).
+
+        Raises
+        ------
+        AnalysisError
+            If too few configurations can be assembled.
+        """
+        m = self.model.mechanism
+        kin = self.model.kin
+        act = m.actuated
+        ranges = m.ranges[act]
+        lo = ranges[:, 0] + margin * (ranges[:, 1] - ranges[:, 0])
+        hi = ranges[:, 1] - margin * (ranges[:, 1] - ranges[:, 0])
+        rng = np.random.default_rng(seed)
+        kept = []
+        for attempt in range(6):
+            if mode == "grid" and attempt == 0:
+                per = max(2, int(np.ceil(n ** (1.0 / len(act)))))
+                axes = [np.linspace(a, b, per) for a, b in zip(lo, hi)]
+                cand = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(act), -1).T
+            else:
+                cand = lo + rng.random((max(2 * n, 16), len(act))) * (hi - lo)
+            res = kin.solve(cand, self.defects)
+            full = m.ranges
+            ok = res.converged & np.all((res.q >= full[:, 0] - 1e-9) & (res.q <= full[:, 1] + 1e-9), axis=1)
+            if np.any(ok):
+                good = passive_conditioning(kin, res.q[ok]) > 1e-3
+                kept.append(cand[ok][good])
+            if sum(len(k) for k in kept) >= n:
+                break
+        q = np.concatenate(kept)[:n] if kept else np.zeros((0, len(act)))
+        if len(q) < n:
+            raise AnalysisError(f"only {len(q)} of {n} poses of '{m.name}' could be assembled inside the joint ranges.")
+        return q
+
+    # ------------------------------------------------------------------ measurement
+    def measure(self, q: np.ndarray, seed: int = 0, metadata: dict | None = None, prefix: str = "P",
+                noise: bool = True) -> MeasurementSet:
+        """Measurements of the target at actuated values ``q`` (noise drawn with ``seed``).
+
+        The file states what a user would know: the tracker pose and target offset
+        rounded to whole millimetres and to 0.01 rad (a rough prior registration).
+        """
+        m = self.model.mechanism
+        k = len(q)
+        meta = {key: np.asarray(v, dtype=float) for key, v in (metadata or {}).items()}
+        data = MeasurementSet([f"{prefix}{i + 1}" for i in range(k)], [m.joints[i].name for i in m.actuated],
+                              np.asarray(q, float), np.zeros((k, 3)), None, meta, self.noise, None, None, m.name)
+        pos = self.model.predict(self.theta, data).position
+        if noise:
+            rng = np.random.default_rng(seed)
+            sigma = self.noise.sigma(np.linalg.norm(pos, axis=1))
+            pos = pos + rng.normal(size=pos.shape) * sigma[:, None]
+        data.position = pos
+        trk = self.theta[self.model.sl_tracker]
+        data.tracker = np.r_[np.round(trk[3:]), np.round(trk[:3], 2)]
+        data.target = np.round(self.theta[self.model.sl_target])
+        return data

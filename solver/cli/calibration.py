@@ -1,0 +1,151 @@
+"""Commands of the calibration stage: ``simulate``, ``identify``.
+
+Units: lengths in mm, angles in rad.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from pathlib import Path
+
+from hyperstat.solver.atomic import write_json
+from hyperstat.solver.cli.common import PLOTTERS, analysis_of, common_options, jsonable, load_source, stages
+from hyperstat.solver.errors import HyperstatError
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from hyperstat.solver.calibration.identify import MeasurementModel
+    from hyperstat.solver.calibration.measurements import parse_noise, write_measurements
+    from hyperstat.solver.calibration.poses import select_poses
+    from hyperstat.solver.calibration.virtual import VirtualMachine
+
+    if args.poses < 1 or args.validation < 0:
+        raise HyperstatError(f"--poses must be at least 1 and --validation at least 0 (got {args.poses}, "
+                             f"{args.validation}).")
+    noise = parse_noise(args.noise, "--noise")
+    mech, provenance, kin, result = analysis_of(args)
+    effects = _simulated_effects(args, mech, result)
+    vm = VirtualMachine.random(mech, result, seed=args.seed, angle_tolerance=args.angle_tolerance,
+                               length_tolerance=args.length_tolerance, noise=noise, kinematics=kin, effects=effects)
+    with_metadata = args.metadata or bool(effects)
+    selection = None
+    if args.select == "d-optimal":
+        candidates = vm.poses(max(args.candidates, args.poses), seed=args.seed + 1)
+        selection = select_poses(MeasurementModel(mech, result, kin), candidates, args.poses, seed=args.seed,
+                                 noise=noise)
+        q_id = candidates[selection.index]
+    else:
+        q_id = vm.poses(args.poses, seed=args.seed + 1, mode=args.select)
+    comment = f"simulated by hyperstat: seed {args.seed}, defects within +-{args.angle_tolerance:g} rad / " \
+              f"+-{args.length_tolerance:g} mm, poses {args.select}"
+    q_val = vm.poses(args.validation, seed=args.seed + 3) if args.validation else None
+    meta_id = meta_val = None
+    if with_metadata:
+        from hyperstat.solver.calibration.virtual import workshop_metadata
+
+        meta = workshop_metadata(mech, len(q_id) + args.validation, seed=args.seed)
+        meta_id = {k: v[: len(q_id)] for k, v in meta.items()}
+        meta_val = {k: v[len(q_id):] for k, v in meta.items()}
+    outputs = [(args.out, vm.measure(q_id, seed=args.seed + 2, metadata=meta_id), comment)]
+    if args.validation:
+        val_path = args.validation_out or str(Path(args.out).with_suffix("")) + ".validation.csv"
+        outputs.append((val_path, vm.measure(q_val, seed=args.seed + 4, prefix="V", metadata=meta_val),
+                        comment + " (validation)"))
+    wrote = [write_measurements(path, data, mech, text) for path, data, text in outputs]
+    if args.truth:
+        doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
+               "truth": vm.truth(), "drawn": vm.metadata}
+        if selection is not None:
+            doc["pose_selection"] = selection.to_dict()
+        wrote.append(write_json(args.truth, jsonable(doc)))
+    if not args.quiet:
+        if selection is not None:
+            sys.stdout.write(f"D-optimal poses: condition number {selection.condition_number:.3g} "
+                             f"(random poses: {selection.random_condition_number:.3g})\n")
+        for w in wrote:
+            sys.stdout.write(f"wrote {w}\n")
+    return 0
+
+
+def _simulated_effects(args: argparse.Namespace, mech, result) -> tuple:
+    """Effects of ``simulate --effect NAME[:DEFECT]`` with realistic true parameters (seeded)."""
+    import numpy as np
+
+    from hyperstat.solver.diagnosis.effects import EFFECT_NAMES, make_effect
+
+    effects = []
+    rng = np.random.default_rng(10_000 + args.seed)
+    for spec in args.effect or []:
+        name, _, defect = spec.partition(":")
+        if name not in EFFECT_NAMES:
+            raise HyperstatError(f"--effect: unknown effect '{name}'; effects are {', '.join(EFFECT_NAMES)}.")
+        options: dict = {}
+        if name == "tracker-drift":
+            options["sessions"] = [1.0, 2.0]
+        if name == "violated-constraint":
+            from hyperstat.solver.diagnosis.validation_suite import VIOLATION_MAGNITUDE
+
+            if not defect:
+                raise HyperstatError("--effect violated-constraint needs the forced defect, e.g. "
+                                     "'violated-constraint:dK13'.")
+            options.update(only=[defect], magnitude_rad=VIOLATION_MAGNITUDE, magnitude_mm=VIOLATION_MAGNITUDE)
+        effects.append(make_effect(name, mech, result, None, **options).draw_truth(rng))
+    return tuple(effects)
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from hyperstat.solver.export.text import format_identification
+    from hyperstat.solver.calibration.identify import identify
+    from hyperstat.solver.calibration.measurements import read_measurements
+
+    with stages(args, ["stationarity analysis", "identification"]) as progress:
+        progress.next("stationarity analysis")
+        mech, provenance, kin, result = analysis_of(args)
+        data = read_measurements(args.data, mech)
+        validation = read_measurements(args.validation, mech) if args.validation else None
+        progress.next("identification")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = identify(mech, result, data, validation, kinematics=kin)
+    if args.json:
+        doc = {"mechanism": mech.name, "source": provenance, "data": str(args.data),
+               "validation_data": None if args.validation is None else str(args.validation), **res.to_dict()}
+        write_json(args.json, jsonable(doc))
+    if not args.quiet:
+        sys.stdout.write(format_identification(res))
+        if args.json:
+            sys.stdout.write(f"wrote {args.json}\n")
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    """Add this stage's sub-commands to the ``hyperstat`` parser."""
+    p = sub.add_parser("simulate", help="simulate tracker measurements of a virtual machine with random defects")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("--poses", type=int, default=107, help="identification poses (default 107)")
+    p.add_argument("--validation", type=int, default=30, help="validation poses (default 30, 0 for none)")
+    p.add_argument("--noise", default="0.005 mm + 0.005 mm/m", help="1-sigma tracker noise per axis, 'A mm + B mm/m'")
+    p.add_argument("--angle-tolerance", type=float, default=2e-4, help="angular defects drawn within +- (rad)")
+    p.add_argument("--length-tolerance", type=float, default=0.05, help="length defects drawn within +- (mm)")
+    p.add_argument("--select", choices=["random", "grid", "d-optimal"], default="random",
+                   help="how identification poses are chosen")
+    p.add_argument("--candidates", type=int, default=1000, help="candidate poses for --select d-optimal")
+    p.add_argument("--out", required=True, metavar="DATA.csv", help="identification measurements")
+    p.add_argument("--validation-out", metavar="VAL.csv", help="validation measurements (default DATA.validation.csv)")
+    p.add_argument("--truth", metavar="TRUTH.json", help="write the true parameters")
+    p.add_argument("--effect", action="append", metavar="NAME[:DEFECT]",
+                   help="add an unmodelled effect to the simulated machine (repeatable), e.g. thermal, "
+                        "violated-constraint:dK13")
+    p.add_argument("--metadata", action="store_true",
+                   help="record campaign metadata (time, temperature, payload, directions, sessions); implied by --effect")
+    common_options(p)
+    p.set_defaults(func=_cmd_simulate)
+    p = sub.add_parser("identify", help="identify the free defects, tracker frame and target from measurements")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("data", help="identification measurements (CSV, see docs/identification.md)")
+    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
+    common_options(p)
+    p.set_defaults(func=_cmd_identify)

@@ -1,0 +1,108 @@
+"""Commands of the diagnosis stage: ``diagnose``, ``validate-diagnosis``.
+
+Units: lengths in mm, angles in rad.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from pathlib import Path
+
+from hyperstat.solver.atomic import write_json
+from hyperstat.solver.cli.common import PLOTTERS, analysis_of, common_options, jsonable, load_source, stages
+from hyperstat.solver.errors import HyperstatError
+
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from hyperstat.solver.diagnosis.diagnose import diagnose
+    from hyperstat.solver.diagnosis.effects import EFFECT_NAMES
+    from hyperstat.solver.export.text import format_diagnosis
+    from hyperstat.solver.calibration.measurements import read_measurements
+
+    candidates = tuple(args.effects.split(",")) if args.effects else EFFECT_NAMES
+    unknown = [c for c in candidates if c not in EFFECT_NAMES]
+    if unknown:
+        raise HyperstatError(f"--effects: unknown effect '{unknown[0]}'; effects are {', '.join(EFFECT_NAMES)}.")
+    with stages(args, ["stationarity analysis", "diagnosis", "plots"]) as progress:
+        progress.next("stationarity analysis")
+        mech, provenance, kin, result = analysis_of(args)
+        data = read_measurements(args.data, mech)
+        validation = read_measurements(args.validation, mech) if args.validation else None
+        progress.next("diagnosis")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            diag = diagnose(mech, result, data, validation, candidates=candidates, kinematics=kin)
+        progress.next("plots")
+        written = []
+        if args.plots:
+            if "diagnosis" not in PLOTTERS:
+                raise HyperstatError("--plots needs the plotting side (run the 'hyperstat' console script).")
+            written = PLOTTERS["diagnosis"](diag, data, args.plots)
+    if args.json:
+        doc = {"mechanism": mech.name, "source": provenance, "data": str(args.data),
+               "validation_data": None if args.validation is None else str(args.validation), **diag.to_dict()}
+        write_json(args.json, jsonable(doc))
+    if not args.quiet:
+        sys.stdout.write(format_diagnosis(diag))
+        for w in written + ([args.json] if args.json else []):
+            sys.stdout.write(f"wrote {w}\n")
+    return 0
+
+
+def _cmd_validate_diagnosis(args: argparse.Namespace) -> int:
+    from hyperstat.solver.atomic import write_text
+    from hyperstat.solver.diagnosis.validation_suite import run_suite, summarize, to_markdown
+    from hyperstat.solver.analysis.stationarity import analyze
+
+    sources = []
+    for src in args.sources:
+        mech, _ = load_source(src, [])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sources.append((mech, analyze(mech, n_configurations=args.configurations, seed=0)))
+
+    def progress(r) -> None:
+        if not args.quiet:
+            sys.stderr.write(f"{r.mechanism:<14} seed {r.seed}  {'+'.join(r.truth) or 'none':<28} -> "
+                             f"{'gap' if r.gap_significant else 'no gap':<6} first {r.ranked_first or '-':<20} "
+                             f"selected {'+'.join(r.selected) or '-':<28} {'ok' if r.correct else 'WRONG'}\n")
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = run_suite(sources, seeds=args.seeds, pairs=not args.no_pairs,
+                            only=tuple(args.cases.split(",")) if args.cases else None, progress=progress)
+    summary = summarize(results)
+    command = "hyperstat validate-diagnosis " + " ".join(args.sources) + f" --seeds {args.seeds}"
+    if args.json:
+        write_json(args.json, jsonable({"summary": summary, "cases": [r.to_dict() for r in results],
+                                        "command": command}))
+    if args.markdown:
+        write_text(args.markdown, to_markdown(results, summary, command))
+    if not args.quiet:
+        sys.stdout.write(to_markdown(results, summary, command).split("### ")[0])
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    """Add this stage's sub-commands to the ``hyperstat`` parser."""
+    p = sub.add_parser("diagnose", help="diagnose the gap left by the rigid model: where, which effect, how far")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("data", help="identification measurements (CSV with a noise model)")
+    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
+    p.add_argument("--effects", help="comma-separated candidate effects (default: all)")
+    p.add_argument("--plots", metavar="DIR", help="write the residual plots (PNG) to DIR")
+    common_options(p)
+    p.set_defaults(func=_cmd_diagnose)
+    p = sub.add_parser("validate-diagnosis", help="withheld-effect validation suite of the diagnosis")
+    p.add_argument("sources", nargs="+", help="templates or model files")
+    p.add_argument("--seeds", type=int, default=5, help="seeds per case (default 5)")
+    p.add_argument("--cases", help="comma-separated cases, e.g. none,thermal,thermal+backlash (default: all)")
+    p.add_argument("--no-pairs", action="store_true", help="leave out the pairs of effects")
+    p.add_argument("--markdown", metavar="OUT.md", help="write the confusion matrix and rates as Markdown")
+    p.add_argument("--configurations", type=int, default=24, help="configurations of the stationarity sample")
+    p.add_argument("--json", metavar="OUT", help="write every case as JSON")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_validate_diagnosis)

@@ -1,0 +1,108 @@
+"""Commands of the export stage: ``export-controller``, ``export-linuxcnc``.
+
+Units: lengths in mm, angles in rad.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from pathlib import Path
+
+from hyperstat.solver.atomic import write_json
+from hyperstat.solver.cli.common import PLOTTERS, analysis_of, common_options, jsonable, load_source, stages
+from hyperstat.solver.errors import HyperstatError
+
+
+def _cmd_export_controller(args: argparse.Namespace) -> int:
+    from hyperstat.solver.export.controller import MACHINE_EFFECTS, controller_document, write_controller
+    from hyperstat.solver.diagnosis.effects import make_effect
+    from hyperstat.solver.calibration.identify import identify
+    from hyperstat.solver.calibration.measurements import read_measurements
+
+    with stages(args, ["stationarity analysis", "identification"]) as progress:
+        progress.next("stationarity analysis")
+        mech, provenance, kin, result = analysis_of(args)
+        data = read_measurements(args.data, mech)
+        validation = read_measurements(args.validation, mech) if args.validation else None
+        names = list(args.effect or [])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            progress.next("identification")
+            if args.diagnose:
+                from hyperstat.solver.diagnosis.diagnose import diagnose
+
+                diag = diagnose(mech, result, data, validation, kinematics=kin)
+                names += [n for n in diag.selected if n not in names]
+                violated = diag.violated_defect["defect"] if diag.violated_defect else None
+            else:
+                violated = None
+            effects = []
+            for spec in names:
+                name, _, defect = spec.partition(":")
+                if name not in MACHINE_EFFECTS:
+                    if name in ("tracker-scale", "tracker-drift"):
+                        continue  # measurement effects: fitted by the diagnosis, not part of the machine
+                    raise HyperstatError(f"--effect: '{name}' is not a machine effect ({', '.join(MACHINE_EFFECTS)}).")
+                options = {"only": [defect or violated]} if name == "violated-constraint" else {}
+                effects.append(make_effect(name, mech, result, data, **options))
+            res = identify(mech, result, data, validation, effects=tuple(effects), kinematics=kin)
+    files = [args.data] + ([args.validation] if args.validation else [])
+    doc = controller_document(mech, res, tuple(effects), provenance, tuple(files))
+    path = write_controller(args.out, doc)
+    if not args.quiet:
+        v = res.validation or res.identification
+        sys.stdout.write(f"{mech.name}: {len(doc['identified'])} identified parameters, effects: "
+                         f"{', '.join(e['effect'] for e in doc['effects']) or 'none'}; "
+                         f"{'validation' if res.validation else 'identification'} RMS {1000 * v['rms']:.1f} um\n"
+                         f"wrote {path} (sha256 {doc['sha256'][:16]}...)\n")
+    return 0
+
+
+def _cmd_export_linuxcnc(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from hyperstat.solver.atomic import write_text
+    from hyperstat.solver.export.controller import ControllerModel, read_controller
+    from hyperstat.solver.export.linuxcnc import genhexkins_parameters, hal_lines, ini_section
+
+    if not args.controller and not args.source:
+        raise HyperstatError("export-linuxcnc needs a hexapod SOURCE or --controller MACHINE.json.")
+    if args.controller:
+        doc = read_controller(args.controller)
+        model = ControllerModel(doc)
+        mech, xi = model.mechanism, model.xi
+    else:
+        mech, _ = load_source(args.source, args.param)
+        xi = np.zeros(len(mech.parameters))
+    params = genhexkins_parameters(mech, xi)
+    hal = write_text(args.hal, hal_lines(params))
+    ini = write_text(args.ini, ini_section()) if args.ini else None
+    if not args.quiet:
+        sys.stdout.write(f"genhexkins geometry of '{mech.name}': largest strut-length difference to the model "
+                         f"{params['max_strut_difference_mm']:.3g} mm over {params['poses_checked']} poses\n"
+                         f"wrote {hal}\n" + (f"wrote {ini}\n" if ini else ""))
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    """Add this stage's sub-commands to the ``hyperstat`` parser."""
+    p = sub.add_parser("export-controller", help="identify and write the controller parameter file")
+    p.add_argument("source", help="template, model file or STEP file")
+    p.add_argument("data", help="identification measurements (CSV)")
+    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
+    p.add_argument("--effect", action="append", metavar="NAME[:DEFECT]", help="machine effect to identify and export")
+    p.add_argument("--diagnose", action="store_true", help="add the effects the diagnosis selects")
+    p.add_argument("--out", required=True, metavar="MACHINE.json", help="controller file")
+    common_options(p)
+    p.set_defaults(func=_cmd_export_controller)
+    p = sub.add_parser("export-linuxcnc", help="LinuxCNC genhexkins parameters of a hexapod (HAL setp, INI [KINS])")
+    p.add_argument("source", nargs="?", help="hexapod template or model file (nominal geometry)")
+    p.add_argument("--controller", metavar="MACHINE.json", help="take the identified geometry from a controller file")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--hal", required=True, metavar="OUT.hal", help="HAL file with the setp lines")
+    p.add_argument("--ini", metavar="OUT.ini", help="INI fragment with the [KINS] section")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_export_linuxcnc)

@@ -1,0 +1,265 @@
+"""The controller parameter file: what a numerical-controller integrator loads, and a reference model.
+
+Units: lengths in mm, angles in rad (stated in the file's ``units`` field).
+
+The file (format ``hyperstat-controller``, version 1, JSON Schema
+``solver/export/schema/controller.schema.json``, documented in ``docs/controller-format.md``)
+holds the nominal model (the model file, embedded), the complete defect vector of the
+identified machine, the tool-point offset, the identified parameters with their
+standard deviations, the machine effects selected by the diagnosis (measurement
+effects such as tracker scale or drift describe the tracker, not the machine, and are
+left out), identification and validation statistics, provenance (the template and its
+parameters, and the SHA-256 of every data file) and a SHA-256 over the content: the
+canonical JSON (sorted keys, no spaces) of every field but ``sha256``.
+
+:func:`read_controller` refuses a file whose format, version, schema or hash does not
+match.  :class:`ControllerModel` is the reference forward and inverse geometric model
+built from the file alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from hyperstat.solver.atomic import dumps_json, write_text
+from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.errors import DataError
+from hyperstat.solver.kinematics.modelfile import _schema_message, mechanism_from_dict, mechanism_to_dict
+
+__all__ = ["FORMAT", "VERSION", "controller_document", "write_controller", "read_controller", "content_hash",
+           "file_sha256", "ControllerModel", "MACHINE_EFFECTS"]
+
+FORMAT = "hyperstat-controller"
+VERSION = 1
+MACHINE_EFFECTS = ("compliance", "violated-constraint", "thermal", "screw-pitch", "screw-periodic", "backlash")
+
+
+@lru_cache(maxsize=1)
+def controller_schema() -> dict:
+    """The JSON Schema of the controller file."""
+    return json.loads(resources.files("hyperstat.solver.export").joinpath("schema/controller.schema.json").read_text(encoding="utf-8"))
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """SHA-256 (hex) of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def content_hash(doc: dict) -> str:
+    """SHA-256 of the canonical JSON of ``doc`` without its ``sha256`` field."""
+    body = {k: v for k, v in doc.items() if k != "sha256"}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+def controller_document(mechanism, identification, effects: tuple = (), source: dict | None = None,
+                        data_files: tuple = ()) -> dict:
+    """Controller file content from an identification (and the effects fitted with it).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        Nominal model.
+    identification : IdentificationResult
+        Result of :func:`hyperstat.solver.calibration.identify.identify` (with the effects, if any).
+    effects : tuple
+        The effect objects of the identification's model (machine effects are exported).
+    source : dict, optional
+        Provenance of the model (template path and parameters).
+    data_files : tuple of path-like
+        Measurement files used (their SHA-256 is recorded).
+    """
+    model = identification.model
+    theta = identification.theta
+    xi = model.defects(theta)
+    names = [p.name for p in mechanism.parameters]
+    exported = []
+    for eff, sl in zip(model.effects, model._effect_slices):
+        if eff.name not in MACHINE_EFFECTS:
+            continue
+        options = {}
+        if eff.name == "violated-constraint":
+            options["only"] = list(eff.defects)
+        if eff.name == "screw-periodic":
+            options["lead"] = eff.lead
+        exported.append({"effect": eff.name, "parameters": dict(zip(model.names[sl], map(float, theta[sl]))),
+                         "options": options})
+    identified = [{"name": p["name"], "kind": p["kind"], "unit": p["unit"], "estimate": float(p["estimate"]),
+                   "std": None if p["std"] is None else float(p["std"])}
+                  for p in identification.parameters if p["identifiable"]]
+    stats = {"identification": identification.identification, "validation": identification.validation,
+             "noise_rms": identification.noise_rms, "rank": identification.rank,
+             "condition_number": identification.condition_number}
+    doc = {
+        "format": FORMAT,
+        "version": VERSION,
+        "units": {"length": "mm", "angle": "rad"},
+        "mechanism": mechanism.name,
+        "model": mechanism_to_dict(mechanism),
+        "defects": {n: float(v) for n, v in zip(names, xi)},
+        "target": [float(v) for v in theta[model.sl_target]],
+        "identified": identified,
+        "effects": exported,
+        "statistics": json.loads(dumps_json(stats)),
+        "provenance": {"source": dict(source or {}),
+                       "data": [{"file": Path(f).name, "sha256": file_sha256(f)} for f in data_files]},
+    }
+    doc = json.loads(dumps_json(doc))  # plain JSON types, as a reader will see them
+    doc["sha256"] = content_hash(doc)
+    return doc
+
+
+def write_controller(path: str | os.PathLike, doc: dict) -> Path:
+    """Write a controller file atomically (deterministic bytes)."""
+    return write_text(path, dumps_json(doc))
+
+
+def read_controller(path: str | os.PathLike) -> dict:
+    """Read a controller file, refusing a wrong format, version, schema or hash.
+
+    Raises
+    ------
+    DataError
+        One sentence naming the file and what is wrong.
+    """
+    import jsonschema
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: no such controller file.")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: not a JSON file ({exc.__class__.__name__}).") from None
+    if not isinstance(doc, dict):
+        raise DataError(f"{path}: a controller file holds a JSON object.")
+    if doc.get("format") != FORMAT:
+        raise DataError(f"{path}: field 'format' must be \"{FORMAT}\", got {json.dumps(doc.get('format'))}.")
+    if doc.get("version") != VERSION:
+        raise DataError(f"{path}: field 'version' is {json.dumps(doc.get('version'))}, but this hyperstat reads "
+                        f"version {VERSION}.")
+    errors = list(jsonschema.Draft202012Validator(controller_schema()).iter_errors(doc))
+    if errors:
+        raise DataError(f"{path}: {_schema_message(jsonschema.exceptions.best_match(errors))}.")
+    try:
+        expected = content_hash(doc)
+    except ValueError:
+        raise DataError(f"{path}: the content holds a non-finite number.") from None
+    if doc["sha256"] != expected:
+        raise DataError(f"{path}: the SHA-256 does not match the content (the file was modified after export).")
+    return doc
+
+
+class ControllerModel:
+    """Reference forward and inverse geometric model built from a controller file only.
+
+    Parameters
+    ----------
+    doc : dict
+        Content of :func:`read_controller`.
+    """
+
+    def __init__(self, doc: dict) -> None:
+        from hyperstat.solver.diagnosis.effects import make_effect
+        from hyperstat.solver.calibration.identify import MeasurementModel
+
+        self.mechanism = mechanism_from_dict(doc["model"], "controller file model")
+        self.kin = Kinematics(self.mechanism)
+        names = [p.name for p in self.mechanism.parameters]
+        missing = [n for n in names if n not in doc["defects"]]
+        if missing:
+            raise DataError(f"controller file: defect '{missing[0]}' of the model has no value.")
+        self.xi = np.array([doc["defects"][n] for n in names])
+        self.target = np.array(doc["target"], dtype=float)
+        self.effects = []
+        for e in doc["effects"]:
+            eff = make_effect(e["effect"], self.mechanism, None, None, **dict(e["options"]))
+            eff.with_truth(np.array([e["parameters"][n] for n in eff.parameter_names(None)]))
+            self.effects.append(eff)
+        self._model = MeasurementModel.__new__(MeasurementModel)
+        self._model.mechanism, self._model.kin = self.mechanism, self.kin
+
+    def forward(self, q_actuated: np.ndarray, metadata: dict | None = None,
+                with_effects: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Tool point (base frame, mm) and output pose (4x4) at actuated values, with the machine effects.
+
+        Parameters
+        ----------
+        q_actuated : ndarray, (K, n_actuated)
+            Commanded actuated values (rad / mm).
+        metadata : dict, optional
+            ``temperature``, ``payload``, ``dir<joint>`` per pose, for the effects that need them.
+        with_effects : bool
+            Apply the machine effects (False: the rigid identified geometry only).
+        """
+        from hyperstat.solver.calibration.measurements import MeasurementSet
+
+        qa = np.atleast_2d(np.asarray(q_actuated, dtype=float))
+        data = MeasurementSet([str(i) for i in range(len(qa))], [], qa.copy(), np.zeros((len(qa), 3)),
+                              metadata=dict(metadata or {}))
+        effects = self.effects if with_effects else []
+        for eff in effects:
+            corr = eff.actuator_correction(self._model, eff.truth, data)
+            if corr is not None:
+                qa = qa + corr[0]
+        xi = self.xi.copy()
+        res = self.kin.solve(qa, xi)
+        st = self.kin.evaluate(res.q, xi, jacobians=False)
+        pose = st.output_pose
+        point = pose[:, :3, 3] + pose[:, :3, :3] @ self.target
+        for eff in effects:
+            corr = eff.output_correction(self._model, eff.truth, data, res.q, st, point, False)
+            if corr is not None:
+                point = point + corr[0]
+        return point, pose
+
+    def inverse(self, pose: np.ndarray, q_start: np.ndarray | None = None, tol: float = 1e-12,
+                max_iter: int = 30) -> np.ndarray:
+        """Actuated values that bring the output frame to ``pose`` (least squares over its 6 components).
+
+        Effects are not inverted (the rigid identified geometry only).
+
+        Parameters
+        ----------
+        pose : ndarray, (K, 4, 4)
+            Wanted output poses in the base frame.
+        q_start : ndarray, (K, n_actuated), optional
+            Initial guess (default: home).
+        """
+        from hyperstat.solver.kinematics.frames import so3_log
+
+        pose = np.asarray(pose, dtype=float).reshape(-1, 4, 4)
+        act = self.mechanism.actuated
+        qa = (np.broadcast_to(self.mechanism.home[act], (len(pose), len(act))) if q_start is None
+              else np.atleast_2d(q_start)).astype(float).copy()
+        lc = self.kin.length_scale
+        for _ in range(max_iter):
+            res = self.kin.solve(qa, self.xi)
+            st = self.kin.evaluate(res.q, self.xi, jacobians=True)
+            cur = st.output_pose
+            rot_err = so3_log(pose[:, :3, :3] @ np.transpose(cur[:, :3, :3], (0, 2, 1)))
+            pos_err = pose[:, :3, 3] - cur[:, :3, 3]
+            err = np.concatenate([rot_err * lc, pos_err], axis=1)
+            passive = self.mechanism.passive
+            from hyperstat.solver.kinematics.closure import batched_lstsq
+
+            if len(passive) and len(self.mechanism.closures):
+                b = self.kin.scaled_rows(st.closure_q[:, :, passive])
+                dp = batched_lstsq(b, self.kin.scaled_rows(st.closure_q[:, :, act]))
+                k_a = st.output_q[:, :, act] - st.output_q[:, :, passive] @ dp
+            else:
+                k_a = st.output_q[:, :, act]
+            jac = k_a.copy()
+            jac[:, :3] *= lc
+            step = batched_lstsq(jac, err[:, :, None])[..., 0]
+            qa = qa + step
+            if np.max(np.abs(step)) < tol * max(1.0, lc):
+                break
+        return qa

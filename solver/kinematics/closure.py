@@ -1,0 +1,654 @@
+"""Forward model, loop-closure residuals, screw Jacobians and assembly.
+
+Units: lengths in mm, angles in rad.
+
+For a configuration ``q`` (all joint variables) and a defect vector ``xi`` the
+frames of every chain are products of ``D`` and ``M`` matrices (paper 1, eq. 2).
+A loop closure (eqs. 7, 9) compares the frame reached by a closing chain with the
+same frame reached by its defining chain; its residual is the 6-vector
+
+    r = (log(R_closing R_reference^T), p_closing - p_reference)    [rad, mm]
+
+written in the base frame.  Jacobians are assembled from the unit screws of the
+joints and of the defects (paper 2, eq. 7): a column is the twist ``(omega, v)`` of
+the parameter, turned into ``(omega, v + omega x p)``, the angular velocity and the
+velocity of the frame origin ``p``.  Everything is vectorised over configurations.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from hyperstat.solver.errors import AssemblyError
+from hyperstat.solver.kinematics.fastfk import FramePlan
+from hyperstat.solver.kinematics.frames import (
+    cross,
+    make_transform,
+    minimal_rotation,
+    minimal_rotation_velocity,
+    apply_motion,
+    so3_log,
+)
+from hyperstat.solver.kinematics.model import ConfigurationFrame, Joint, Mechanism
+
+__all__ = ["Kinematics", "KinematicState", "AssemblyResult"]
+
+_COMP_INDEX = {"I": 0, "J": 1, "K": 2, "a": 0, "b": 1, "c": 2}
+
+
+@dataclass
+class KinematicState:
+    """Frames, residuals and Jacobians at a batch of configurations.
+
+    Shapes use ``K`` configurations, ``m = 6 * n_closures`` residual rows,
+    ``n_xi`` defect parameters and ``n_q`` joints.
+
+    Attributes
+    ----------
+    residual : ndarray, (K, m)
+        Closure residuals ``(rotation [rad], position [mm])`` per closure.
+    closure_xi : ndarray, (K, m, n_xi) or None
+        ``dr/dxi`` (the stationarity matrix ``A_s`` of eq. 3).
+    closure_q : ndarray, (K, m, n_q) or None
+        ``dr/dq`` for all joints (passive columns give ``B_s``).
+    output_pose : ndarray, (K, 4, 4)
+        Output frame in the base frame.
+    output_xi, output_q : ndarray, (K, 6, n) or None
+        Angular velocity and origin velocity of the output frame per unit parameter.
+    frames : dict
+        Frame name -> (K, 4, 4) absolute transform (defining chain).
+    element_frames : dict
+        ``(chain, element)`` -> (K, 4, 4) absolute ``L`` frame of every element.
+    defect_twists : ndarray, (K, n_xi, 6) or None
+        Spatial twist ``(omega, v)`` of every defect parameter (``v``: velocity of the
+        point at the base origin); it moves every frame downstream of its element.
+    """
+
+    residual: np.ndarray
+    closure_xi: np.ndarray | None
+    closure_q: np.ndarray | None
+    output_pose: np.ndarray
+    output_xi: np.ndarray | None
+    output_q: np.ndarray | None
+    frames: dict
+    element_frames: dict
+    defect_twists: np.ndarray | None = None
+
+
+@dataclass
+class AssemblyResult:
+    """Outcome of :meth:`Kinematics.assemble`.
+
+    Attributes
+    ----------
+    q : ndarray, (K, n_q)
+        Configurations with solved passive joints.
+    residual : ndarray, (K,)
+        Closure residual norm after solving, rotations scaled by the length scale (mm).
+    converged : ndarray of bool, (K,)
+        Whether the residual fell below the tolerance.
+    """
+
+    q: np.ndarray
+    residual: np.ndarray
+    converged: np.ndarray
+
+
+class _LazyElementFrames(Mapping):
+    """``element_frames`` of a state computed by the batched path: filled on first access.
+
+    The batched path (:mod:`hyperstat.solver.kinematics.fastfk`) does not keep the ``L`` frame of every
+    element; the few callers that want them (pictures, hypotheses, the length scale)
+    get them from the element-by-element pass, run once on demand.
+    """
+
+    def __init__(self, kin: "Kinematics", q: np.ndarray, xi: np.ndarray) -> None:
+        self._args = (kin, q, xi)
+        self._frames: dict | None = None
+
+    def _get(self) -> dict:
+        if self._frames is None:
+            kin, q, xi = self._args
+            self._frames = kin._walk(q, xi)[3]  # noqa: SLF001 - same class family
+        return self._frames
+
+    def __getitem__(self, key):
+        return self._get()[key]
+
+    def __iter__(self):
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+
+def batched_lstsq(a: np.ndarray, rhs: np.ndarray, damping: float = 1e-12) -> np.ndarray:
+    """Least-squares solutions of a stack of small systems ``a[k] x = rhs[k]``.
+
+    Normal equations with a tiny Levenberg damping ``damping * max(diag(a^T a))``, five
+    times faster than a batched pseudo-inverse on the (K, 12, 10) systems of assembly
+    and still defined at singular configurations (minimum-norm-like step).
+
+    Parameters
+    ----------
+    a : ndarray, (K, m, n)
+    rhs : ndarray, (K, m, p)
+
+    Returns
+    -------
+    ndarray, (K, n, p)
+    """
+    at = np.ascontiguousarray(np.swapaxes(a, 1, 2))  # contiguous: the stacked product is 3x faster
+    ata = at @ a
+    atb = at @ rhs
+    diag = np.einsum("kii->ki", ata)
+    lam = damping * np.maximum(diag.max(axis=1), 1e-300)
+    idx = np.arange(ata.shape[1])
+    ata[:, idx, idx] += lam[:, None]
+    return np.linalg.solve(ata, atb)
+
+
+class Kinematics:
+    """Vectorised forward model of a :class:`~hyperstat.solver.kinematics.model.Mechanism`.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        The model to evaluate.
+    """
+
+    def __init__(self, mechanism: Mechanism) -> None:
+        self.mechanism = mechanism
+        m = mechanism
+        self.n_q = len(m.joints)
+        self.n_xi = len(m.parameters)
+        self._order = m.topology["order"]
+        # Per element: nominal matrix, axis, and the parameter indices by component.
+        self._elements: dict[tuple[int, int], dict] = {}
+        for ci, chain in enumerate(m.chains):
+            for ei, el in enumerate(chain.elements):
+                d0 = el.placement.matrix()
+                info = {
+                    "D0": d0,
+                    "R0": d0[:3, :3].copy(),
+                    "p0": d0[:3, 3].copy(),
+                    "n0": d0[:3, 2].copy(),
+                    "params": {},
+                    "joint": m.joint_index[el.name] if isinstance(el, Joint) else None,
+                    "type": el.type if isinstance(el, Joint) else None,
+                }
+                self._elements[(ci, ei)] = info
+        for pi, p in enumerate(m.parameters):
+            self._elements[(p.chain, p.index)]["params"][p.component] = pi
+        self._param_element = [(p.chain, p.index) for p in m.parameters]
+        self._joint_element = [None] * self.n_q
+        for key, info in self._elements.items():
+            if info["joint"] is not None:
+                self._joint_element[info["joint"]] = key
+        # Signed membership of elements in closure loops and the output path.
+        keys = list(self._elements)
+        self._key_index = {k: i for i, k in enumerate(keys)}
+        n_el = len(keys)
+        self._closure_sign = np.zeros((len(m.closures), n_el))
+        for k, cl in enumerate(m.closures):
+            for e in cl.path:
+                self._closure_sign[k, self._key_index[e]] += 1.0
+            for e in cl.reference_path:
+                self._closure_sign[k, self._key_index[e]] -= 1.0
+        self._output_member = np.zeros(n_el)
+        for e in m.path_to(m.output):
+            self._output_member[self._key_index[e]] = 1.0
+        self._param_el_idx = np.array([self._key_index[k] for k in self._param_element], dtype=int)
+        self._joint_el_idx = np.array([self._key_index[k] for k in self._joint_element], dtype=int)
+        self._plans: dict = {}
+        self._plans_lock = threading.Lock()  # accuracy maps evaluate blocks in threads
+        #: use :class:`hyperstat.solver.kinematics.fastfk.FramePlan` for frames and joint Jacobians when the
+        #: defects are the same for every configuration (False: element-by-element path)
+        self.use_plan = True
+        self.length_scale = self._characteristic_length()
+
+    # ------------------------------------------------------------------ helpers
+    def _characteristic_length(self) -> float:
+        state = self.evaluate(self.mechanism.home[None, :], jacobians=False)
+        pts = [f[0, :3, 3] for f in state.frames.values()]
+        pts += [t[0, :3, 3] for t in state.element_frames.values()]
+        pts = np.array(pts)
+        rms = float(np.sqrt(np.mean(np.sum((pts - pts.mean(axis=0)) ** 2, axis=1)))) if len(pts) > 1 else 0.0
+        return max(rms, 1.0)
+
+    def _broadcast(self, q: np.ndarray, xi: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """``q`` as (K, n_q); ``xi`` as (1, n_xi) when it is the same for every configuration."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        k = q.shape[0]
+        if xi is None:
+            xi = np.zeros((1, self.n_xi))
+        else:
+            xi = np.asarray(xi, dtype=float)
+            if xi.ndim == 1:
+                xi = xi[None, :]
+            elif xi.shape[0] not in (1, k):
+                raise ValueError(f"xi must have 1 or {k} rows (one per configuration), got {xi.shape[0]}.")
+        return q, xi
+
+    def element_matrices(self, xi: np.ndarray | None = None) -> dict:
+        """Matrix ``D(xi)`` of every element for one defect vector (rad / mm), shape (4, 4).
+
+        Parameters
+        ----------
+        xi : ndarray, (n_xi,), optional
+            Defects; the nominal geometry if omitted.
+
+        Returns
+        -------
+        dict
+            ``(chain, element)`` -> (4, 4) array.
+        """
+        _, xi2 = self._broadcast(np.zeros((1, self.n_q)), xi)
+        if xi2.shape[0] != 1:
+            raise ValueError("element_matrices takes one defect vector.")
+        return {key: self._element_matrix(info, xi2)[0][0] for key, info in self._elements.items()}
+
+    def plan(self, xi: np.ndarray | None = None) -> FramePlan:
+        """The lean batched forward model (:class:`hyperstat.solver.kinematics.fastfk.FramePlan`) for one geometry.
+
+        Plans are cached for the last few defect vectors, so repeated evaluations at the
+        same geometry (assembly iterations, sampling) compile once.
+        """
+        key = None if xi is None or not np.any(xi) else np.asarray(xi, dtype=float).tobytes()
+        with self._plans_lock:
+            plan = self._plans.get(key)
+            if plan is None:
+                plan = FramePlan(self.mechanism, self.element_matrices(None if key is None else np.asarray(xi, float)))
+                if len(self._plans) >= 8:
+                    self._plans.pop(next(iter(self._plans)))
+                self._plans[key] = plan
+        return plan
+
+    def _element_matrix(self, info: dict, xi: np.ndarray) -> tuple[np.ndarray, dict]:
+        """``D(xi)`` for one element, shape (K, 4, 4), plus intermediate values."""
+        k = xi.shape[0]
+        params = info["params"]
+        extra = {}
+        if not params:
+            return np.broadcast_to(info["D0"], (k, 4, 4)), extra
+        dn = np.zeros((k, 3))
+        dp = np.zeros((k, 3))
+        gamma = np.zeros(k)
+        for comp, pi in params.items():
+            if comp in "IJK":
+                dn[:, _COMP_INDEX[comp]] = xi[:, pi]
+            elif comp in "abc":
+                dp[:, _COMP_INDEX[comp]] = xi[:, pi]
+            else:
+                gamma = xi[:, pi]
+        n0 = info["n0"]
+        raw = n0 + dn
+        norm = np.linalg.norm(raw, axis=1, keepdims=True)
+        b = raw / norm
+        rmin = minimal_rotation(np.broadcast_to(n0, b.shape), b)
+        rot = rmin @ info["R0"]
+        if np.any(gamma != 0):
+            c, s = np.cos(gamma), np.sin(gamma)
+            rz = np.zeros((k, 3, 3))
+            rz[:, 0, 0] = c
+            rz[:, 0, 1] = -s
+            rz[:, 1, 0] = s
+            rz[:, 1, 1] = c
+            rz[:, 2, 2] = 1.0
+            rot = rot @ rz
+        extra.update(b=b, norm=norm)
+        return make_transform(rot, info["p0"] + dp), extra
+
+    # ------------------------------------------------------------------ evaluation
+    def _walk(self, q: np.ndarray, xi: np.ndarray) -> tuple[dict, dict, dict, dict, dict]:
+        """Element-by-element forward pass: frames, closing ends, parents, L frames, extras."""
+        m = self.mechanism
+        k = q.shape[0]
+        frames: dict[str, np.ndarray] = {m.base: np.broadcast_to(np.eye(4), (k, 4, 4))}
+        closing_end: dict[int, np.ndarray] = {}
+        parents: dict[tuple[int, int], np.ndarray] = {}
+        lframes: dict[tuple[int, int], np.ndarray] = {}
+        extras: dict[tuple[int, int], dict] = {}
+        for ci in self._order:
+            chain = m.chains[ci]
+            t = frames[chain.start]
+            for ei, el in enumerate(chain.elements):
+                info = self._elements[(ci, ei)]
+                d, extra = self._element_matrix(info, xi)
+                parents[(ci, ei)] = t
+                if d.shape[0] == 1 and t.shape[0] == k:
+                    # one geometry: a single (4K, 4) x (4, 4) product instead of K small ones
+                    lf = (np.reshape(t, (4 * k, 4)) @ d[0]).reshape(k, 4, 4)
+                else:
+                    lf = t @ d
+                lframes[(ci, ei)] = lf
+                extras[(ci, ei)] = extra
+                if info["joint"] is not None:
+                    t = apply_motion(lf, info["type"], q[:, info["joint"]])
+                else:
+                    t = lf
+            if chain.end in frames:
+                closing_end[ci] = t
+            else:
+                frames[chain.end] = t
+        return frames, closing_end, parents, lframes, extras
+
+    def forward(
+        self,
+        q: np.ndarray,
+        xi: np.ndarray | None = None,
+        jacobian: bool = False,
+        threads: int | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Output pose (and its joint Jacobian) at many configurations, one geometry.
+
+        The lean path of :mod:`hyperstat.solver.kinematics.fastfk`; no closure is solved: ``q`` holds every
+        joint (for a parallel mechanism, assembled configurations).
+
+        Parameters
+        ----------
+        q : ndarray, (K, n_q) or (n_q,)
+            Joint values (rad / mm).
+        xi : ndarray, (n_xi,), optional
+            Defects (rad / mm), the same for all configurations; nominal if omitted.
+        jacobian : bool
+            Also return ``dX/dq``: angular velocity and velocity of the output origin in
+            the base frame per unit joint velocity (paper 2, eq. 7).
+        threads : int, optional
+            Worker threads (default: the number of CPUs).
+
+        Returns
+        -------
+        pose : ndarray, (K, 4, 4)
+            Output frame in the base frame.
+        jac : ndarray, (K, 6, n_q) or None
+            Rows ``(omega, v)``.
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        plan = self.plan(None if xi is None else np.asarray(xi, dtype=float))
+        out = self.mechanism.output
+        run = plan.run(q, threads=threads, frames=[out], jacobian_at=out if jacobian else None)
+        return run.frames[out], run.jacobian
+
+    def _joint_twists(self, lframes: dict, k: int) -> np.ndarray:
+        """Spatial twist (K, n_q, 6) of every joint from its ``L`` frame (element-by-element path)."""
+        tw_q = np.zeros((k, self.n_q, 6))
+        for ji, key in enumerate(self._joint_element):
+            lf = lframes[key]
+            z = lf[:, :3, 2]
+            if self._elements[key]["type"] == "R":
+                tw_q[:, ji, :3] = z
+                tw_q[:, ji, 3:] = cross(lf[:, :3, 3], z)
+            else:
+                tw_q[:, ji, 3:] = z
+        return tw_q
+
+    def evaluate(
+        self, q: np.ndarray, xi: np.ndarray | None = None, jacobians: bool | str = True
+    ) -> KinematicState:
+        """Frames, closure residuals and (optionally) Jacobians at configurations ``q``.
+
+        Parameters
+        ----------
+        q : ndarray, (K, n_q) or (n_q,)
+            Joint values (rad / mm), all joints.
+        xi : ndarray, (n_xi,) or (K, n_xi), optional
+            Defect values (rad / mm); zero (nominal geometry) if omitted.
+        jacobians : bool or "joints"
+            Also compute ``dr/dxi``, ``dr/dq`` and the output Jacobians; ``"joints"``
+            computes only ``dr/dq`` (what assembly needs).
+
+        Returns
+        -------
+        KinematicState
+        """
+        m = self.mechanism
+        q, xi = self._broadcast(q, xi)
+        k = q.shape[0]
+        fast_rows = None
+        if self.use_plan and xi.shape[0] == 1 and jacobians in (False, "joints"):
+            # one geometry for all configurations: the lean batched path (hyperstat.solver.kinematics.fastfk)
+            run = self.plan(xi[0]).run(q, closure_rows=jacobians == "joints")
+            frames, closing_end, fast_rows = run.frames, run.closing, run.closure_q
+            lframes = _LazyElementFrames(self, q, xi)
+        else:
+            frames, closing_end, parents, lframes, extras = self._walk(q, xi)
+
+        closures = m.closures
+        residual = np.zeros((k, 6 * len(closures)))
+        for c, cl in enumerate(closures):
+            ref = frames[cl.frame]
+            other = closing_end[cl.chain]
+            rot_err = so3_log(other[:, :3, :3] @ np.swapaxes(ref[:, :3, :3], 1, 2))
+            residual[:, 6 * c : 6 * c + 3] = rot_err
+            residual[:, 6 * c + 3 : 6 * c + 6] = other[:, :3, 3] - ref[:, :3, 3]
+        out_pose = frames[m.output]
+        if not jacobians:
+            return KinematicState(residual, None, None, out_pose, None, None, frames, lframes)
+
+        # Spatial twists (omega, v) of every defect parameter and every joint.
+        only_joints = jacobians == "joints"
+        tw_xi = np.zeros((k, self.n_xi, 6))
+        for key, info in ([] if only_joints else self._elements.items()):
+            params = info["params"]
+            if not params:
+                continue
+            parent = parents[key]
+            lf = lframes[key]
+            origin = lf[:, :3, 3]
+            rp = parent[:, :3, :3]
+            orient = [(c, params[c]) for c in "IJK" if c in params]
+            if orient:
+                b = extras[key]["b"]
+                norm = extras[key]["norm"]
+                eye = np.eye(3)
+                proj = (eye[None] - b[:, :, None] * b[:, None, :]) / norm[:, :, None]
+                db = np.stack([proj[:, :, _COMP_INDEX[c]] for c, _ in orient], axis=1)  # (K, n, 3)
+                w_par = minimal_rotation_velocity(np.broadcast_to(info["n0"], b.shape), b, db)
+                w_par = np.broadcast_to(w_par, (rp.shape[0],) + w_par.shape[1:])
+                w = np.einsum("kij,knj->kni", rp, w_par)
+                for j, (_, pi) in enumerate(orient):
+                    tw_xi[:, pi, :3] = w[:, j]
+                    tw_xi[:, pi, 3:] = cross(origin, w[:, j])
+            for c in "abc":
+                if c in params:
+                    tw_xi[:, params[c], 3:] = rp[:, :, _COMP_INDEX[c]]
+            if "G" in params:
+                w = lf[:, :3, 2]
+                tw_xi[:, params["G"], :3] = w
+                tw_xi[:, params["G"], 3:] = cross(origin, w)
+        if fast_rows is not None:  # jacobians == "joints" on the batched path
+            return KinematicState(residual, None, fast_rows, out_pose, None, None, frames, lframes, None)
+        tw_q = self._joint_twists(lframes, k)
+
+        def rows(tw: np.ndarray, weights: np.ndarray, p: np.ndarray) -> np.ndarray:
+            # tw (K, n, 6), weights (L, n), p (K, L, 3) -> (K, 6L, n): for each loop the
+            # signed twists moved to the loop's frame origin, (omega, v + omega x p);
+            # v - [p]x omega as one stacked (3, 3) x (3, n) product per loop
+            n_loops, n = weights.shape
+            tw_t = np.ascontiguousarray(tw.transpose(0, 2, 1))  # (K, 6, n)
+            skew = np.zeros((k, n_loops, 3, 3))
+            px, py, pz = p[..., 0], p[..., 1], p[..., 2]
+            skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = -pz, py, -px
+            skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = pz, -py, px
+            out = np.empty((k, n_loops, 6, n))
+            np.subtract(tw_t[:, None, 3:], skew @ tw_t[:, None, :3], out=out[:, :, 3:])
+            out[:, :, :3] = tw_t[:, None, :3]
+            out *= weights[None, :, None, :]
+            return out.reshape(k, 6 * n_loops, n)
+
+        if closures:
+            points = np.stack([frames[cl.frame][:, :3, 3] for cl in closures], axis=1)  # (K, L, 3)
+        else:
+            points = np.zeros((k, 0, 3))
+        bq = rows(tw_q, self._closure_sign[:, self._joint_el_idx], points)
+        if only_joints:
+            return KinematicState(residual, None, bq, out_pose, None, None, frames, lframes, None)
+        # closure rows of the defects and output rows of defects and joints: the output is one
+        # more "loop" (weights: membership of the output path, point: the output origin)
+        n_rows = 6 * len(closures)
+        both = rows(tw_xi, np.vstack([self._closure_sign[:, self._param_el_idx],
+                                      self._output_member[None, self._param_el_idx]]),
+                    np.concatenate([points, out_pose[:, None, :3, 3]], axis=1))
+        a, o_xi = both[:, :n_rows], both[:, n_rows:]
+        o_q = rows(tw_q, self._output_member[None, self._joint_el_idx], out_pose[:, None, :3, 3])
+        return KinematicState(residual, a, bq, out_pose, o_xi, o_q, frames, lframes, tw_xi)
+
+    # ------------------------------------------------------------------ assembly
+    def scaled(self, residual: np.ndarray) -> np.ndarray:
+        """Residual with rotation rows multiplied by the length scale (all in mm)."""
+        r = residual.copy()
+        for c in range(r.shape[-1] // 6):
+            r[..., 6 * c : 6 * c + 3] *= self.length_scale
+        return r
+
+    def residual_norm(self, residual: np.ndarray) -> np.ndarray:
+        """Norm of the scaled residual per configuration (mm)."""
+        return np.linalg.norm(self.scaled(residual), axis=-1)
+
+    def assemble(
+        self,
+        q: np.ndarray,
+        xi: np.ndarray | None = None,
+        tol: float = 1e-9,
+        max_iter: int = 40,
+        max_step: float = 0.3,
+    ) -> AssemblyResult:
+        """Solve the passive joints by Gauss-Newton (least squares when over-constrained).
+
+        Parameters
+        ----------
+        q : ndarray, (K, n_q)
+            Actuated values to hold and initial guesses of the passive joints.
+        xi : ndarray, optional
+            Defects (rad / mm).
+        tol : float
+            Convergence tolerance on the scaled residual step, relative to the length scale.
+        max_iter : int
+            Maximum Gauss-Newton iterations.
+        max_step : float
+            Largest revolute step per iteration (rad); prismatic steps are scaled alike
+            by the length scale.
+
+        Returns
+        -------
+        AssemblyResult
+        """
+        q = np.atleast_2d(np.array(q, dtype=float))
+        passive = self.mechanism.passive
+        if len(self.mechanism.closures) == 0 or len(passive) == 0:
+            st = self.evaluate(q, xi, jacobians=False)
+            res = self.residual_norm(st.residual)
+            return AssemblyResult(q, res, res <= tol * self.length_scale)
+        types = np.array([self.mechanism.joints[i].type for i in passive])
+        step_cap = np.where(types == "R", max_step, max_step * self.length_scale)
+        active = np.ones(q.shape[0], dtype=bool)
+        prev = np.full(q.shape[0], np.inf)
+        for _ in range(max_iter):
+            idx = np.nonzero(active)[0]
+            if idx.size == 0:
+                break
+            st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), "joints")
+            r = self.scaled(st.residual)
+            b = self.scaled_rows(st.closure_q[:, :, passive])
+            dq = -batched_lstsq(b, r[..., None])[..., 0]
+            ratio = np.max(np.abs(dq) / step_cap, axis=1, keepdims=True)
+            dq = dq / np.maximum(ratio, 1.0)
+            q[np.ix_(idx, passive)] += dq
+            stepn = np.max(np.abs(dq) / step_cap * max_step, axis=1)
+            rn = np.linalg.norm(r, axis=1)
+            stalled = (rn >= prev[idx] * 0.999999) & (stepn < 1e-6)
+            done = (stepn < tol) | (rn < 1e-13 * self.length_scale) | stalled
+            prev[idx] = rn
+            active[idx[done]] = False
+        st = self.evaluate(q, xi, jacobians=False)
+        res = self.residual_norm(st.residual)
+        return AssemblyResult(q, res, res <= 1e-7 * self.length_scale)
+
+    def scaled_rows(self, jac: np.ndarray) -> np.ndarray:
+        """Jacobian with rotation rows multiplied by the length scale."""
+        j = jac.copy()
+        for c in range(j.shape[-2] // 6):
+            j[..., 6 * c : 6 * c + 3, :] *= self.length_scale
+        return j
+
+    @property
+    def joint_scale(self) -> np.ndarray:
+        """Column scale of joint variables: 1 for revolute (rad), the length scale for prismatic (mm)."""
+        return np.array([1.0 if j.type == "R" else self.length_scale for j in self.mechanism.joints])
+
+    @property
+    def parameter_scale(self) -> np.ndarray:
+        """Column scale of defects: 1 for angles (rad), the length scale for positions (mm)."""
+        return np.array([self.length_scale if p.unit == "mm" else 1.0 for p in self.mechanism.parameters])
+
+    def dimensionless(self, jac: np.ndarray, column_scale: np.ndarray | None = None) -> np.ndarray:
+        """Jacobian with position rows divided and length columns multiplied by the length scale.
+
+        Rows come in blocks of six (rotation, position); the result relates
+        dimensionless quantities (rad, and mm per length scale), so that singular
+        values of mixed angle / length matrices are comparable.
+        """
+        j = np.array(jac, dtype=float, copy=True)
+        for c in range(j.shape[-2] // 6):
+            j[..., 6 * c + 3 : 6 * c + 6, :] /= self.length_scale
+        if column_scale is not None:
+            j = j * column_scale
+        return j
+
+    def check_home(self) -> None:
+        """Raise :class:`AssemblyError` if the nominal home configuration does not close."""
+        st = self.evaluate(self.mechanism.home[None, :], jacobians=False)
+        for c, cl in enumerate(self.mechanism.closures):
+            r = st.residual[0, 6 * c : 6 * c + 6]
+            rot, pos = np.linalg.norm(r[:3]), np.linalg.norm(r[3:])
+            if rot * self.length_scale + pos > 1e-6 * self.length_scale:
+                raise AssemblyError(
+                    f"the nominal mechanism '{self.mechanism.name}' does not close at its home configuration: "
+                    f"loop '{cl.label(self.mechanism)}' misses by {pos:.4g} mm and {rot:.4g} rad."
+                )
+
+    def solve(
+        self,
+        q_actuated: np.ndarray,
+        xi: np.ndarray | None = None,
+        start: np.ndarray | None = None,
+        steps: int = 6,
+    ) -> AssemblyResult:
+        """Assemble at actuated values by continuation from ``start`` (default: home).
+
+        The actuated joints move from ``start`` to their targets in ``steps`` equal
+        steps, the passive joints follow by Gauss-Newton, which keeps every
+        configuration on the assembly branch of the start configuration.
+
+        Parameters
+        ----------
+        q_actuated : ndarray, (K, n_actuated)
+            Target actuated values (rad / mm).
+        xi : ndarray, optional
+            Defects (rad / mm).
+        start : ndarray, (n_q,) or (K, n_q), optional
+            Assembled start configuration.
+        steps : int
+            Continuation steps.
+
+        Returns
+        -------
+        AssemblyResult
+        """
+        qa = np.atleast_2d(np.asarray(q_actuated, dtype=float))
+        k = qa.shape[0]
+        act = self.mechanism.actuated
+        q0 = self.mechanism.home if start is None else np.asarray(start, dtype=float)
+        q = np.array(np.broadcast_to(q0, (k, self.n_q)), dtype=float)
+        a0 = q[:, act].copy()
+        result = None
+        for s in range(1, steps + 1):
+            q[:, act] = a0 + (qa - a0) * (s / steps)
+            result = self.assemble(q, xi, max_iter=40 if s == steps else 12)
+            q = result.q
+        return result

@@ -1,0 +1,421 @@
+"""Accuracy coefficients (paper 2, Simas & Di Gregorio): how actuation and geometric errors move the platform.
+
+Units: lengths in mm, angles in rad; coefficients are dimensionless (rad/rad, mm/mm) or
+mm/rad (``epsilon_*R``) or rad/mm (``delta_*P``).
+
+Paper 2 treats every geometric constant as an extra joint of an "extended spatial
+mechanism" and eliminates the passive joints (eqs. 9-12): the platform's small rotation
+``u dphi`` and the displacement ``dO_p`` of its point ``O_p`` are
+
+    u dphi = D_f dq_f + D_g dq_g,      dO_p = E_f dq_f + E_g dq_g            (eq. 13)
+
+with ``q_f`` the actuated joints and ``q_g`` the geometric errors.  In the joint-invariant
+model the same maps are the output twist per unit actuated value and per unit defect with
+the passive joints following by the implicit function theorem,
+``K = O - O_p B_p^+ B`` (eq. 3 of paper 1): ``D`` are its rotation rows, ``E`` its
+translation rows at the output frame's origin ``O_p``.  Splitting the columns by kind
+(``P``: prismatic joints and length errors, ``R``: revolute joints and angle errors) gives
+the eight matrices of eq. (17); their largest singular values are the accuracy
+coefficients ``delta_fP, delta_fR, delta_gP, delta_gR, epsilon_fP, epsilon_fR, epsilon_gP,
+epsilon_gR`` (eqs. 18), and ``|dphi| <= sum delta ||dq||``, ``||dO_p|| <= sum epsilon ||dq||``.
+A single parameter's own coefficient is its column norm (section 3.2, last paragraph).
+
+For an over-constrained mechanism only the admissible (free and coupled) defects are
+accuracy inputs: the forced ones are assembly conditions (the stationarity analysis).
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.model import Mechanism
+
+__all__ = ["COEFFICIENT_NAMES", "AccuracyMaps", "accuracy_maps", "allocate", "compensable", "grid_slice", "report_section",
+           "sample_workspace", "weighted_allocation", "geometric_parameters", "largest_singular_value",
+           "output_twist_maps"]
+
+COEFFICIENT_NAMES = ("delta_fP", "delta_fR", "delta_gP", "delta_gR", "epsilon_fP", "epsilon_fR", "epsilon_gP",
+                     "epsilon_gR")
+
+
+def output_twist_maps(kin: Kinematics, st, damping: float = 1e-12) -> tuple[np.ndarray, np.ndarray]:
+    """Output twist per unit defect and per unit actuated value, passive joints following.
+
+    ``K_xi = O_xi - O_p B_p^+ A`` and ``K_a = O_a - O_p B_p^+ B_a`` (paper 1, eq. 3; paper 2,
+    eq. 12), the passive joints solving the (length-scaled) closure in the least-squares
+    sense; shapes (K, 6, n_xi) and (K, 6, n_actuated), twists (omega, v) at the output origin.
+
+    ``O_p B_p^+`` is formed with six right-hand sides whatever the number of defects: when
+    ``B_p`` is square, ``(O_p B_p^-1)^T = B_p^-T O_p^T``; otherwise (over-constrained, or a
+    singular configuration in the block) ``Z^T B_p^T S^2`` with ``(B_p^T S^2 B_p) Z = O_p^T``,
+    ``S`` scaling the rotation rows by the length scale and the normal matrix damped by
+    ``damping`` times its largest diagonal entry, so that the maps stay defined
+    (minimum-norm-like) at a singular configuration.
+    """
+    m = kin.mechanism
+    passive, act = m.passive, m.actuated
+    o_xi, o_q = st.output_xi, st.output_q
+    if not (len(passive) and len(m.closures)):
+        return o_xi, o_q[:, :, act]
+    b = st.closure_q[:, :, passive]  # (K, 6L, n_p)
+    o_p = o_q[:, :, passive]
+    gain = None
+    if b.shape[1] == b.shape[2]:  # as many closure rows as passive joints: B_p^+ = B_p^-1, no scaling needed
+        try:
+            gain = np.swapaxes(np.linalg.solve(np.swapaxes(b, 1, 2), np.swapaxes(o_p, 1, 2)), 1, 2)
+        except np.linalg.LinAlgError:  # a singular configuration in the block: the damped path below
+            gain = None
+    if gain is None:
+        weight = np.ones(b.shape[1])  # S^2 on the diagonal
+        for c in range(len(weight) // 6):
+            weight[6 * c : 6 * c + 3] = kin.length_scale**2
+        bt_w = np.ascontiguousarray(np.swapaxes(b, 1, 2)) * weight  # B_p^T S^2, (K, n_p, 6L)
+        normal = bt_w @ b
+        diag = np.einsum("kii->ki", normal)
+        idx = np.arange(normal.shape[1])
+        normal[:, idx, idx] += damping * np.maximum(diag.max(axis=1), 1e-300)[:, None]
+        z = np.linalg.solve(normal, np.swapaxes(o_p, 1, 2))  # (K, n_p, 6)
+        gain = np.swapaxes(z, 1, 2) @ bt_w  # O_p B_p^+ (K, 6, 6L)
+    return o_xi - gain @ st.closure_xi, o_q[:, :, act] - gain @ st.closure_q[:, :, act]
+
+
+def largest_singular_value(m: np.ndarray) -> np.ndarray:
+    """Largest singular value of each (3, n) matrix of a stack (K, 3, n).
+
+    The square root of the largest eigenvalue of the 3x3 Gram matrix ``M M^T``, in closed
+    form (the trigonometric solution of the characteristic cubic), vectorised over the
+    stack: five times faster than a batched LAPACK call on 3x3 matrices.  Its relative
+    error is at most about 1e-8 (when the two largest singular values coincide) and
+    round-off elsewhere; ``tests/solver/test_accuracy.py`` checks it against
+    :func:`numpy.linalg.svd`.
+    """
+    if m.shape[-1] == 0:
+        return np.zeros(m.shape[0])
+    r0, r1, r2 = m[:, 0], m[:, 1], m[:, 2]
+    g00, g11, g22 = (r0 * r0).sum(-1), (r1 * r1).sum(-1), (r2 * r2).sum(-1)
+    g01, g02, g12 = (r0 * r1).sum(-1), (r0 * r2).sum(-1), (r1 * r2).sum(-1)
+    mean = (g00 + g11 + g22) / 3.0
+    a, b, c = g00 - mean, g11 - mean, g22 - mean  # the deviatoric part G - mean I
+    off = g01 * g01 + g02 * g02 + g12 * g12
+    p = np.sqrt((a * a + b * b + c * c + 2.0 * off) / 6.0)
+    det = a * (b * c - g12 * g12) - g01 * (g01 * c - g12 * g02) + g02 * (g01 * g12 - b * g02)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        half_det = np.where(p > 0, det / (2.0 * p**3), 0.0)
+    angle = np.arccos(np.clip(half_det, -1.0, 1.0)) / 3.0
+    top = mean + 2.0 * p * np.cos(angle)
+    return np.sqrt(np.maximum(top, 0.0))
+
+
+def geometric_parameters(mechanism: Mechanism, analysis=None) -> tuple[list[str], np.ndarray]:
+    """Geometric error coordinates and their map to the defect vector.
+
+    Without an analysis: every defect parameter of the model (a template that declares only
+    the paper's errors, as ``triflex_ii``, gives exactly those).  With one: the admissible
+    influential coordinates (free defects, coupled ones through their relations).
+    """
+    if analysis is None:
+        names = [p.name for p in mechanism.parameters]
+        return names, np.eye(len(names))
+    return analysis.parameterization(mechanism, influential_only=True)
+
+
+@dataclass
+class AccuracyMaps:
+    """Accuracy coefficients over configurations.
+
+    Attributes
+    ----------
+    coefficients : dict
+        Paper name (:data:`COEFFICIENT_NAMES`) -> (K,) values.
+    per_parameter : dict
+        Parameter name -> {"rotation": (K,), "position": (K,)} column norms (its own coefficient).
+    groups : dict
+        ``fP``, ``fR``, ``gP``, ``gR`` -> parameter names in each group.
+    q : ndarray
+        The configurations (K, n_q).
+    position : ndarray
+        Position of ``O_p`` in the base frame (K, 3), mm.
+    """
+
+    coefficients: dict
+    per_parameter: dict
+    groups: dict
+    q: np.ndarray
+    position: np.ndarray
+    units: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        """min / max / mean of every coefficient (JSON-ready)."""
+        return {k: {"min": float(v.min()), "max": float(v.max()), "mean": float(v.mean())}
+                for k, v in self.coefficients.items()}
+
+
+def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics: Kinematics | None = None,
+                  chunk: int = 10000, workers: int | None = None) -> AccuracyMaps:
+    """The accuracy coefficients at assembled configurations ``q`` (vectorised, in chunks).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    q : ndarray, (K, n_q)
+        Assembled configurations (rad / mm).
+    analysis : StationarityResult, optional
+        Restrict the geometric errors to the admissible influential coordinates.
+    chunk : int
+        Configurations per vectorised block (memory bound).
+    workers : int, optional
+        Threads that evaluate blocks concurrently (numpy releases the GIL in its array
+        loops); default: the number of CPUs, at most 8.  Each block writes its own rows,
+        so the result does not depend on the number of threads.
+    """
+    kin = kinematics or Kinematics(mechanism)
+    names, matrix = geometric_parameters(mechanism, analysis)
+    units = {p.name: p.unit for p in mechanism.parameters}
+    g_units = [units[n] for n in names]
+    act = mechanism.actuated
+    f_names = [mechanism.joints[i].name for i in act]
+    f_kind = ["P" if mechanism.joints[i].type == "P" else "R" for i in act]
+    g_kind = ["P" if u == "mm" else "R" for u in g_units]
+    groups = {"fP": [n for n, k in zip(f_names, f_kind) if k == "P"],
+              "fR": [n for n, k in zip(f_names, f_kind) if k == "R"],
+              "gP": [n for n, k in zip(names, g_kind) if k == "P"],
+              "gR": [n for n, k in zip(names, g_kind) if k == "R"]}
+    f_idx = {k: [i for i, kk in enumerate(f_kind) if kk == k] for k in "PR"}
+    g_idx = {k: [i for i, kk in enumerate(g_kind) if kk == k] for k in "PR"}
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    coeffs = {n: np.zeros(len(q)) for n in COEFFICIENT_NAMES}
+    per = {n: {"rotation": np.zeros(len(q)), "position": np.zeros(len(q))} for n in f_names + names}
+    position = np.zeros((len(q), 3))
+    rot_rows, pos_rows = np.s_[:, :3], np.s_[:, 3:]
+
+    def block(start: int) -> None:
+        sl = slice(start, start + chunk)
+        st = kin.evaluate(q[sl], None, jacobians=True)
+        k_xi, k_a = output_twist_maps(kin, st)
+        k_g = k_xi @ matrix
+        position[sl] = st.output_pose[:, :3, 3]
+        for kind in "PR":
+            for label, cols, src in (("f", f_idx[kind], k_a), ("g", g_idx[kind], k_g)):
+                sub = src[:, :, cols]
+                coeffs[f"delta_{label}{kind}"][sl] = largest_singular_value(sub[rot_rows])
+                coeffs[f"epsilon_{label}{kind}"][sl] = largest_singular_value(sub[pos_rows])
+        for names_of, src in ((f_names, k_a), (names, k_g)):
+            rot = np.sqrt(np.einsum("kij,kij->kj", src[rot_rows], src[rot_rows]))  # column norms
+            pos = np.sqrt(np.einsum("kij,kij->kj", src[pos_rows], src[pos_rows]))
+            for j, n in enumerate(names_of):
+                per[n]["rotation"][sl] = rot[:, j]
+                per[n]["position"][sl] = pos[:, j]
+
+    starts = range(0, len(q), chunk)
+    threads = min(workers or min(os.cpu_count() or 1, 8), len(starts))
+    if threads > 1:
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(block, starts))  # list(): re-raises an exception of any block
+    else:
+        for start in starts:
+            block(start)
+    unit_of = {"delta_fP": "rad/mm", "delta_fR": "rad/rad", "delta_gP": "rad/mm", "delta_gR": "rad/rad",
+               "epsilon_fP": "mm/mm", "epsilon_fR": "mm/rad", "epsilon_gP": "mm/mm", "epsilon_gR": "mm/rad"}
+    return AccuracyMaps(coeffs, per, groups, q, position, unit_of)
+
+
+# ---------------------------------------------------------------------------- workspace
+def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict | None = None,
+                     kinematics: Kinematics | None = None, steps: int = 6) -> np.ndarray:
+    """Assembled configurations with actuated values uniform in their ranges (continuation from home).
+
+    Parameters
+    ----------
+    ranges : dict, optional
+        Actuated joint name -> (lo, hi) replacing the model's range (e.g. the whole workspace).
+
+    Returns
+    -------
+    ndarray, (K, n_q)
+        The configurations that assembled (K <= n).
+    """
+    kin = kinematics or Kinematics(mechanism)
+    act = mechanism.actuated
+    lo, hi = mechanism.ranges[act].T.copy()
+    for a, i in enumerate(act):
+        name = mechanism.joints[i].name
+        if ranges and name in ranges:
+            lo[a], hi[a] = ranges[name]
+    rng = np.random.default_rng(seed)
+    qa = lo + (hi - lo) * rng.random((n, len(act)))
+    res = kin.solve(qa, steps=steps)
+    return res.q[res.converged]
+
+
+def grid_slice(mechanism: Mechanism, axes: tuple, fixed: dict | None = None, n: int = 41,
+               ranges: dict | None = None, kinematics: Kinematics | None = None) -> tuple[np.ndarray, np.ndarray,
+                                                                                       np.ndarray]:
+    """Configurations on a grid of two actuated joints, the others at home or at ``fixed`` values.
+
+    Returns
+    -------
+    u, v : ndarray, (n,)
+        Grid values of the two joints.
+    q : ndarray, (n*n, n_q)
+        Configurations (NaN rows where the mechanism does not assemble).
+    """
+    kin = kinematics or Kinematics(mechanism)
+    act = list(mechanism.actuated)
+    names = [mechanism.joints[i].name for i in act]
+    idx = [names.index(a) for a in axes]
+    lo, hi = mechanism.ranges[act].T.copy()
+    for a, name in enumerate(names):
+        if ranges and name in ranges:
+            lo[a], hi[a] = ranges[name]
+    u = np.linspace(lo[idx[0]], hi[idx[0]], n)
+    v = np.linspace(lo[idx[1]], hi[idx[1]], n)
+    base = mechanism.home[act].astype(float)
+    for name, value in (fixed or {}).items():
+        base[names.index(name)] = value
+    qa = np.tile(base, (n * n, 1))
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    qa[:, idx[0]], qa[:, idx[1]] = uu.ravel(), vv.ravel()
+    res = kin.solve(qa)
+    q = res.q.copy()
+    q[~res.converged] = np.nan
+    return u, v, q
+
+
+# ---------------------------------------------------------------------------- allocation
+def compensable(maps_q: np.ndarray, mechanism: Mechanism, analysis=None, kinematics: Kinematics | None = None,
+                tol: float = 1e-6) -> dict:
+    """Which errors calibration can compensate: their effect lies in the range of the actuation map.
+
+    An error is compensable when, at every configuration, its output twist is a combination
+    of the actuated joints' twists (the controller can move the actuators to cancel it); the
+    twist components are compared with rotations scaled by the length scale.  Returns
+    parameter name -> largest relative part outside that range (0 for compensable).
+    """
+    kin = kinematics or Kinematics(mechanism)
+    names, matrix = geometric_parameters(mechanism, analysis)
+    st = kin.evaluate(maps_q, None, jacobians=True)
+    k_xi, k_a = output_twist_maps(kin, st)
+    k_g = k_xi @ matrix
+    scale = np.r_[np.full(3, kin.length_scale), np.ones(3)][None, :, None]
+    a = k_a * scale
+    g = k_g * scale
+    qa, _ = np.linalg.qr(a)
+    rest = g - qa @ (np.swapaxes(qa, 1, 2) @ g)
+    rel = np.linalg.norm(rest, axis=1) / np.linalg.norm(g, axis=1).clip(min=1e-300)
+    return {n: float(rel[:, j].max()) for j, n in enumerate(names)}
+
+
+def allocate(maps: AccuracyMaps, orientation_max: float | None = None, position_max: float | None = None,
+             fixed: dict | None = None, weights: dict | None = None) -> dict:
+    """Tolerances per class (equal allocation, paper 2 eqs. 19, 30-31) and weighted per parameter.
+
+    Parameters
+    ----------
+    maps : AccuracyMaps
+        Coefficients over the workspace (their maxima are used: the bound holds everywhere).
+    orientation_max, position_max : float, optional
+        Required |dphi|max (rad) and ||dO_p||max (mm).
+    fixed : dict, optional
+        Class (``fP``, ``fR``, ``gP``, ``gR``) -> given tolerance per parameter (mm or rad), e.g.
+        the actuation accuracy; the other classes share what is left.
+    weights : dict, optional
+        Parameter -> cost weight for the weighted allocation (cost ~ weight / tolerance).
+
+    Returns
+    -------
+    dict
+        ``classes`` (tolerance per parameter and the norm of the class), ``alpha_T`` (the
+        angular geometric class) and ``d_T`` (the length class) when allocated,
+        ``orientation_bound`` and ``position_bound`` (eqs. 18 at the allocated tolerances),
+        and ``weighted`` per-parameter tolerances when weights are given.
+    """
+    c = {k: float(v.max()) for k, v in maps.coefficients.items()}
+    fixed = dict(fixed or {})
+    counts = {k: len(v) for k, v in maps.groups.items()}
+    classes = [k for k in ("fP", "fR", "gP", "gR") if counts[k]]
+    unknown = [k for k in classes if k not in fixed]
+
+    def coef(kind: str, cls: str) -> float:
+        return c[f"{kind}_{cls}"]
+
+    norms = {k: np.sqrt(counts[k]) * fixed[k] for k in classes if k in fixed}
+    budgets = []
+    if orientation_max is not None:
+        budgets.append(("delta", orientation_max))
+    if position_max is not None:
+        budgets.append(("epsilon", position_max))
+    tol = {}
+    for k in unknown:
+        best = np.inf
+        for kind, budget in budgets:
+            left = budget - sum(coef(kind, j) * norms[j] for j in norms)
+            active = [j for j in unknown if coef(kind, j) > 1e-12]
+            if k not in active:
+                continue
+            share = left / len(active)
+            best = min(best, share / (coef(kind, k) * np.sqrt(counts[k])))
+        tol[k] = best
+    for k, t in tol.items():
+        norms[k] = np.sqrt(counts[k]) * t if np.isfinite(t) else np.inf
+    out = {"classes": {}, "coefficients_max": c}
+    for k in classes:
+        t = fixed.get(k, tol.get(k))
+        out["classes"][k] = {"parameters": maps.groups[k], "tolerance": None if not np.isfinite(t) else float(t),
+                             "norm": None if not np.isfinite(norms[k]) else float(norms[k]),
+                             "given": k in fixed, "unit": "mm" if k.endswith("P") else "rad"}
+    if "gR" in classes and np.isfinite(norms["gR"]):
+        out["alpha_T"] = out["classes"]["gR"]["tolerance"]
+    if "gP" in classes and np.isfinite(norms["gP"]):
+        out["d_T"] = out["classes"]["gP"]["tolerance"]
+    finite = all(np.isfinite(norms[k]) for k in classes)
+    out["orientation_bound"] = float(sum(coef("delta", k) * norms[k] for k in classes)) if finite else None
+    out["position_bound"] = float(sum(coef("epsilon", k) * norms[k] for k in classes)) if finite else None
+    if weights:
+        out["weighted"] = weighted_allocation(maps, weights, orientation_max, position_max)
+    return out
+
+
+def weighted_allocation(maps: AccuracyMaps, weights: dict, orientation_max: float | None,
+                        position_max: float | None) -> dict:
+    """Per-parameter tolerances minimising ``sum w_i / t_i`` under the linear bounds (Lagrange: t_i ~ sqrt(w_i / c_i)).
+
+    Each parameter's coefficient ``c_i`` is its largest column norm over the workspace; the
+    bound ``sum c_i t_i <= budget`` is conservative (triangle inequality).
+    """
+    names = list(maps.groups["gP"]) + list(maps.groups["gR"])
+    out = {}
+    scale = np.inf
+    for kind, budget in (("rotation", orientation_max), ("position", position_max)):
+        if budget is None:
+            continue
+        c = np.array([maps.per_parameter[n][kind].max() for n in names])
+        w = np.array([float(weights.get(n, 1.0)) for n in names])
+        active = c > 1e-12
+        if not np.any(active):
+            continue
+        shape = np.where(active, np.sqrt(w / np.where(active, c, 1.0)), 0.0)
+        scale = min(scale, budget / float(np.sum(c[active] * shape[active])))
+        out.setdefault("_shape", shape)
+    shape = out.pop("_shape", None)
+    if shape is None or not np.isfinite(scale):
+        return {}
+    return {n: float(scale * s) if s > 0 else None for n, s in zip(names, shape)}
+
+
+def report_section(mechanism: Mechanism, analysis, kinematics: Kinematics | None = None, n: int = 400) -> dict:
+    """Accuracy coefficients for the tolerance report: over ``n`` workspace configurations (JSON-ready)."""
+    kin = kinematics or Kinematics(mechanism)
+    q = sample_workspace(mechanism, n, seed=0, kinematics=kin)
+    if len(q) == 0:
+        return {}
+    over = analysis is not None and analysis.overconstraint > 0
+    maps = accuracy_maps(mechanism, q, analysis if over else None, kinematics=kin)
+    worst = sorted(((float(d["position"].max()), name) for name, d in maps.per_parameter.items()), reverse=True)
+    return {"configurations": len(q), "coefficients": maps.summary(), "units": maps.units,
+            "allocation": {"largest_position_coefficients": [{"parameter": n_, "max": v} for v, n_ in worst[:10]]},
+            "geometric_errors": "admissible influential defects" if over else "every defect parameter"}

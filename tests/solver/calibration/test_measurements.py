@@ -1,0 +1,120 @@
+"""Measurement files: exact round trip and one clear error per kind of bad file (units: mm, rad)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hyperstat.solver.errors import DataError
+from hyperstat.solver.calibration.measurements import MeasurementSet, NoiseModel, parse_noise, read_measurements, write_measurements
+
+
+@pytest.fixture()
+def good(tmp_path, slider_crank):
+    rng = np.random.default_rng(0)
+    k = 5
+    lo, hi = slider_crank.ranges[slider_crank.actuated].T
+    q = lo + rng.random((k, len(lo))) * (hi - lo)
+    data = MeasurementSet([f"P{i}" for i in range(k)], ["1"], q, rng.normal(size=(k, 3)) * 100,
+                          metadata={"temperature": 20 + rng.random(k), "dir1": np.array([1.0, -1, 1, -1, 1])},
+                          noise=NoiseModel(0.005, 0.005), tracker=np.array([1.0, 2, 3, 0, 0, 0.1]),
+                          target=np.array([0.0, 0, -10]))
+    path = write_measurements(tmp_path / "m.csv", data, slider_crank)
+    return path, data
+
+
+def test_round_trip(good, slider_crank):
+    path, data = good
+    back = read_measurements(path, slider_crank)
+    assert back.pose == data.pose
+    np.testing.assert_allclose(back.q, data.q, rtol=1e-11)
+    np.testing.assert_allclose(back.position, data.position, rtol=1e-11)
+    np.testing.assert_allclose(back.metadata["temperature"], data.metadata["temperature"], rtol=1e-11)
+    assert back.noise == data.noise
+    np.testing.assert_array_equal(back.tracker, data.tracker)
+    assert "q1[rad]" in path.read_text() and "x[mm]" in path.read_text()
+
+
+def edit(path, old, new, count=1):
+    text = path.read_text()
+    assert old in text, old
+    path.write_text(text.replace(old, new, count))
+    return path
+
+
+def data_line(path, row):
+    return path.read_text().splitlines()[row - 1]
+
+
+@pytest.mark.parametrize("mutation, message", [
+    (lambda p: edit(p, "x[mm],", ""), r"column 'x\[mm\]' \(measured position\) is missing"),
+    (lambda p: edit(p, "q1[rad]", "q1[deg]"), r"column 'q1\[deg\]' must be in rad"),
+    (lambda p: edit(p, "z[mm]", "z[m]"), r"column 'z\[m\]' must be in mm"),
+    (lambda p: edit(p, "temperature[degC]", "temperature[K]"), r"'temperature\[K\]' must be in degC"),
+    (lambda p: edit(p, "# hyperstat measurements, version 1", "pose,x"), r"first line must be"),
+    (lambda p: edit(p, "pose,", "id,"), r"'id' is not part of the format|column 'pose' is missing"),
+    # six comment lines and the column line: P0 is file line 8, P1 line 9, P3 line 11
+    (lambda p: edit(p, "P3", "P1"), r"row 11, column 'pose': pose 'P1' already appears in row 9"),
+    (lambda p: edit(p, "noise: 0.005 mm", "noise: 5 um"), r"header 'noise' must read"),
+    (lambda p: edit(p, "mechanism: slider_crank", "mechanism: tripteor_x7"), r"for mechanism 'tripteor_x7'"),
+    (lambda p: edit(p, "tracker: 1 2 3 0 0 0.1", "tracker: 1 2 3"), r"header 'tracker' needs 6 numbers"),
+])
+def test_bad_header_or_columns(good, slider_crank, mutation, message):
+    path, _ = good
+    mutation(path)
+    with pytest.raises(DataError, match=message):
+        read_measurements(path, slider_crank)
+
+
+def test_bad_values_name_row_and_column(good, slider_crank):
+    path, _ = good
+    lines = path.read_text().splitlines()
+    header = lines.index(next(line for line in lines if line.startswith("pose,")))
+    columns = lines[header].split(",")
+    row = header + 3  # second data row, 1-based file line
+    cases = [
+        ("x[mm]", "nan", r"row %d, column 'x\[mm\]': the value is NaN" % row),
+        ("y[mm]", "inf", r"row %d, column 'y\[mm\]': the value is infinite" % row),
+        ("z[mm]", "1,2mm", None),
+        ("q1[rad]", "abc", r"row %d, column 'q1\[rad\]': 'abc' is not a number" % row),
+        ("q1[rad]", "99", r"row %d, column 'q1\[rad\]': 99 is outside the joint range" % row),
+        ("dir1", "0", r"row %d, column 'dir1': an approach direction is -1 or \+1" % row),
+    ]
+    original = path.read_text()
+    for column, value, message in cases:
+        fields = lines[row - 1].split(",")
+        fields[columns.index(column)] = value
+        new = list(lines)
+        new[row - 1] = ",".join(fields)
+        path.write_text("\n".join(new) + "\n")
+        with pytest.raises(DataError, match=message or r"row %d: \d+ values for %d columns" % (row, len(columns))):
+            read_measurements(path, slider_crank)
+        path.write_text(original)
+
+
+def test_repeated_pose_and_empty_file(good, slider_crank):
+    path, _ = good
+    lines = path.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("pose,"))
+    dup = lines[header + 1].split(",")
+    dup[0] = "P99"
+    path.write_text("\n".join(lines + [",".join(dup)]) + "\n")
+    with pytest.raises(DataError, match=r"rows \d+ and \d+ repeat the same pose"):
+        read_measurements(path, slider_crank)
+    path.write_text("\n".join(lines[: header + 1]) + "\n")
+    with pytest.raises(DataError, match="no data rows"):
+        read_measurements(path, slider_crank)
+    with pytest.raises(DataError, match="no such measurement file"):
+        read_measurements(path.with_name("absent.csv"), slider_crank)
+
+
+@pytest.mark.parametrize("text", ["5 um", "-1 mm + 0 mm/m", "0 mm + 0 mm/m", "nan mm + 1 mm/m"])
+def test_bad_noise_text(text):
+    with pytest.raises(DataError, match="noise"):
+        parse_noise(text, "--noise")
+
+
+def test_noise_model_text_round_trip():
+    n = NoiseModel(0.007, 0.003)
+    assert parse_noise(n.text()) == n
+    assert n.sigma(np.array([2000.0]))[0] == pytest.approx(0.007 + 0.003 * 2)

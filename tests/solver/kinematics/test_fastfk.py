@@ -1,0 +1,127 @@
+"""The batched forward path (hyperstat.solver.kinematics.fastfk) against independent computations (units: mm, rad).
+
+* a plain loop of 4x4 products ``D_1 M_1(q_1) ... D_n M_n(q_n)`` per configuration (eq. 2),
+  with ``M`` from ``cos``/``sin`` (the batched path uses ``tan(q/2)`` and complex numbers);
+* central finite differences of the nonlinear pose for the Jacobians;
+* the element-by-element path of ``Kinematics.evaluate`` on the templates, at a non-zero
+  defect vector.
+"""
+
+import numpy as np
+import pytest
+
+from hyperstat.solver import Kinematics, MechanismBuilder
+from hyperstat.solver.kinematics.frames import motion_matrix, so3_log
+from hyperstat.solver.kinematics.model import Joint
+
+
+def _random_chain(seed: int, types: str):
+    """A serial chain of random joints (random axes and points), a fixed tool with defects."""
+    rng = np.random.default_rng(seed)
+    b = MechanismBuilder(f"random{seed}")
+    names = []
+    for i, typ in enumerate(types):
+        axis = rng.normal(size=3)
+        point = rng.uniform(-300, 300, 3)
+        name = str(i + 1)
+        if typ == "R":
+            b.revolute(name, point, axis, role="actuated", range=(-4.0, 4.0))
+        else:
+            b.prismatic(name, point, axis, role="actuated", range=(-200.0, 200.0))
+        names.append(name)
+    b.fixed("tool", rng.uniform(-300, 300, 3), rng.normal(size=3), defects="IJKabcG")
+    b.chain("arm", "R0", "T", names + ["tool"])
+    b.output = "T"
+    return b.build()
+
+
+def _loop_fk(kin: Kinematics, xi, q):
+    mats = kin.element_matrices(xi)
+    out = np.empty((len(q), 4, 4))
+    for k, qk in enumerate(q):
+        t = np.eye(4)
+        for ei, el in enumerate(kin.mechanism.chains[0].elements):
+            t = t @ mats[(0, ei)]
+            if isinstance(el, Joint):
+                t = t @ motion_matrix(el.type, qk[kin.mechanism.joint_index[el.name]])
+        out[k] = t
+    return out
+
+
+@pytest.mark.parametrize("seed,types", [(0, "RRRRRR"), (1, "RPRRPR"), (2, "PPR"), (3, "R")])
+def test_batched_pose_equals_a_loop_of_matrix_products(seed, types):
+    mech = _random_chain(seed, types)
+    kin = Kinematics(mech)
+    rng = np.random.default_rng(seed + 10)
+    xi = rng.normal(0.0, 1e-2, kin.n_xi)
+    q = rng.uniform(-4.0, 4.0, (300, kin.n_q))
+    q[:, [j for j, jt in enumerate(mech.joints) if jt.type == "P"]] *= 50.0
+    # angles where tan(q/2) is 0, huge or periodic
+    q[:6, 0] = [0.0, np.pi, -np.pi, 3 * np.pi, 1e-12, 2 * np.pi - 1e-9]
+    pose, _ = kin.forward(q, xi)
+    ref = _loop_fk(kin, xi, q)
+    assert np.max(np.abs(pose - ref)) < 1e-9 * kin.length_scale
+
+
+@pytest.mark.parametrize("seed,types", [(4, "RRRRRR"), (5, "RPRPR")])
+def test_batched_jacobian_equals_finite_differences(seed, types):
+    mech = _random_chain(seed, types)
+    kin = Kinematics(mech)
+    rng = np.random.default_rng(seed)
+    xi = rng.normal(0.0, 1e-2, kin.n_xi)
+    q = rng.uniform(-3.0, 3.0, (5, kin.n_q))
+    pose, jac = kin.forward(q, xi, jacobian=True)
+    h = 1e-6
+    for j in range(kin.n_q):
+        dq = np.zeros(kin.n_q)
+        dq[j] = h
+        plus, _ = kin.forward(q + dq, xi)
+        minus, _ = kin.forward(q - dq, xi)
+        w = (so3_log(plus[:, :3, :3] @ np.swapaxes(pose[:, :3, :3], 1, 2))
+             - so3_log(minus[:, :3, :3] @ np.swapaxes(pose[:, :3, :3], 1, 2))) / (2 * h)
+        v = (plus[:, :3, 3] - minus[:, :3, 3]) / (2 * h)
+        assert np.allclose(jac[:, :3, j], w, atol=1e-6)
+        assert np.allclose(jac[:, 3:, j], v, atol=1e-6 * kin.length_scale)
+
+
+def test_chunks_and_threads_do_not_change_the_result():
+    mech = _random_chain(6, "RRPRRR")
+    kin = Kinematics(mech)
+    q = np.random.default_rng(6).uniform(-3, 3, (1001, kin.n_q))
+    plan = kin.plan()
+    one = plan.run(q, joint_twists=True, threads=1, jacobian_at="T")
+    many = plan.run(q, joint_twists=True, chunk=7, threads=2, jacobian_at="T")
+    for name in one.frames:
+        assert np.allclose(one.frames[name], many.frames[name], rtol=0, atol=1e-10)
+    assert np.allclose(one.joint_twists, many.joint_twists, rtol=0, atol=1e-10)
+    assert np.allclose(one.jacobian, many.jacobian, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("fixture", ["slider_crank", "tripteor", "scara"])
+def test_batched_and_element_by_element_paths_agree_on_templates(fixture, request):
+    mech = request.getfixturevalue(fixture)
+    kin = Kinematics(mech)
+    rng = np.random.default_rng(7)
+    q = mech.home + rng.normal(0.0, 0.3, (40, kin.n_q))
+    xi = rng.normal(0.0, 1e-3, kin.n_xi)
+    fast = kin.evaluate(q, xi, jacobians="joints")
+    full = kin.evaluate(q, xi, jacobians=True)  # always element by element
+    kin.use_plan = False
+    slow = kin.evaluate(q, xi, jacobians="joints")
+    tol = 1e-10 * kin.length_scale
+    assert np.allclose(fast.residual, slow.residual, rtol=0, atol=tol)
+    assert np.allclose(fast.closure_q, slow.closure_q, rtol=0, atol=tol)
+    assert np.allclose(fast.output_pose, slow.output_pose, rtol=0, atol=tol)
+    for name in slow.frames:
+        assert np.allclose(fast.frames[name], slow.frames[name], rtol=0, atol=tol), name
+    for key in slow.element_frames:  # computed on demand for the batched state
+        assert np.allclose(fast.element_frames[key], slow.element_frames[key], rtol=0, atol=tol)
+    pose, jac = Kinematics(mech).forward(q, xi, jacobian=True)
+    assert np.allclose(pose, full.output_pose, rtol=0, atol=tol)
+    assert np.allclose(jac, full.output_q, rtol=0, atol=tol)
+
+
+def test_flop_count_of_a_6r_chain():
+    kin = Kinematics(_random_chain(8, "RRRRRR"))
+    # first D is copied from the base; 5 more products by D, 6 rotations, the tool product
+    assert kin.plan().flops_per_configuration() == {"flops": 5 * 63 + 6 * 18 + 63, "trig_pairs": 6}
