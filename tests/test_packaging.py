@@ -79,14 +79,6 @@ def test_generic_top_level_names_are_not_importable_outside_the_repository(wheel
     assert run.returncode != 0 and "ModuleNotFoundError" in run.stderr
 
 
-def test_version_comes_from_the_package_metadata():
-    from importlib.metadata import version
-
-    run = subprocess.run([str(Path(sys.executable).parent / "hyperstat"), "--version"], capture_output=True,
-                         text=True)
-    assert run.returncode == 0 and run.stdout.strip() == f"hyperstat {version('hyperstat')}", run
-
-
 def _imports(path: Path, package: str) -> set[str]:
     """Modules of the hyperstat package that ``path`` imports (absolute and relative, at any depth)."""
     tree = ast.parse(path.read_text(encoding="utf-8"))

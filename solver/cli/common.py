@@ -108,6 +108,9 @@ def common_options(p: argparse.ArgumentParser) -> None:
 class Stages:
     """Progress of a command over its named stages: a tqdm bar on stderr, nothing with ``--quiet``.
 
+    The bar is drawn only when stderr is a terminal, and erased when the command ends (an
+    error message then stands alone); logs and pipes get no control characters.
+
     >>> with Stages(["analysis", "identification"], quiet=True) as stages:
     ...     stages.next("analysis")
     ...     stages.next("identification")
@@ -117,7 +120,7 @@ class Stages:
         self.names = list(names)
         self.bar = None
         self._started = False
-        if not quiet:
+        if not quiet and sys.stderr.isatty():  # a bar is for a person at a terminal, not for logs and pipes
             from tqdm import tqdm
 
             self.bar = tqdm(total=len(self.names), desc=description, unit="stage", file=sys.stderr, leave=False,
