@@ -123,8 +123,17 @@ class Stages:
         if not quiet and sys.stderr.isatty():  # a bar is for a person at a terminal, not for logs and pipes
             from tqdm import tqdm
 
+            import os
+            import shutil
+
+            try:
+                size = os.get_terminal_size(sys.stderr.fileno())
+            except OSError:
+                size = os.terminal_size((0, 0))
+            fallback = shutil.get_terminal_size((80, 24))  # a terminal that reports no size (0 x 0)
             self.bar = tqdm(total=len(self.names), desc=description, unit="stage", file=sys.stderr, leave=False,
-                            bar_format="{desc}: {n_fmt}/{total_fmt} {bar} {elapsed} {postfix}", dynamic_ncols=True)
+                            bar_format="{desc}: {n_fmt}/{total_fmt} {bar} {elapsed} {postfix}",
+                            ncols=size.columns or fallback.columns, nrows=size.lines or fallback.lines)
 
     def next(self, name: str) -> None:
         """Finish the stage under way and start ``name``."""

@@ -88,3 +88,35 @@ def test_version_matches_the_package_metadata(tmp_path):
 
     run = _run("--version", cwd=tmp_path)
     assert run.returncode == 0 and run.stdout.strip() == f"hyperstat {version('hyperstat')}"
+
+
+def test_a_terminal_gets_a_progress_bar_and_quiet_silences_it(tmp_path):
+    """stderr on a pseudo-terminal, as a person at a terminal has it."""
+    import pty
+    import select
+
+    def stderr_on_a_terminal(*argv: str) -> tuple[int, str]:
+        master, slave = pty.openpty()
+        proc = subprocess.Popen([HYPERSTAT, *argv], cwd=tmp_path, stdout=subprocess.PIPE, stderr=slave)
+        os.close(slave)
+        chunks = []
+        while True:
+            ready, _, _ = select.select([master], [], [], 1.0)
+            if ready:
+                try:
+                    data = os.read(master, 4096)
+                except OSError:  # the child closed its side
+                    break
+                if not data:
+                    break
+                chunks.append(data)
+            elif proc.poll() is not None:
+                break
+        proc.wait(timeout=300)
+        os.close(master)
+        return proc.returncode, b"".join(chunks).decode(errors="replace")
+
+    code, err = stderr_on_a_terminal("view", SC, "--png", "v.png")
+    assert code == 0 and "view: " in err and "rendering" in err, err
+    code, err = stderr_on_a_terminal("view", SC, "--png", "w.png", "--quiet")
+    assert code == 0 and err == "", err
