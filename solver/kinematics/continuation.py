@@ -1,0 +1,394 @@
+"""Branch-safe assembly: predictor-corrector continuation with a certificate per configuration.
+
+Units: joint values in rad (revolute) and mm (prismatic); distances along a path are
+dimensionless (rad, and mm divided by the length scale of the mechanism).
+
+A closed loop ``F(q_a, q_p) = 0`` (paper 1, eqs. 7 and 9) has several assembly branches
+at the same actuated values ``q_a``.  The passive joints ``q_p`` of a configuration must
+come from the branch of the configuration one starts from (home, or a configuration
+already assembled).  The actuated joints move along the straight segment
+``q_a(s) = q_a0 + s (q_a1 - q_a0)``, ``s`` from 0 to 1, and the passive joints follow:
+
+* **predictor**: the tangent of the branch, from the implicit function theorem applied to
+  the stationarity of the closure (paper 1, eq. 3 with ``dxi = 0``):
+  ``dq_p = -B_p^+ B_a dq_a``, ``B = dF/dq`` (the matrix ``B_s`` of the paper split into
+  passive and actuated columns);
+* **corrector**: Newton (Gauss-Newton in the least-squares sense for an over-constrained
+  loop) at fixed ``q_a``;
+* **step control**: a step is rejected and halved when the corrector needs more than a
+  few iterations, when its contraction ``|dq_1| / |dq_0|`` exceeds ``theta_max``, or when
+  the step is not short against the distance to any other solution (below); it is doubled
+  after easy steps.
+
+The guarantee (stated in :func:`continue_path`) rests on two estimates made at every
+accepted step.  If ``x`` and ``y`` both solve ``F = 0`` at the same ``q_a``, then
+``0 = F(y) - F(x) = B_p(x)(y - x) + R`` with ``|R| <= gamma/2 |y - x|^2`` (``gamma`` a
+Lipschitz constant of ``B_p``), so ``|y - x| >= 2 sigma_min(B_p(x)) / gamma``: another
+branch is never closer than ``2 sigma_min / gamma``.  A step whose length (both end points
+and the tangent's reach) stays below ``sigma_min / (2 gamma)`` therefore cannot have
+landed on another branch.  ``gamma`` is estimated from the change of ``B_p`` along the
+accepted steps (the largest chord estimate met on the path, never decreasing), and the
+Newton contraction bounds the affine-covariant Lipschitz constant of the corrector
+(Deuflhard, *Newton Methods for Nonlinear Problems*, 2004, sec. 5.1): these are estimates
+from the computed path, not interval bounds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["BranchCertificate", "ContinuationOptions", "batched_lstsq", "continue_path"]
+
+
+def batched_lstsq(a: np.ndarray, rhs: np.ndarray, damping: float = 1e-12) -> np.ndarray:
+    """Least-squares solutions of a stack of small systems ``a[k] x = rhs[k]``.
+
+    Normal equations with a tiny Levenberg damping ``damping * max(diag(a^T a))``, five
+    times faster than a batched pseudo-inverse on the (K, 12, 10) systems of assembly
+    and still defined at singular configurations (minimum-norm-like step).
+
+    Parameters
+    ----------
+    a : ndarray, (K, m, n)
+    rhs : ndarray, (K, m, p)
+
+    Returns
+    -------
+    ndarray, (K, n, p)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = np.array([[[2.0, 0.0], [0.0, 4.0], [0.0, 0.0]]])
+    >>> np.round(batched_lstsq(a, np.array([[[2.0], [4.0], [0.0]]]))[0, :, 0], 9).tolist()
+    [1.0, 1.0]
+    """
+    at = np.ascontiguousarray(np.swapaxes(a, 1, 2))  # contiguous: the stacked product is 3x faster
+    ata = at @ a
+    atb = at @ rhs
+    diag = np.einsum("kii->ki", ata)
+    lam = damping * np.maximum(diag.max(axis=1), 1e-300)
+    idx = np.arange(ata.shape[1])
+    ata[:, idx, idx] += lam[:, None]
+    return np.linalg.solve(ata, atb)
+
+
+@dataclass
+class ContinuationOptions:
+    """Step control of :func:`continue_path` (dimensionless lengths: rad, mm / length scale).
+
+    Attributes
+    ----------
+    initial_steps : int
+        The first step is ``1 / initial_steps`` of the path (at most ``max_step`` long).
+    max_step : float
+        Longest actuated move of one step (rad).
+    min_step : float
+        A configuration whose step falls below this length is given up ("stalled").
+    theta_max : float
+        Largest accepted Newton contraction ``|dq_{k+1}| / |dq_k|``.
+    max_newton : int
+        Corrector iterations before a step is rejected.
+    tol : float
+        Corrector convergence on the passive update (rad).
+    cond_tol : float
+        Smallest accepted inverse condition number ``sigma_r / sigma_1`` of the
+        dimensionless passive Jacobian ``B_p`` at every accepted point.
+    branch_fraction : float
+        An accepted step is at most this fraction of the estimated distance
+        ``2 sigma_min / gamma`` to another solution.
+    """
+
+    initial_steps: int = 6
+    max_step: float = 0.5
+    min_step: float = 1e-5
+    theta_max: float = 0.25
+    max_newton: int = 6
+    tol: float = 1e-11
+    cond_tol: float = 1e-4
+    branch_fraction: float = 0.25
+
+
+@dataclass
+class BranchCertificate:
+    """Evidence that each configuration lies on the branch of its start configuration.
+
+    Attributes
+    ----------
+    certified : ndarray of bool, (K,)
+        Whether the whole path was followed under the rules of :func:`continue_path`.
+    reason : list of str, (K,)
+        Empty when certified; otherwise why not (a sentence fragment).
+    min_condition : ndarray, (K,)
+        Smallest inverse condition number ``sigma_r / sigma_1`` of ``B_p`` along the path.
+    min_sigma : ndarray, (K,)
+        Smallest ``sigma_r`` of the dimensionless ``B_p`` along the path.
+    max_contraction : ndarray, (K,)
+        Largest Newton contraction of an accepted step.
+    max_branch_ratio : ndarray, (K,)
+        Largest ratio of an accepted step length to the estimated distance to another
+        solution ``2 sigma_min / gamma`` (below ``branch_fraction`` when certified).
+    steps, rejected : ndarray of int, (K,)
+        Accepted and rejected steps.
+    path_length : ndarray, (K,)
+        Actuated distance followed (dimensionless).
+    """
+
+    certified: np.ndarray
+    reason: list
+    min_condition: np.ndarray
+    min_sigma: np.ndarray
+    max_contraction: np.ndarray
+    max_branch_ratio: np.ndarray
+    steps: np.ndarray
+    rejected: np.ndarray
+    path_length: np.ndarray
+    options: ContinuationOptions = field(default_factory=ContinuationOptions)
+
+    def summary(self) -> str:
+        """One sentence: how many configurations were certified, and why the others were not."""
+        n = len(self.certified)
+        bad = [r for r, c in zip(self.reason, self.certified) if not c]
+        if not bad:
+            return (f"all {n} configuration(s) certified on the start branch (smallest inverse condition of B_p "
+                    f"{float(np.min(self.min_condition)) if n else 1.0:.2g}, steps at most "
+                    f"{float(np.max(self.max_branch_ratio)) if n else 0.0:.2g} of the distance to another solution).")
+        counts: dict[str, int] = {}
+        for r in bad:
+            counts[r] = counts.get(r, 0) + 1
+        why = "; ".join(f"{c} {r}" for r, c in sorted(counts.items(), key=lambda t: -t[1]))
+        return f"{len(bad)} of {n} configuration(s) could not be certified on the start branch ({why})."
+
+    def take(self, mask: np.ndarray) -> "BranchCertificate":
+        """The certificate of a subset of the configurations."""
+        idx = np.nonzero(mask)[0] if np.asarray(mask).dtype == bool else np.asarray(mask)
+        return BranchCertificate(self.certified[idx], [self.reason[i] for i in idx], self.min_condition[idx],
+                                 self.min_sigma[idx], self.max_contraction[idx], self.max_branch_ratio[idx],
+                                 self.steps[idx], self.rejected[idx], self.path_length[idx], self.options)
+
+    @staticmethod
+    def concatenate(parts: list) -> "BranchCertificate":
+        """Certificates of several batches, in order."""
+        if not parts:
+            z = np.zeros(0)
+            return BranchCertificate(z.astype(bool), [], z, z, z, z, z.astype(int), z.astype(int), z)
+        cat = np.concatenate
+        return BranchCertificate(cat([p.certified for p in parts]), sum((p.reason for p in parts), []),
+                                 cat([p.min_condition for p in parts]), cat([p.min_sigma for p in parts]),
+                                 cat([p.max_contraction for p in parts]), cat([p.max_branch_ratio for p in parts]),
+                                 cat([p.steps for p in parts]), cat([p.rejected for p in parts]),
+                                 cat([p.path_length for p in parts]), parts[0].options)
+
+
+def _dimensionless_state(kin, q: np.ndarray, xi) -> tuple[np.ndarray, np.ndarray]:
+    """Residual (rad, mm / L) and ``dF/dq`` with dimensionless rows and columns at ``q``."""
+    st = kin.evaluate(q, xi, "joints")
+    lc = kin.length_scale
+    r = st.residual.copy()
+    for c in range(r.shape[1] // 6):
+        r[:, 6 * c + 3: 6 * c + 6] /= lc
+    return r, kin.dimensionless(st.closure_q, kin.joint_scale)
+
+
+def _sigmas(bp: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray]:
+    """``sigma_r`` and ``sigma_r / sigma_1`` of a stack of matrices (rank ``r`` fixed)."""
+    if rank == 0:
+        return np.full(len(bp), np.inf), np.ones(len(bp))
+    s = np.linalg.svd(bp, compute_uv=False)
+    s1 = np.maximum(s[:, 0], np.finfo(float).tiny)
+    return s[:, rank - 1], s[:, rank - 1] / s1
+
+
+def continue_path(
+    kin,
+    q_start: np.ndarray,
+    qa_target: np.ndarray,
+    xi: np.ndarray | None = None,
+    options: ContinuationOptions | None = None,
+) -> tuple[np.ndarray, BranchCertificate]:
+    """Follow the assembly branch of ``q_start`` while the actuators move to ``qa_target``.
+
+    Batched over configurations: every configuration has its own path, step length and
+    certificate; each corrector iteration evaluates all unfinished configurations at once.
+
+    **Guarantee.** For a configuration reported ``certified``: the start was corrected
+    onto ``F = 0`` and every accepted step (i) converged by Newton with contraction at
+    most ``theta_max`` within ``max_newton`` iterations, (ii) kept the inverse condition
+    number of ``B_p`` above ``cond_tol`` at its end point, and (iii) moved the joints by
+    at most ``branch_fraction`` of ``2 sigma_min(B_p) / gamma``, the distance below which
+    no other solution with the same actuated values can lie (module docstring).  Under
+    the estimated ``gamma`` (the Lipschitz constant of ``B_p``, estimated from the change
+    of ``B_p`` along the accepted steps) no step can reach another solution, so the end
+    point is on the branch of the start.  A configuration that cannot meet these rules
+    (the path passes a singularity of the passive joints, or the corrector stalls) is
+    reported uncertified with the reason, never silently returned as certified.
+
+    Parameters
+    ----------
+    kin : Kinematics
+        Forward model (:class:`hyperstat.solver.kinematics.closure.Kinematics`).
+    q_start : ndarray, (n_q,) or (K, n_q)
+        Start configurations, assembled at ``xi`` or close to it (e.g. the nominal home
+        with small defects: the first correction is certified like a step).
+    qa_target : ndarray, (K, n_actuated)
+        Actuated values to reach (rad / mm).
+    xi : ndarray, (n_xi,) or (K, n_xi), optional
+        Defects (rad / mm).
+    options : ContinuationOptions, optional
+
+    Returns
+    -------
+    q : ndarray, (K, n_q)
+        End configurations; for an uncertified configuration, the last certified point
+        (its actuated values then differ from the target).
+    certificate : BranchCertificate
+
+    Examples
+    --------
+    Not run here: see ``tests/solver/kinematics/test_continuation.py`` and
+    ``docs/assembly-branches.md``.
+    """
+    opt = options or ContinuationOptions()
+    m = kin.mechanism
+    act, pas = m.actuated, m.passive
+    qa1 = np.atleast_2d(np.asarray(qa_target, dtype=float))
+    k = qa1.shape[0]
+    q = np.array(np.broadcast_to(np.asarray(q_start, dtype=float), (k, kin.n_q)), dtype=float)
+    xi_rows = None if xi is None else np.asarray(xi, dtype=float)
+    per_row = xi_rows is not None and xi_rows.ndim == 2 and xi_rows.shape[0] == k and k > 1
+
+    def xi_of(idx):
+        if xi_rows is None:
+            return None
+        return xi_rows[idx] if per_row else xi_rows
+
+    jscale = kin.joint_scale
+    qa0 = q[:, act].copy()
+    delta = (qa1 - qa0) / jscale[act]  # dimensionless actuated move per unit s
+    length = np.linalg.norm(delta, axis=1)
+    z = np.zeros(k)
+    cert = BranchCertificate(np.ones(k, bool), [""] * k, np.ones(k), np.full(k, np.inf), z.copy(), z.copy(),
+                             np.zeros(k, int), np.zeros(k, int), length.copy(), opt)
+    if len(m.closures) == 0 or len(pas) == 0:
+        q[:, act] = qa1
+        return q, cert
+
+    # generic rank of B_p at the start (a passive self-motion keeps sigma_n at zero everywhere)
+    r0, b0 = _dimensionless_state(kin, q, xi_rows)
+    s_all = np.linalg.svd(b0[:, :, pas], compute_uv=False)
+    rank = int(np.max(np.sum(s_all > 1e-8 * np.maximum(s_all[:, :1], 1e-300), axis=1))) if s_all.size else 0
+
+    s = np.zeros(k)
+    step_len = np.minimum(length / max(opt.initial_steps, 1), opt.max_step)
+    h = np.where(length > 0, step_len / np.maximum(length, 1e-300), 1.0)
+    gamma = np.zeros(k)
+    bcur = None  # B at the current accepted point (dimensionless, all joints)
+    todo = np.ones(k, bool)
+
+    # step 0: correct the start onto F = 0 (h = 0), certified like any other step
+    first = True
+    while np.any(todo):
+        idx = np.nonzero(todo)[0]
+        if first:
+            hs = np.zeros(len(idx))
+        else:
+            hs = np.minimum(h[idx], 1.0 - s[idx])
+        qn = q[idx].copy()
+        qn[:, act] = qa0[idx] + (s[idx] + hs)[:, None] * delta[idx] * jscale[act]
+        if not first:
+            bp, ba = bcur[idx][:, :, pas], bcur[idx][:, :, act]
+            tangent = -batched_lstsq(bp, (ba @ delta[idx][:, :, None]))[..., 0]  # dq_p / ds (dimensionless)
+            qn[:, pas] += hs[:, None] * tangent * jscale[pas]
+            reach = hs * np.sqrt(np.sum(tangent ** 2, axis=1) + length[idx] ** 2)
+        else:
+            reach = np.zeros(len(idx))
+        # corrector: Newton on the configurations of this batch
+        norms = np.zeros((len(idx), opt.max_newton))
+        live = np.ones(len(idx), bool)
+        conv = np.zeros(len(idx), bool)
+        bad = np.zeros(len(idx), bool)
+        blast = np.zeros((len(idx),) + b0.shape[1:])
+        theta = np.zeros(len(idx))
+        for it in range(opt.max_newton):
+            li = np.nonzero(live)[0]
+            if li.size == 0:
+                break
+            r, b = _dimensionless_state(kin, qn[li], xi_of(idx[li]))
+            blast[li] = b
+            dq = -batched_lstsq(b[:, :, pas], r[..., None])[..., 0]
+            n = np.linalg.norm(dq, axis=1)
+            norms[li, it] = n
+            qn[np.ix_(li, pas)] += dq * jscale[pas]
+            if it:
+                prev = norms[li, it - 1]
+                th = np.where(prev > 1e-9, n / np.maximum(prev, 1e-300), 0.0)
+                theta[li] = np.maximum(theta[li], th)
+                diverging = th > opt.theta_max
+            else:
+                diverging = np.zeros(li.size, bool)
+                prev = np.full(li.size, np.inf)
+            # converged when this update, or the next one predicted by the contraction, is below tol
+            predicted = n * np.where(np.isfinite(prev) & (prev > 0), n / np.maximum(prev, 1e-300), 1.0)
+            done = (n < opt.tol) | ((predicted < opt.tol) & (n < 1e-6))
+            conv[li[done & ~diverging]] = True
+            bad[li[diverging]] = True
+            live[li[done | diverging]] = False
+        ok = conv & ~bad
+        # singularity and branch-distance checks at the end points of converged steps
+        sig, cond = _sigmas(blast[:, :, pas], rank)
+        moved = np.linalg.norm((qn - q[idx]) / jscale, axis=1)
+        if bcur is not None and not first:
+            dB = np.linalg.norm((blast - bcur[idx])[:, :, pas], axis=(1, 2))
+            g_est = np.where(moved > 1e-12, dB / np.maximum(moved, 1e-300), 0.0)
+        else:
+            g_est = np.zeros(len(idx))
+        g = np.maximum(gamma[idx], g_est)
+        dist = np.where(g > 0, 2.0 * sig / np.maximum(g, 1e-300), np.inf)
+        ratio = np.where(np.isfinite(dist), np.maximum(moved, reach) / np.maximum(dist, 1e-300), 0.0)
+        singular = ok & (cond < opt.cond_tol)
+        too_long = ok & ~singular & (ratio > opt.branch_fraction)
+        accept = ok & ~singular & ~too_long
+        # bookkeeping
+        for j in np.nonzero(accept)[0]:
+            i = idx[j]
+            q[i] = qn[j]
+            s[i] = s[i] + hs[j]
+            gamma[i] = g[j]
+            cert.steps[i] += 0 if first else 1
+            cert.min_condition[i] = min(cert.min_condition[i], cond[j])
+            cert.min_sigma[i] = min(cert.min_sigma[i], sig[j])
+            cert.max_contraction[i] = max(cert.max_contraction[i], theta[j])
+            cert.max_branch_ratio[i] = max(cert.max_branch_ratio[i], ratio[j])
+        if bcur is None:
+            bcur = np.zeros((k,) + b0.shape[1:])
+        bcur[idx[accept]] = blast[accept]
+        # next step: the branch ratio grows in proportion to the step, so aim at 70 % of the bound;
+        # double at most, and only after an easy corrector (few iterations, strong contraction)
+        aim = np.where(ratio > 0, 0.7 * opt.branch_fraction / np.maximum(ratio, 1e-300), 2.0)
+        easy = (theta < opt.theta_max / 4) & (norms[:, 2] == 0)
+        factor = np.clip(np.where(easy, np.minimum(aim, 2.0), np.minimum(aim, 1.0)), 0.5, 2.0)
+        h[idx[accept]] = np.minimum(h[idx[accept]] * factor[accept],
+                                    opt.max_step / np.maximum(length[idx[accept]], 1e-300))
+        rej = ~accept
+        for j in np.nonzero(singular)[0]:
+            i = idx[j]
+            cert.certified[i] = False
+            cert.reason[i] = "the path passes near a singularity of the passive joints"
+            cert.min_condition[i] = min(cert.min_condition[i], cond[j])
+            todo[i] = False
+        rej &= ~singular
+        h[idx[rej]] *= np.where(too_long[rej], np.clip(aim[rej], 0.1, 0.5), 0.5)
+        cert.rejected[idx[rej]] += 1
+        stalled = rej & ((h[idx] * length[idx] < opt.min_step) | first)
+        for j in np.nonzero(stalled)[0]:
+            i = idx[j]
+            cert.certified[i] = False
+            cert.reason[i] = ("the start configuration could not be corrected onto the closure" if first
+                              else "the corrector stalled (step below the minimum)")
+            todo[i] = False
+        finished = accept & ((s[idx] >= 1.0 - 1e-12) | (length[idx] == 0))
+        todo[idx[finished]] = False
+        first = False
+    return q, cert
