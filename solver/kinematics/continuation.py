@@ -82,7 +82,8 @@ class ContinuationOptions:
     Attributes
     ----------
     initial_steps : int
-        The first step is ``1 / initial_steps`` of the path (at most ``max_step`` long).
+        The first step is ``1 / initial_steps`` of the path (at most ``max_step`` long);
+        later steps adapt.
     max_step : float
         Longest actuated move of one step (rad).
     min_step : float
@@ -92,13 +93,15 @@ class ContinuationOptions:
     max_newton : int
         Corrector iterations before a step is rejected.
     tol : float
-        Corrector convergence on the passive update (rad).
+        Corrector convergence on the passive update at the end point (rad).
+    path_tol : float
+        The same at intermediate points of the path (rad).
     cond_tol : float
         Smallest accepted inverse condition number ``sigma_r / sigma_1`` of the
         dimensionless passive Jacobian ``B_p`` at every accepted point.
     branch_fraction : float
-        An accepted step is at most this fraction of the estimated distance
-        ``2 sigma_min / gamma`` to another solution.
+        The corrector's move and the predictor's estimated error of an accepted step are at
+        most this fraction of the estimated distance ``2 / omega`` to another solution.
     """
 
     initial_steps: int = 6
@@ -106,7 +109,8 @@ class ContinuationOptions:
     min_step: float = 1e-5
     theta_max: float = 0.25
     max_newton: int = 6
-    tol: float = 1e-11
+    tol: float = 1e-12
+    path_tol: float = 1e-8
     cond_tol: float = 1e-4
     branch_fraction: float = 0.25
 
@@ -134,6 +138,8 @@ class BranchCertificate:
         Accepted and rejected steps.
     path_length : ndarray, (K,)
         Actuated distance followed (dimensionless).
+    end_condition : ndarray, (K,)
+        Inverse condition number of ``B_p`` at the end point.
     """
 
     certified: np.ndarray
@@ -145,6 +151,7 @@ class BranchCertificate:
     steps: np.ndarray
     rejected: np.ndarray
     path_length: np.ndarray
+    end_condition: np.ndarray | None = None
     options: ContinuationOptions = field(default_factory=ContinuationOptions)
 
     def summary(self) -> str:
@@ -166,20 +173,22 @@ class BranchCertificate:
         idx = np.nonzero(mask)[0] if np.asarray(mask).dtype == bool else np.asarray(mask)
         return BranchCertificate(self.certified[idx], [self.reason[i] for i in idx], self.min_condition[idx],
                                  self.min_sigma[idx], self.max_contraction[idx], self.max_branch_ratio[idx],
-                                 self.steps[idx], self.rejected[idx], self.path_length[idx], self.options)
+                                 self.steps[idx], self.rejected[idx], self.path_length[idx],
+                                 self.end_condition[idx], self.options)
 
     @staticmethod
     def concatenate(parts: list) -> "BranchCertificate":
         """Certificates of several batches, in order."""
         if not parts:
             z = np.zeros(0)
-            return BranchCertificate(z.astype(bool), [], z, z, z, z, z.astype(int), z.astype(int), z)
+            return BranchCertificate(z.astype(bool), [], z, z, z, z, z.astype(int), z.astype(int), z, z)
         cat = np.concatenate
         return BranchCertificate(cat([p.certified for p in parts]), sum((p.reason for p in parts), []),
                                  cat([p.min_condition for p in parts]), cat([p.min_sigma for p in parts]),
                                  cat([p.max_contraction for p in parts]), cat([p.max_branch_ratio for p in parts]),
                                  cat([p.steps for p in parts]), cat([p.rejected for p in parts]),
-                                 cat([p.path_length for p in parts]), parts[0].options)
+                                 cat([p.path_length for p in parts]), cat([p.end_condition for p in parts]),
+                                 parts[0].options)
 
 
 def _dimensionless_state(kin, q: np.ndarray, xi) -> tuple[np.ndarray, np.ndarray]:
@@ -192,13 +201,17 @@ def _dimensionless_state(kin, q: np.ndarray, xi) -> tuple[np.ndarray, np.ndarray
     return r, kin.dimensionless(st.closure_q, kin.joint_scale)
 
 
-def _sigmas(bp: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray]:
-    """``sigma_r`` and ``sigma_r / sigma_1`` of a stack of matrices (rank ``r`` fixed)."""
+def _svd_parts(bp: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``sigma_r``, ``sigma_r / sigma_1`` and the rank-``r`` pseudo-inverse of a stack of matrices."""
+    k, _, n = bp.shape
     if rank == 0:
-        return np.full(len(bp), np.inf), np.ones(len(bp))
-    s = np.linalg.svd(bp, compute_uv=False)
+        return np.full(k, np.inf), np.ones(k), np.zeros((k, n, bp.shape[1]))
+    u, s, vt = np.linalg.svd(bp, full_matrices=False)
     s1 = np.maximum(s[:, 0], np.finfo(float).tiny)
-    return s[:, rank - 1], s[:, rank - 1] / s1
+    sr = s[:, rank - 1]
+    inv = np.where(np.arange(s.shape[1])[None, :] < rank, 1.0 / np.maximum(s, np.finfo(float).tiny), 0.0)
+    pinv = np.einsum("kji,kj,klj->kil", vt, inv, u)  # V diag(1/s) U^T
+    return sr, sr / s1, pinv
 
 
 def continue_path(
@@ -270,47 +283,46 @@ def continue_path(
     length = np.linalg.norm(delta, axis=1)
     z = np.zeros(k)
     cert = BranchCertificate(np.ones(k, bool), [""] * k, np.ones(k), np.full(k, np.inf), z.copy(), z.copy(),
-                             np.zeros(k, int), np.zeros(k, int), length.copy(), opt)
+                             np.zeros(k, int), np.zeros(k, int), length.copy(), np.ones(k), opt)
     if len(m.closures) == 0 or len(pas) == 0:
         q[:, act] = qa1
         return q, cert
 
     # generic rank of B_p at the start (a passive self-motion keeps sigma_n at zero everywhere)
-    r0, b0 = _dimensionless_state(kin, q, xi_rows)
-    s_all = np.linalg.svd(b0[:, :, pas], compute_uv=False)
-    rank = int(np.max(np.sum(s_all > 1e-8 * np.maximum(s_all[:, :1], 1e-300), axis=1))) if s_all.size else 0
+    # (decided from the first corrector evaluation, at the start configurations)
+    rank = -1
+    bshape = (6 * len(m.closures), kin.n_q)
+    jp, ja = jscale[pas], jscale[act]
 
     s = np.zeros(k)
     step_len = np.minimum(length / max(opt.initial_steps, 1), opt.max_step)
     h = np.where(length > 0, step_len / np.maximum(length, 1e-300), 1.0)
-    gamma = np.zeros(k)
-    bcur = None  # B at the current accepted point (dimensionless, all joints)
+    omega = np.zeros(k)  # estimated affine-covariant Lipschitz constant of B_p (last accepted step)
+    bcur = np.zeros((k,) + bshape)  # B at the current accepted point (dimensionless, all joints)
     todo = np.ones(k, bool)
-
-    # step 0: correct the start onto F = 0 (h = 0), certified like any other step
-    first = True
+    first = True  # step 0: correct the start onto F = 0 (h = 0), checked like any other step
     while np.any(todo):
         idx = np.nonzero(todo)[0]
-        if first:
-            hs = np.zeros(len(idx))
-        else:
-            hs = np.minimum(h[idx], 1.0 - s[idx])
+        ni = len(idx)
+        hs = np.zeros(ni) if first else np.minimum(h[idx], 1.0 - s[idx])
         qn = q[idx].copy()
-        qn[:, act] = qa0[idx] + (s[idx] + hs)[:, None] * delta[idx] * jscale[act]
+        qn[:, act] = qa0[idx] + (s[idx] + hs)[:, None] * delta[idx] * ja
+        reach = np.zeros(ni)
         if not first:
-            bp, ba = bcur[idx][:, :, pas], bcur[idx][:, :, act]
-            tangent = -batched_lstsq(bp, (ba @ delta[idx][:, :, None]))[..., 0]  # dq_p / ds (dimensionless)
-            qn[:, pas] += hs[:, None] * tangent * jscale[pas]
+            bc = bcur[idx]
+            tangent = -batched_lstsq(bc[:, :, pas], bc[:, :, act] @ delta[idx][:, :, None])[..., 0]  # dq_p/ds
+            qn[:, pas] += hs[:, None] * tangent * jp
             reach = hs * np.sqrt(np.sum(tangent ** 2, axis=1) + length[idx] ** 2)
-        else:
-            reach = np.zeros(len(idx))
-        # corrector: Newton on the configurations of this batch
-        norms = np.zeros((len(idx), opt.max_newton))
-        live = np.ones(len(idx), bool)
-        conv = np.zeros(len(idx), bool)
-        bad = np.zeros(len(idx), bool)
-        blast = np.zeros((len(idx),) + b0.shape[1:])
-        theta = np.zeros(len(idx))
+        qpred = qn.copy()
+        final = s[idx] + hs >= 1.0 - 1e-12
+        tol_here = np.where(final | first, opt.tol, opt.path_tol)  # intermediate points need less
+        # corrector: Newton (Gauss-Newton) at fixed actuated values
+        prev = np.full(ni, np.inf)
+        iters = np.zeros(ni, int)
+        live = np.ones(ni, bool)
+        conv = np.zeros(ni, bool)
+        theta = np.zeros(ni)
+        blast = np.zeros((ni,) + bshape)
         for it in range(opt.max_newton):
             li = np.nonzero(live)[0]
             if li.size == 0:
@@ -319,66 +331,70 @@ def continue_path(
             blast[li] = b
             dq = -batched_lstsq(b[:, :, pas], r[..., None])[..., 0]
             n = np.linalg.norm(dq, axis=1)
-            norms[li, it] = n
-            qn[np.ix_(li, pas)] += dq * jscale[pas]
-            if it:
-                prev = norms[li, it - 1]
-                th = np.where(prev > 1e-9, n / np.maximum(prev, 1e-300), 0.0)
-                theta[li] = np.maximum(theta[li], th)
-                diverging = th > opt.theta_max
-            else:
-                diverging = np.zeros(li.size, bool)
-                prev = np.full(li.size, np.inf)
-            # converged when this update, or the next one predicted by the contraction, is below tol
-            predicted = n * np.where(np.isfinite(prev) & (prev > 0), n / np.maximum(prev, 1e-300), 1.0)
-            done = (n < opt.tol) | ((predicted < opt.tol) & (n < 1e-6))
+            qn[np.ix_(li, pas)] += dq * jp
+            iters[li] += 1
+            th = np.where(prev[li] > 1e-9, n / np.minimum(prev[li], 1e300), 0.0)
+            theta[li] = np.maximum(theta[li], th)
+            diverging = th > opt.theta_max
+            # converged when this update, or the next one the contraction predicts, is below tol
+            tl = tol_here[li]
+            done = (n < tl) | ((n * np.where(np.isfinite(prev[li]), th, 1.0) < tl) & (n < 1e-6))
+            if it == 0 and not first:
+                # Newton-Kantorovich estimate with the omega of the last step: the next update would be
+                # about omega/2 |dq|^2 and the contraction omega/2 |dq| (Deuflhard 2004, sec. 5.1)
+                w_prev = omega[idx[li]]
+                quick = (w_prev > 0) & (0.5 * w_prev * n * n < tl) & (0.5 * w_prev * n < opt.theta_max / 4)
+                theta[li] = np.where(quick, 0.5 * w_prev * n, theta[li])
+                done |= quick
             conv[li[done & ~diverging]] = True
-            bad[li[diverging]] = True
+            prev[li] = n
             live[li[done | diverging]] = False
-        ok = conv & ~bad
-        # singularity and branch-distance checks at the end points of converged steps
-        sig, cond = _sigmas(blast[:, :, pas], rank)
+        ok = conv & (theta <= opt.theta_max)
+        if rank < 0:
+            s_all = np.linalg.svd(blast[:, :, pas], compute_uv=False)
+            rank = int(np.max(np.sum(s_all > 1e-8 * np.maximum(s_all[:, :1], 1e-300), axis=1)))
+        # conditioning and the distance to another solution at the end point
+        sig, cond, pinv = _svd_parts(blast[:, :, pas], rank)
         moved = np.linalg.norm((qn - q[idx]) / jscale, axis=1)
-        if bcur is not None and not first:
-            dB = np.linalg.norm((blast - bcur[idx])[:, :, pas], axis=(1, 2))
-            g_est = np.where(moved > 1e-12, dB / np.maximum(moved, 1e-300), 0.0)
+        if first:
+            w = np.zeros(ni)
         else:
-            g_est = np.zeros(len(idx))
-        g = np.maximum(gamma[idx], g_est)
-        dist = np.where(g > 0, 2.0 * sig / np.maximum(g, 1e-300), np.inf)
-        ratio = np.where(np.isfinite(dist), np.maximum(moved, reach) / np.maximum(dist, 1e-300), 0.0)
+            change = np.einsum("kij,kjl->kil", pinv, bcur[idx][:, :, pas] - blast[:, :, pas])
+            w_step = np.linalg.norm(change, axis=(1, 2)) / np.maximum(moved, 1e-300)  # Frobenius >= spectral
+            w = np.maximum(np.where(moved > 1e-12, w_step, 0.0), omega[idx])
+        # another solution is at least 2/omega away from the end point; the end point is within
+        # corr (the corrector's move) + the predictor error (about omega/2 reach^2) of the branch point
+        corr = np.linalg.norm((qn - qpred) / jscale, axis=1)
+        ratio = 0.5 * w * np.maximum(corr, 0.5 * w * reach ** 2)
         singular = ok & (cond < opt.cond_tol)
         too_long = ok & ~singular & (ratio > opt.branch_fraction)
         accept = ok & ~singular & ~too_long
-        # bookkeeping
-        for j in np.nonzero(accept)[0]:
-            i = idx[j]
-            q[i] = qn[j]
-            s[i] = s[i] + hs[j]
-            gamma[i] = g[j]
-            cert.steps[i] += 0 if first else 1
-            cert.min_condition[i] = min(cert.min_condition[i], cond[j])
-            cert.min_sigma[i] = min(cert.min_sigma[i], sig[j])
-            cert.max_contraction[i] = max(cert.max_contraction[i], theta[j])
-            cert.max_branch_ratio[i] = max(cert.max_branch_ratio[i], ratio[j])
-        if bcur is None:
-            bcur = np.zeros((k,) + b0.shape[1:])
-        bcur[idx[accept]] = blast[accept]
-        # next step: the branch ratio grows in proportion to the step, so aim at 70 % of the bound;
+        # bookkeeping of accepted steps
+        ia = idx[accept]
+        q[ia] = qn[accept]
+        s[ia] += hs[accept]
+        omega[ia] = np.where(first, omega[ia], np.where(moved[accept] > 1e-12, w[accept], omega[ia]))
+        if not first:
+            cert.steps[ia] += 1
+        cert.min_condition[ia] = np.minimum(cert.min_condition[ia], cond[accept])
+        cert.min_sigma[ia] = np.minimum(cert.min_sigma[ia], sig[accept])
+        cert.max_contraction[ia] = np.maximum(cert.max_contraction[ia], theta[accept])
+        cert.max_branch_ratio[ia] = np.maximum(cert.max_branch_ratio[ia], ratio[accept])
+        cert.end_condition[ia] = cond[accept]
+        bcur[ia] = blast[accept]
+        # next step: the branch ratio grows with the square of the step, so aim at 70 % of the bound;
         # double at most, and only after an easy corrector (few iterations, strong contraction)
-        aim = np.where(ratio > 0, 0.7 * opt.branch_fraction / np.maximum(ratio, 1e-300), 2.0)
-        easy = (theta < opt.theta_max / 4) & (norms[:, 2] == 0)
+        aim = np.where(ratio > 0, np.sqrt(0.7 * opt.branch_fraction / np.maximum(ratio, 1e-300)), 2.0)
+        easy = (theta < opt.theta_max / 4) & (iters <= 2)
         factor = np.clip(np.where(easy, np.minimum(aim, 2.0), np.minimum(aim, 1.0)), 0.5, 2.0)
-        h[idx[accept]] = np.minimum(h[idx[accept]] * factor[accept],
-                                    opt.max_step / np.maximum(length[idx[accept]], 1e-300))
-        rej = ~accept
+        h[ia] = np.minimum(h[ia] * factor[accept], opt.max_step / np.maximum(length[ia], 1e-300))
         for j in np.nonzero(singular)[0]:
             i = idx[j]
             cert.certified[i] = False
             cert.reason[i] = "the path passes near a singularity of the passive joints"
             cert.min_condition[i] = min(cert.min_condition[i], cond[j])
             todo[i] = False
-        rej &= ~singular
+        rej = ~accept & ~singular
         h[idx[rej]] *= np.where(too_long[rej], np.clip(aim[rej], 0.1, 0.5), 0.5)
         cert.rejected[idx[rej]] += 1
         stalled = rej & ((h[idx] * length[idx] < opt.min_step) | first)
