@@ -651,6 +651,16 @@ class Kinematics:
             qq[:, act] = qa[lost]
             xl = None if xi is None else (xi if np.ndim(xi) == 1 or len(qa) == 1 else np.asarray(xi)[lost])
             q[lost] = self.assemble(qq, xl).q
+        ok = np.nonzero(cert.certified)[0]
+        if ok.size and len(self.mechanism.closures) and len(self.mechanism.passive):
+            # one last Gauss-Newton update polishes the end points (they were converged to 1e-12 of the
+            # length scale) down to round-off; it moves them by less than that
+            pas = self.mechanism.passive
+            xo = None if xi is None else (xi if np.ndim(xi) == 1 or len(qa) == 1 else np.asarray(xi)[ok])
+            sto = self.evaluate(q[ok], xo, "joints")
+            dq = -batched_lstsq(self.scaled_rows(sto.closure_q[:, :, pas]), self.scaled(sto.residual)[..., None])[..., 0]
+            small = np.max(np.abs(dq) / self.joint_scale[pas], axis=1) < 1e-9
+            q[np.ix_(ok[small], pas)] += dq[small]
         st = self.evaluate(q, xi, jacobians=False)
         res = self.residual_norm(st.residual)
         converged = (res <= 1e-7 * self.length_scale) & cert.certified

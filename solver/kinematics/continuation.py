@@ -360,7 +360,7 @@ def continue_path(
             w = np.zeros(ni)
         else:
             change = np.einsum("kij,kjl->kil", pinv, bcur[idx][:, :, pas] - blast[:, :, pas])
-            w_step = np.linalg.norm(change, axis=(1, 2)) / np.maximum(moved, 1e-300)  # Frobenius >= spectral
+            w_step = np.linalg.norm(change, ord=2, axis=(1, 2)) / np.maximum(moved, 1e-300)
             w = np.maximum(np.where(moved > 1e-12, w_step, 0.0), omega[idx])
         # another solution is at least 2/omega away from the end point; the end point is within
         # corr (the corrector's move) + the predictor error (about omega/2 reach^2) of the branch point

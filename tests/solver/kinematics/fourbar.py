@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["fourbar_angles", "fourbar_document", "write_fourbar"]
+__all__ = ["fourbar_angles", "fourbar_document", "write_fourbar", "defects_from_axes", "planar_points",
+           "spherical_axes", "bennett_axes"]
 
 
 def _wrap(x):
@@ -85,3 +86,120 @@ def write_fourbar(path: Path, *args, **kwargs) -> Path:
     path = Path(path)
     path.write_text(json.dumps(fourbar_document(*args, **kwargs), indent=1))
     return path
+
+
+# ----------------------------------------------------------------------------- exact defected geometries
+# Independent of hyperstat: frames are built here with their own minimal rotation.
+
+def _minrot(n: np.ndarray) -> np.ndarray:
+    """Rotation taking z to the unit vector ``n`` about an axis orthogonal to both (Rodrigues)."""
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, n)
+    s, c = np.linalg.norm(v), float(z @ n)
+    if s < 1e-15:
+        return np.eye(3)
+    k = v / s
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * kx + (1 - c) * kx @ kx
+
+
+def _frame(rot: np.ndarray, origin) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3] = rot
+    t[:3, 3] = origin
+    return t
+
+
+def _rz(q: float) -> np.ndarray:
+    c, s = np.cos(q), np.sin(q)
+    return _frame(np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), (0, 0, 0))
+
+
+def _local(parent: np.ndarray, point, axis, nominal_origin) -> tuple[np.ndarray, dict, np.ndarray]:
+    """Element matrix of an axis (world ``point``, ``axis``) placed in ``parent``, and its defects."""
+    inv = np.linalg.inv(parent)
+    n = inv[:3, :3] @ np.asarray(axis, float)
+    n = n / np.linalg.norm(n)
+    p = (inv @ np.r_[np.asarray(point, float), 1.0])[:3]
+    dn = n / n[2] - np.array([0, 0, 1.0])
+    dp = p - np.asarray(nominal_origin, float)
+    d = _frame(_minrot(n), p)
+    return d, {"I": dn[0], "J": dn[1], "a": dp[0], "b": dp[1], "c": dp[2]}, parent @ d
+
+
+def defects_from_axes(a: float, b: float, c: float, d: float, q_home, points, axes) -> dict:
+    """Defects (by parameter name, rad / mm) of the model of :func:`fourbar_document` whose
+    joint axes at the home joint values ``q_home = (q1, q2, q3)`` are the world lines
+    ``points[i] + t axes[i]`` (i = 1..4, pivots O, A, B, B0).
+
+    The crank, coupler and ground axes are placed in turn (each in the frame its element is
+    placed in); the rocker's far end (fixed element 5) is whatever closes the loop at home
+    exactly, with the rocker angle ``q4`` chosen so that element 5 needs no roll about its
+    own axis (swing-twist decomposition).  Returns the defects and ``q4``.
+    """
+    out = {}
+    world = np.eye(4)
+    p1 = world
+    for name, nominal, q in (("1", (0, 0, 0), q_home[0]), ("2", (a, 0, 0), q_home[1]), ("3", (b, 0, 0), q_home[2])):
+        i = int(name) - 1
+        _, dfx, lframe = _local(p1, points[i], axes[i], nominal)
+        out.update({f"d{k}{name}": v for k, v in dfx.items()})
+        p1 = lframe @ _rz(q)
+    f = p1
+    _, dfx, l4 = _local(world, points[3], axes[3], (d, 0, 0))
+    out.update({f"d{k}4": v for k, v in dfx.items()})
+    m = np.linalg.inv(l4) @ f
+    twist = _minrot(m[:3, 2]).T @ m[:3, :3]
+    q4 = float(np.arctan2(twist[1, 0], twist[0, 0]))
+    d5 = np.linalg.inv(l4 @ _rz(q4)) @ f
+    n5 = d5[:3, 2]
+    assert np.allclose(d5[:3, :3], _minrot(n5), atol=1e-12)
+    dn = n5 / n5[2] - np.array([0, 0, 1.0])
+    dp = d5[:3, 3] - np.array([c, 0, 0.0])
+    out.update({"dI5": dn[0], "dJ5": dn[1], "da5": dp[0], "db5": dp[1], "dc5": dp[2]})
+    return {"defects": out, "q4": q4}
+
+
+def planar_points(a: float, b: float, c: float, d: float, q) -> list:
+    """World pivots O, A, B, B0 (mm) of the planar loop at joint values ``q``."""
+    q1, q2 = q[0], q[1]
+    pa = np.array([a * np.cos(q1), a * np.sin(q1), 0.0])
+    pb = pa + b * np.array([np.cos(q1 + q2), np.sin(q1 + q2), 0.0])
+    return [np.zeros(3), pa, pb, np.array([d, 0.0, 0.0])]
+
+
+def spherical_axes(points: list, apex) -> list:
+    """Axes through ``apex`` from each pivot (a spherical four-bar)."""
+    return [(np.asarray(apex, float) - p) / np.linalg.norm(np.asarray(apex, float) - p) for p in points]
+
+
+def bennett_axes(a: float, b: float, alpha: float, beta: float, theta1: float, guess) -> tuple[list, list]:
+    """World pivots and axes of a Bennett loop (links a, b, a, b; twists alpha, beta, alpha, beta)
+    at crank angle ``theta1``: the Denavit-Hartenberg loop ``prod Rz(t_i) Tx(a_i) Rx(alpha_i) = I``
+    solved for ``t2, t3, t4`` by least squares from ``guess`` (scipy), checked closed to 1e-12.
+    """
+    from scipy.optimize import least_squares
+
+    lengths, twists = (a, b, a, b), (alpha, beta, alpha, beta)
+
+    def link(i, t):
+        ca, sa = np.cos(twists[i]), np.sin(twists[i])
+        rx = _frame(np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]]), (0, 0, 0))
+        return _rz(t) @ _frame(np.eye(3), (lengths[i], 0, 0)) @ rx
+
+    def frames(t):
+        out, cur = [], np.eye(4)
+        for i, ti in enumerate((theta1, *t)):
+            out.append(cur)
+            cur = cur @ link(i, ti)
+        return out, cur
+
+    def resid(t):
+        _, end = frames(t)
+        return np.r_[(end - np.eye(4))[:3, :3].ravel(), end[:3, 3] / a]
+
+    sol = least_squares(resid, np.asarray(guess, float), xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    if np.max(np.abs(resid(sol.x))) > 1e-11:
+        raise ValueError("the Bennett loop does not close at this crank angle")
+    fr, _ = frames(sol.x)
+    return [f[:3, 3].copy() for f in fr], [f[:3, 2].copy() for f in fr]
