@@ -169,14 +169,21 @@ def planar_points(a: float, b: float, c: float, d: float, q) -> list:
 
 
 def spherical_axes(points: list, apex) -> list:
-    """Axes through ``apex`` from each pivot (a spherical four-bar)."""
-    return [(np.asarray(apex, float) - p) / np.linalg.norm(np.asarray(apex, float) - p) for p in points]
+    """Axes through ``apex`` from each pivot (a spherical four-bar), oriented along +z."""
+    out = []
+    for p in points:
+        n = (np.asarray(apex, float) - p) / np.linalg.norm(np.asarray(apex, float) - p)
+        out.append(n if n[2] > 0 else -n)
+    return out
 
 
-def bennett_axes(a: float, b: float, alpha: float, beta: float, theta1: float, guess) -> tuple[list, list]:
-    """World pivots and axes of a Bennett loop (links a, b, a, b; twists alpha, beta, alpha, beta)
-    at crank angle ``theta1``: the Denavit-Hartenberg loop ``prod Rz(t_i) Tx(a_i) Rx(alpha_i) = I``
-    solved for ``t2, t3, t4`` by least squares from ``guess`` (scipy), checked closed to 1e-12.
+def bennett_axes(a: float, b: float, alpha: float, beta: float, theta1: float, guess,
+                 start_heading: float = 0.0) -> tuple[list, list]:
+    """World pivots and axes of a Bennett loop (links a, b, a, b; twists alpha, beta, alpha, beta).
+
+    The Denavit-Hartenberg loop ``S prod Rz(t_i) Tx(a_i) Rx(alpha_i) = S`` with the start frame
+    ``S = Rz(start_heading)`` at the origin (its x axis along the closing link), ``t1 = theta1``,
+    solved for ``t2, t3, t4`` by least squares from ``guess`` (scipy), checked closed to 1e-11.
     """
     from scipy.optimize import least_squares
 
@@ -187,8 +194,10 @@ def bennett_axes(a: float, b: float, alpha: float, beta: float, theta1: float, g
         rx = _frame(np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]]), (0, 0, 0))
         return _rz(t) @ _frame(np.eye(3), (lengths[i], 0, 0)) @ rx
 
+    start = _rz(start_heading)
+
     def frames(t):
-        out, cur = [], np.eye(4)
+        out, cur = [], start.copy()
         for i, ti in enumerate((theta1, *t)):
             out.append(cur)
             cur = cur @ link(i, ti)
@@ -196,10 +205,10 @@ def bennett_axes(a: float, b: float, alpha: float, beta: float, theta1: float, g
 
     def resid(t):
         _, end = frames(t)
-        return np.r_[(end - np.eye(4))[:3, :3].ravel(), end[:3, 3] / a]
+        return np.r_[(end - start)[:3, :3].ravel(), (end - start)[:3, 3] / a]
 
-    sol = least_squares(resid, np.asarray(guess, float), xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    sol = least_squares(resid, np.asarray(guess, float), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     if np.max(np.abs(resid(sol.x))) > 1e-11:
-        raise ValueError("the Bennett loop does not close at this crank angle")
+        raise ValueError(f"the Bennett loop does not close at this crank angle (residual {np.max(np.abs(resid(sol.x))):.1e})")
     fr, _ = frames(sol.x)
     return [f[:3, 3].copy() for f in fr], [f[:3, 2].copy() for f in fr]
