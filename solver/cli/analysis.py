@@ -41,6 +41,14 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
         sys.stdout.write(format_analysis(result, checks, exact))
+        combined = [c for c in checks or [] if c.kind.startswith("combination")]
+        if combined:
+            sys.stdout.write(f"\nChecks in combination, at all {result.n_configurations} configurations (mm):\n")
+            for c in combined:
+                mark = "confirmed" if c.confirmed else "NOT CONFIRMED"
+                sys.stdout.write(f"  {c.kind}: {c.subject}: {mark}, residual {c.residual:.2e} mm "
+                                 f"({c.residual_small:.2e} mm at a tenth of the defect; "
+                                 f"{c.predicted:.2e} mm predicted)\n")
         if result.stability is not None:
             sys.stdout.write(f"\nVerdicts: {result.stability['summary']}.\n")
         if args.json:
