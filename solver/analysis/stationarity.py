@@ -41,7 +41,7 @@ from hyperstat.solver.errors import AnalysisError
 from hyperstat.solver.kinematics.model import Joint, Mechanism
 from hyperstat.solver.kinematics.sampling import sample_configurations
 
-__all__ = ["ParameterVerdict", "Relation", "StationarityResult", "analyze", "gauge_parameters"]
+__all__ = ["ParameterVerdict", "Relation", "StationarityResult", "analyze", "compare_samples", "gauge_parameters"]
 
 _ZERO = 1e-7  # threshold on dimensionless projections (they are 0 or O(1))
 
@@ -116,6 +116,12 @@ class StationarityResult:
     warnings: list = field(default_factory=list)
     configurations: np.ndarray | None = None
     admissible_basis: np.ndarray | None = None
+    stability: dict | None = None
+
+    @property
+    def stable(self) -> bool | None:
+        """Whether every repeated sample agreed (``None`` when only one sample was analysed)."""
+        return None if self.stability is None else bool(self.stability["stable"])
 
     def by_verdict(self, verdict: str) -> list[str]:
         """Names of the parameters with a verdict."""
@@ -197,6 +203,7 @@ class StationarityResult:
             "influential_gap": self.influential_gap,
             "length_scale_mm": self.length_scale,
             "warnings": list(self.warnings),
+            "stability": self.stability,
         }
 
 
@@ -313,8 +320,17 @@ def analyze(
     seed: int = 0,
     configurations: np.ndarray | None = None,
     kinematics: Kinematics | None = None,
+    samples: int = 1,
 ) -> StationarityResult:
     """Classify every defect parameter of ``mechanism`` (paper 1, eq. 3, automated).
+
+    With ``samples >= 2`` the analysis is repeated on further independent samples
+    (seeds ``seed + 1``, ``seed + 2``, ...; each assembled on the home branch by certified
+    continuation, from the nearest configuration already assembled) and compared with the
+    first: rank, admissible dimension, mobility, every verdict and the admissible subspace
+    (largest principal angle).  The result is the first sample's, with ``stability``
+    saying whether all samples agreed and naming every disagreement
+    (:func:`compare_samples`).
 
     Parameters
     ----------
@@ -328,6 +344,9 @@ def analyze(
         Assembled configurations to use instead of a random sample.
     kinematics : Kinematics, optional
         Reuse an existing forward model.
+    samples : int
+        Independent samples to analyse and compare (1: no stability check; ignored
+        when ``configurations`` is given).
 
     Returns
     -------
@@ -338,6 +357,99 @@ def analyze(
     AnalysisError
         If the nominal mechanism cannot move or no configuration assembles.
     """
+    t0 = time.perf_counter()
+    kin = kinematics or Kinematics(mechanism)
+    first = _analyze_once(mechanism, n_configurations, seed, configurations, kin)
+    if configurations is not None or samples < 2:
+        return first
+    others = []
+    pool = first.configurations
+    for i in range(1, samples):
+        sample = sample_configurations(kin, n_configurations, seed=seed + i, pool=pool)
+        res = _analyze_once(mechanism, n_configurations, seed + i, sample.q, kin)
+        res.warnings = list(sample.warnings) + res.warnings
+        others.append(res)
+        pool = np.concatenate([pool, sample.q])
+    first.stability = compare_samples([first] + others, [seed + i for i in range(samples)])
+    for res in others:
+        for w in res.warnings:
+            if w not in first.warnings:
+                first.warnings.append(f"(sample with seed {seed + others.index(res) + 1}) {w}")
+    first.elapsed = time.perf_counter() - t0
+    return first
+
+
+def compare_samples(results: list, seeds: list) -> dict:
+    """Compare analyses of independent samples: rank, admissible dimension, mobility, verdicts, subspace.
+
+    Parameters
+    ----------
+    results : list of StationarityResult
+        The first is the reference.
+    seeds : list of int
+        Their seeds (for the messages).
+
+    Returns
+    -------
+    dict
+        ``samples``, ``seeds``, ``configurations``, ``ranks``, ``admissible_dimensions``,
+        ``singular_value_gaps``, ``max_subspace_angle`` (rad, largest principal angle
+        between the admissible subspaces), ``stable`` and ``disagreements`` (sentences),
+        ``summary`` (one sentence for the user).
+    """
+    ref = results[0]
+    n_active = lambda r: sum(p.verdict != "gauge" for p in r.parameters)  # noqa: E731
+    dims = [n_active(r) - r.rank for r in results]
+    problems: list[str] = []
+    angle = 0.0
+    for r, sd in zip(results[1:], seeds[1:]):
+        tag = f"seed {seeds[0]} and seed {sd}"
+        if r.rank != ref.rank:
+            problems.append(f"the constraint rank differs between {tag}: {ref.rank} and {r.rank}")
+        if n_active(r) - r.rank != dims[0]:
+            problems.append(f"the admissible dimension differs between {tag}: {dims[0]} and {n_active(r) - r.rank}")
+        if r.mobility != ref.mobility:
+            problems.append(f"the mobility differs between {tag}: {ref.mobility} and {r.mobility}")
+        changed = []
+        for a, b in zip(ref.parameters, r.parameters):
+            if a.verdict != b.verdict or (a.influential is not None and b.influential is not None
+                                          and a.influential != b.influential):
+                va = a.verdict + ("" if a.influential is None else (" influential" if a.influential else " non-influent"))
+                vb = b.verdict + ("" if b.influential is None else (" influential" if b.influential else " non-influent"))
+                changed.append(f"{a.name} ({va} / {vb})")
+        if changed:
+            problems.append(f"{len(changed)} verdict(s) differ between {tag}: " + ", ".join(changed))
+        ba, bb = ref.admissible_basis, r.admissible_basis
+        if ba is not None and bb is not None and ba.shape[1] and bb.shape[1]:
+            if ba.shape[1] == bb.shape[1]:
+                # sine of the largest principal angle: the part of one basis outside the other
+                outside = bb - ba @ (ba.T @ bb)
+                pair = float(np.arcsin(np.clip(np.linalg.norm(outside, 2), 0.0, 1.0)))
+                angle = max(angle, pair)
+                if pair > 1e-6:
+                    problems.append(f"the admissible subspaces of {tag} differ by a principal angle of {pair:.3g} rad")
+    stable = not problems
+    n = len(results)
+    if stable:
+        summary = (f"stable across {n} independent samples (seeds {', '.join(str(s) for s in seeds)}; same rank "
+                   f"{ref.rank}, admissible dimension {dims[0]} and verdicts; admissible subspaces within "
+                   f"{angle:.1e} rad)")
+    else:
+        summary = f"NOT stable across {n} independent samples: " + "; ".join(problems)
+    return {"samples": n, "seeds": list(seeds), "configurations": [r.n_configurations for r in results],
+            "ranks": [r.rank for r in results], "admissible_dimensions": dims,
+            "singular_value_gaps": [r.gap for r in results], "max_subspace_angle": angle,
+            "stable": stable, "disagreements": problems, "summary": summary}
+
+
+def _analyze_once(
+    mechanism: Mechanism,
+    n_configurations: int,
+    seed: int,
+    configurations: np.ndarray | None,
+    kinematics: Kinematics,
+) -> StationarityResult:
+    """One analysis on one sample (the body of :func:`analyze`)."""
     t0 = time.perf_counter()
     kin = kinematics or Kinematics(mechanism)
     m = mechanism

@@ -19,6 +19,16 @@ residual is measured, at two defect sizes ``delta`` and ``delta/10``:
   defect on it is rebuilt from the other parameters (:func:`gauge_equivalent`, from the
   rule that made it a gauge, not from the linear matrices), and both are re-assembled:
   their closure residuals and output poses must agree to round-off at both sizes.
+
+One parameter at a time is not enough (a verdict can hold for every single direction and
+fail for their sum, and four configurations can miss a wrong one), so the checks are also
+made **in combination**, at *every* analysed configuration (:func:`combination_checks`):
+
+* a random admissible defect vector, all admissible directions at once with every
+  component of realistic size (at most ``delta``), re-assembles to round-off or to second
+  order in the defect;
+* for each relation, the same vector plus a component that violates only that relation
+  does not re-assemble: its residual is first order and matches the linear prediction.
 """
 
 from __future__ import annotations
@@ -32,7 +42,7 @@ from hyperstat.solver.kinematics.frames import so3_log
 from hyperstat.solver.kinematics.model import Joint, Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult, gauge_parameters
 
-__all__ = ["Check", "verify", "reassembly_residual", "gauge_equivalent"]
+__all__ = ["Check", "verify", "combination_checks", "reassembly_residual", "gauge_equivalent"]
 
 
 @dataclass
@@ -179,8 +189,10 @@ def verify(
     n_configurations: int = 4,
     delta: float = 1e-4,
     kinematics: Kinematics | None = None,
+    combinations: bool = True,
+    seed: int = 0,
 ) -> list[Check]:
-    """Confirm every verdict and every relation by nonlinear re-assembly.
+    """Confirm every verdict and every relation by nonlinear re-assembly, alone and in combination.
 
     Parameters
     ----------
@@ -195,12 +207,122 @@ def verify(
         lengths (``L`` the length scale of the mechanism).
     kinematics : Kinematics, optional
         Reuse an existing forward model.
+    combinations : bool
+        Add :func:`combination_checks` at every analysed configuration.
+    seed : int
+        Seed of the random admissible combination.
 
     Returns
     -------
     list of Check
     """
     kin = kinematics or Kinematics(mechanism)
+    checks = _single_checks(mechanism, result, n_configurations, delta, kin)
+    if combinations:
+        checks += combination_checks(mechanism, result, delta=delta, kinematics=kin, seed=seed)
+    return checks
+
+
+def _judge(expect_assembly: bool, r1: float, r2: float, pred: float, delta: float, lc: float) -> tuple[bool, str]:
+    """Verdict of one nonlinear check from the residuals at ``delta`` and ``delta / 10`` (mm)."""
+    floor = 1e-9 * lc
+    order = np.log10(r1 / r2) if r2 > floor and r1 > floor else float("nan")
+    per_unit = r1 / (delta * lc)
+    if expect_assembly:
+        ok = r1 < floor or (per_unit < 1e2 * delta and not (0.5 < order < 1.5))
+        note = (f"residual {r1:.2e} mm for a defect of {delta:g} (dimensionless): "
+                + ("round-off" if r1 < floor else f"order {order:.2f} in the defect"))
+    else:
+        ok = per_unit > 1e-3 and abs(r1 - pred) <= 0.05 * pred + floor
+        note = (f"residual {r1:.3e} mm against {pred:.3e} mm predicted by the linear model "
+                f"(order {order:.2f} in the defect)")
+    return bool(ok), note
+
+
+def combination_checks(
+    mechanism: Mechanism,
+    result: StationarityResult,
+    delta: float = 1e-4,
+    kinematics: Kinematics | None = None,
+    seed: int = 0,
+) -> list[Check]:
+    """Verdicts checked in combination at every analysed configuration.
+
+    A random vector ``u`` of the admissible subspace (``result.admissible_basis``, all
+    directions at once, scaled so that its largest component is ``delta``: ``delta`` rad,
+    ``delta * L`` mm) must re-assemble to round-off or to second order; for each relation,
+    ``u`` plus ``delta`` times the relation's own (unit, dimensionless) coefficient vector
+    violates that relation and must leave a first-order residual matching the linear
+    prediction ``|(I - B B^+) A v|`` (paper 1, eq. 3).  Both sizes ``delta`` and
+    ``delta / 10`` are re-assembled.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        Nominal model.
+    result : StationarityResult
+        Output of :func:`hyperstat.solver.analysis.stationarity.analyze` (its configurations
+        are all used).
+    delta : float
+        Largest dimensionless component of the defects.
+    kinematics : Kinematics, optional
+    seed : int
+        Seed of the random admissible vector.
+
+    Returns
+    -------
+    list of Check
+        Kinds ``"combination admissible"`` and ``"combination, relation violated"``.
+    """
+    kin = kinematics or Kinematics(mechanism)
+    basis = result.admissible_basis
+    q0 = result.configurations
+    if basis is None or q0 is None or basis.shape[1] == 0:
+        return []
+    scale = kin.parameter_scale
+    lc = kin.length_scale
+    rng = np.random.default_rng(seed)
+    u = basis @ rng.normal(size=basis.shape[1])
+    u *= delta / np.max(np.abs(u))
+    nominal = kin.evaluate(q0)
+    a = kin.dimensionless(nominal.closure_xi, scale)
+    b = kin.dimensionless(nominal.closure_q[:, :, mechanism.passive], kin.joint_scale[mechanism.passive])
+    proj_out = np.eye(a.shape[1])[None] - b @ np.linalg.pinv(b, rcond=1e-8)
+
+    def run(direction: np.ndarray) -> tuple[float, float, float, float]:
+        out, change = [], 0.0
+        for f in (1.0, 0.1):
+            residual, moved = reassembly_residual(kin, q0, direction * f * scale)
+            out.append(residual)
+            if f == 1.0:
+                change = moved
+        pred = np.einsum("kij,kj->ki", proj_out, a @ direction)
+        return out[0], out[1], float(np.max(np.linalg.norm(pred, axis=1))) * lc, change
+
+    checks = []
+    r1, r2, pred, change = run(u)
+    size = float(np.max(np.abs(u)))
+    ok, note = _judge(True, r1, r2, pred, size, lc)
+    checks.append(Check(f"all {basis.shape[1]} admissible directions at once", "combination admissible",
+                        "assembles", size, r1, r2, pred, change, ok,
+                        f"{note}; {len(q0)} configurations"))
+    index = mechanism.parameter_index
+    for rel in result.relations:
+        coeffs = np.zeros(kin.n_xi)
+        for name, c in rel.terms.items():
+            coeffs[index[name]] = c * scale[index[name]]
+        v = coeffs / np.linalg.norm(coeffs) * delta
+        r1, r2, pred, change = run(u + v)
+        # the admissible part re-assembles: the residual is the violated part's, first order in delta
+        ok, note = _judge(False, r1, r2, pred, delta, lc)
+        checks.append(Check(rel.text, "combination, relation violated", "does not assemble", delta, r1, r2, pred,
+                            change, ok, f"{note}; with all admissible directions; {len(q0)} configurations"))
+    return checks
+
+
+def _single_checks(mechanism: Mechanism, result: StationarityResult, n_configurations: int, delta: float,
+                   kin: Kinematics) -> list[Check]:
+    """The one-parameter checks of :func:`verify` on the first ``n_configurations``."""
     q0 = result.configurations[:n_configurations]
     scale = kin.parameter_scale  # physical = dimensionless * scale
     lc = kin.length_scale

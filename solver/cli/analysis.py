@@ -27,7 +27,8 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     kin = Kinematics(mech)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = analyze(mech, n_configurations=args.configurations, seed=args.seed, kinematics=kin)
+        result = analyze(mech, n_configurations=args.configurations, seed=args.seed, kinematics=kin,
+                         samples=args.samples)
     checks = verify(mech, result, kinematics=kin) if args.verify else None
     exact = exact_check(mech, kin=kin) if args.exact else None
     doc = result.to_dict()
@@ -40,8 +41,22 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
         sys.stdout.write(format_analysis(result, checks, exact))
+        combined = [c for c in checks or [] if c.kind.startswith("combination")]
+        if combined:
+            sys.stdout.write(f"\nChecks in combination, at all {result.n_configurations} configurations (mm):\n")
+            for c in combined:
+                mark = "confirmed" if c.confirmed else "NOT CONFIRMED"
+                sys.stdout.write(f"  {c.kind}: {c.subject}: {mark}, residual {c.residual:.2e} mm "
+                                 f"({c.residual_small:.2e} mm at a tenth of the defect; "
+                                 f"{c.predicted:.2e} mm predicted)\n")
+        if result.stability is not None:
+            sys.stdout.write(f"\nVerdicts: {result.stability['summary']}.\n")
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
+    if result.stability is not None and not result.stability["stable"]:
+        sys.stderr.write(f"hyperstat: the analysis of '{mech.name}' depends on the sample: "
+                         f"{'; '.join(result.stability['disagreements'])}.\n")
+        return 3
     if checks is not None and not all(c.confirmed for c in checks):
         return 1
     return 0
@@ -86,6 +101,17 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _samples(text: str) -> int:
+    """``--samples``: an integer of at least 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--samples must be an integer, got '{text}'") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"--samples must be at least 1, got {value}")
+    return value
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Add this stage's sub-commands to the ``hyperstat`` parser."""
     p = sub.add_parser("analyze", help="stationarity analysis: forced / coupled / free defects")
@@ -96,6 +122,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", metavar="OUT", help="write the result as JSON")
     p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
     p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
+    p.add_argument("--samples", type=_samples, default=2, metavar="N",
+                   help="independent samples analysed and compared (default 2; exit 3 if they disagree)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_analyze)
     p = sub.add_parser("check-hypotheses", help="check a designer's geometric hypotheses against the analysis")

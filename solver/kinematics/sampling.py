@@ -1,6 +1,12 @@
-"""Configurations sampled over the joint ranges, assembled, screened for singularities.
+"""Configurations sampled over the joint ranges, assembled on the home branch, screened for singularities.
 
 Units: joint values in rad (revolute) and mm (prismatic).
+
+Every configuration is reached by branch-safe continuation
+(:func:`hyperstat.solver.kinematics.continuation.continue_path`) from the *nearest*
+configuration already assembled (home first), so that paths are short and every
+configuration carries a certificate that it lies on the assembly branch of the home
+configuration (by a chain of certified paths back to home).
 """
 
 from __future__ import annotations
@@ -11,9 +17,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.continuation import BranchCertificate, ContinuationOptions, continue_path
 from hyperstat.solver.errors import AnalysisError
 
-__all__ = ["ConfigurationSample", "sample_configurations", "passive_conditioning"]
+__all__ = ["ConfigurationSample", "sample_configurations", "passive_conditioning", "continue_to",
+           "assemble_nearest"]
 
 
 @dataclass
@@ -25,16 +33,141 @@ class ConfigurationSample:
     q : ndarray, (K, n_q)
         Assembled configurations (rad / mm).
     rejected : dict
-        Counts of rejected draws by reason: ``"no_assembly"``, ``"out_of_range"``,
-        ``"singular"``.
+        Counts of rejected draws by reason: ``"uncertified"`` (the continuation could not
+        certify the home branch), ``"no_assembly"``, ``"out_of_range"``, ``"singular"``.
     warnings : list of str
         Sentences for the user about what was left out.
+    certificate : BranchCertificate or None
+        Branch certificate of every kept configuration (all certified).
     """
 
     q: np.ndarray
     rejected: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    certificate: BranchCertificate | None = None
 
+
+def continue_to(
+    kin: Kinematics,
+    q_start_full: np.ndarray,
+    qa_targets: np.ndarray,
+    xi: np.ndarray | None = None,
+    options: ContinuationOptions | None = None,
+) -> tuple[np.ndarray, BranchCertificate]:
+    """Configurations at ``qa_targets`` on the branch of ``q_start_full``, with their certificate.
+
+    A thin entry point to :func:`hyperstat.solver.kinematics.continuation.continue_path`
+    (predictor ``dq_p = -B_p^+ B_a dq_a``, Newton corrector, adaptive steps; see its
+    guarantee).
+
+    Parameters
+    ----------
+    kin : Kinematics
+        Forward model.
+    q_start_full : ndarray, (n_q,) or (K, n_q)
+        Assembled start configuration(s), all joints (rad / mm).
+    qa_targets : ndarray, (K, n_actuated)
+        Actuated values to reach (rad / mm).
+    xi : ndarray, (n_xi,) or (K, n_xi), optional
+        Defects (rad / mm).
+    options : ContinuationOptions, optional
+
+    Returns
+    -------
+    q : ndarray, (K, n_q)
+        Configurations; rows with ``certificate.certified`` false stopped at their last
+        certified point and must not be used.
+    certificate : BranchCertificate
+    """
+    return continue_path(kin, q_start_full, qa_targets, xi, options)
+
+
+def assemble_nearest(
+    kin: Kinematics,
+    qa_targets: np.ndarray,
+    xi: np.ndarray | None = None,
+    start: np.ndarray | None = None,
+    options: ContinuationOptions | None = None,
+    pool: np.ndarray | None = None,
+) -> tuple[np.ndarray, BranchCertificate]:
+    """Assemble many actuated values on the branch of ``start``, each from the nearest one already assembled.
+
+    Targets are taken in order of their (dimensionless) actuated distance from ``start``,
+    in batches that grow four-fold (4, 16, 64, ...); every target of a batch continues
+    from the nearest configuration assembled so far (``start`` and ``pool`` included), all
+    of the batch at once, with a first step as long as the whole path when it is short
+    (at most ``max_step``).  A target that cannot be certified from its neighbour is tried once more from
+    ``start``.  Every certified configuration is linked to ``start`` by a chain of certified
+    paths, so it lies on the branch of ``start``.
+
+    Parameters
+    ----------
+    kin : Kinematics
+        Forward model.
+    qa_targets : ndarray, (K, n_actuated)
+        Actuated values (rad / mm).
+    xi : ndarray, (n_xi,), optional
+        Defects (rad / mm), the same for every target.
+    start : ndarray, (n_q,), optional
+        Assembled start configuration (default: home).
+    options : ContinuationOptions, optional
+        Step control (default: one first step over short paths).
+    pool : ndarray, (P, n_q), optional
+        Configurations already certified on the branch of ``start`` at the same ``xi``
+        (e.g. a previous sample), used as further start points.
+
+    Returns
+    -------
+    q : ndarray, (K, n_q)
+        Configurations (uncertified rows must not be used).
+    certificate : BranchCertificate
+        Per target; ``steps`` and ``path_length`` count the path from its neighbour.
+    """
+    m = kin.mechanism
+    act = m.actuated
+    qa = np.atleast_2d(np.asarray(qa_targets, dtype=float))
+    k = len(qa)
+    q_home = np.asarray(m.home if start is None else start, dtype=float)
+    if xi is not None and np.ndim(xi) != 1:
+        raise ValueError("assemble_nearest takes one defect vector (n_xi,) for every target.")
+    scale = kin.joint_scale[act]
+    options = options or ContinuationOptions(initial_steps=1)
+    q = np.zeros((k, kin.n_q))
+    parts: list = [None] * k
+    q0 = q_home[None, :]  # every path corrects its start first (step 0 of continue_path)
+    pool_q = [q0[0]] + ([] if pool is None else list(np.atleast_2d(np.asarray(pool, dtype=float))))
+    pool_a = [p[act] / scale for p in pool_q]
+    order = np.argsort(np.min(np.linalg.norm((qa / scale)[:, None, :] - np.array(pool_a)[None], axis=2), axis=1),
+                       kind="stable")
+    pos, size = 0, 4 * len(pool_q)
+    while pos < k:
+        batch = order[pos: pos + size]
+        pos += size
+        size *= 4
+        pa = np.array(pool_a)
+        dist = np.linalg.norm((qa[batch] / scale)[:, None, :] - pa[None, :, :], axis=2)
+        near = np.argmin(dist, axis=1)
+        starts = np.array(pool_q)[near]
+        qb, cb = continue_path(kin, starts, qa[batch], xi, options)
+        lost = ~cb.certified
+        if np.any(lost) and np.any(near[lost] != 0):  # once more from the start
+            retry = lost & (near != 0)
+            qr, cr = continue_path(kin, q0[0], qa[batch][retry], xi, options)
+            qb[retry] = qr
+            ridx = np.nonzero(retry)[0]
+            for j, i in enumerate(ridx):
+                cb_one = cr.take([j])
+                for attr in ("certified", "min_condition", "min_sigma", "max_contraction", "max_branch_ratio",
+                             "steps", "rejected", "path_length"):
+                    getattr(cb, attr)[i] = getattr(cb_one, attr)[0]
+                cb.reason[i] = cb_one.reason[0]
+        for j, i in enumerate(batch):
+            q[i] = qb[j]
+            parts[i] = cb.take([j])
+            if cb.certified[j]:
+                pool_q.append(qb[j])
+                pool_a.append(qb[j][act] / scale)
+    return q, BranchCertificate.concatenate(parts)
 
 def passive_conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
     """Inverse condition number of the scaled passive Jacobian ``B_s`` per configuration.
@@ -59,8 +192,15 @@ def sample_configurations(
     margin: float = 0.05,
     singular_tol: float = 1e-4,
     max_rounds: int = 4,
+    *,
+    pool: np.ndarray | None = None,
 ) -> ConfigurationSample:
-    """Draw ``n`` assembled, non-singular configurations uniformly over the actuated ranges.
+    """Draw ``n`` assembled, non-singular configurations uniformly over the actuated ranges, on the home branch.
+
+    Each draw is assembled by certified continuation from the nearest configuration
+    already assembled (:func:`assemble_nearest`); a draw that cannot be certified on the
+    branch of the home configuration is left out with a warning that says how many and
+    why.
 
     Parameters
     ----------
@@ -77,6 +217,9 @@ def sample_configurations(
         this value are left out (close to a singularity) with a warning.
     max_rounds : int
         Draw rounds before giving up.
+    pool : ndarray, (P, n_q), optional
+        Configurations already certified on the home branch (e.g. an earlier sample) to
+        continue from; the draws stay independent of them.
 
     Returns
     -------
@@ -95,27 +238,44 @@ def sample_configurations(
     hi = ranges[:, 1] - margin * (ranges[:, 1] - ranges[:, 0])
     act = m.actuated
     kept: list[np.ndarray] = []
-    rejected = {"no_assembly": 0, "out_of_range": 0, "singular": 0}
+    rejected = {"uncertified": 0, "no_assembly": 0, "out_of_range": 0, "singular": 0}
+    certs: list = []
+    reasons: dict[str, int] = {}
     for _ in range(max_rounds):
         need = n - sum(len(k) for k in kept)
         if need <= 0:
             break
         draw = max(2 * need, 8)
         qa = lo[act] + rng.random((draw, len(act))) * (hi[act] - lo[act])
-        res = kin.solve(qa)
-        q = res.q
-        ok = res.converged.copy()
-        rejected["no_assembly"] += int(np.sum(~ok))
+        known = [k_ for k_ in kept if len(k_)] + ([] if pool is None else [np.atleast_2d(pool)])
+        q, cert = assemble_nearest(kin, qa, pool=np.concatenate(known) if known else None)
+        ok = cert.certified.copy()
+        for r in np.asarray(cert.reason, dtype=object)[~ok]:
+            reasons[r] = reasons.get(r, 0) + 1
+        rejected["uncertified"] += int(np.sum(~ok))
+        if np.any(ok):
+            res = kin.residual_norm(kin.evaluate(q[ok], jacobians=False).residual)
+            closed = res <= 1e-7 * kin.length_scale
+            rejected["no_assembly"] += int(np.sum(~closed))
+            ok[np.nonzero(ok)[0][~closed]] = False
         in_range = np.all((q >= ranges[:, 0] - 1e-9) & (q <= ranges[:, 1] + 1e-9), axis=1)
         rejected["out_of_range"] += int(np.sum(ok & ~in_range))
         ok &= in_range
         if np.any(ok):
-            cond = passive_conditioning(kin, q[ok])
+            cond = cert.end_condition[ok]  # inverse condition of B_p at the end of the certified path
             good = cond > singular_tol
             rejected["singular"] += int(np.sum(~good))
             kept.append(q[ok][good])
+            certs.append(cert.take(np.nonzero(ok)[0][good]))
     q = np.concatenate(kept, axis=0)[:n] if kept else np.zeros((0, kin.n_q))
+    certificate = BranchCertificate.concatenate(certs).take(np.arange(len(q))) if certs else None
     notes = []
+    if rejected["uncertified"]:
+        why = "; ".join(f"{c} {r}" for r, c in sorted(reasons.items(), key=lambda t: -t[1]))
+        notes.append(
+            f"{rejected['uncertified']} drawn configuration(s) could not be certified on the assembly branch of the "
+            f"home configuration and were left out ({why})."
+        )
     if rejected["singular"]:
         notes.append(
             f"{rejected['singular']} sampled configuration(s) lie close to a singularity of the passive joints "
@@ -130,4 +290,4 @@ def sample_configurations(
         notes.append(f"only {len(q)} of the {n} requested configurations could be assembled inside the joint ranges.")
     for note in notes:
         warnings.warn(note, stacklevel=2)
-    return ConfigurationSample(q, rejected, notes)
+    return ConfigurationSample(q, rejected, notes, certificate)
