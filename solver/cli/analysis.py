@@ -30,8 +30,12 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         result = analyze(mech, n_configurations=args.configurations, seed=args.seed, kinematics=kin)
     checks = verify(mech, result, kinematics=kin) if args.verify else None
     exact = exact_check(mech, kin=kin) if args.exact else None
+    from hyperstat.solver.tolerances.classification import classify
+
+    tolerances = classify(mech, result, kin).to_dict()
     doc = result.to_dict()
     doc["source"] = provenance
+    doc["tolerances"] = tolerances
     if checks is not None:
         doc["verification"] = [c.to_dict() for c in checks]
     if exact is not None:
@@ -39,7 +43,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     if args.json:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
-        sys.stdout.write(format_analysis(result, checks, exact))
+        sys.stdout.write(format_analysis(result, checks, exact, tolerances))
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
     if checks is not None and not all(c.confirmed for c in checks):
