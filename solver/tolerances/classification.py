@@ -58,10 +58,9 @@ CLASS_MEANING = {
                    "cancel it (value: what keeps the spec without calibration; it can open)",
     "non-influent": "moves nothing the task uses",
 }
-_COMPONENT_WORDS = {"I": "tilt of the axis (x component)", "J": "tilt of the axis (y component)",
-                    "K": "tilt of the axis (z component)", "a": "shift of the origin along x",
-                    "b": "shift of the origin along y", "c": "shift of the origin along z",
-                    "G": "rotation of the frame about its own axis"}
+_COMPONENT_WORDS = {"I": "axis tilt, x component", "J": "axis tilt, y component", "K": "axis tilt, z component",
+                    "a": "origin shift along x", "b": "origin shift along y", "c": "origin shift along z",
+                    "G": "rotation about its own axis"}
 _REL = 1e-6  # relative threshold on task residuals (dimensionless, round-off is ~1e-12)
 
 
@@ -119,6 +118,7 @@ class Tolerance:
     assembly_ids: list = field(default_factory=list)
     direction: np.ndarray | None = None
     contribution: float | None = None
+    summary: str = ""
 
     def to_dict(self) -> dict:
         """JSON-ready form (``class`` for ``cls``; the direction is left out)."""
@@ -126,7 +126,8 @@ class Tolerance:
                 "terms": dict(self.terms), "parameters": list(self.parameters), "value": self.value,
                 "unit": self.unit, "feature": self.feature, "words": self.words, "why": self.why,
                 "value_source": self.value_source, "assembly_ids": list(self.assembly_ids),
-                "contribution_percent": self.contribution, "evidence": dict(self.evidence)}
+                "contribution_percent": self.contribution, "summary": self.summary or self.why,
+                "evidence": dict(self.evidence)}
 
 
 @dataclass
@@ -220,9 +221,9 @@ def _elements(mechanism: Mechanism) -> dict:
     for ch in mechanism.chains:
         for el in ch.elements:
             if isinstance(el, Joint):
-                kind = f"joint {el.name} ({'revolute' if el.type == 'R' else 'prismatic'}, {el.role})"
+                kind = f"joint {el.name} ({el.type}, {el.role})"
             else:
-                kind = f"fixed transform {el.name}"
+                kind = f"fixed {el.name}"
             for d in getattr(el, "defects", ()):
                 out[d.name] = (el.name, kind, d.component)
     return out
@@ -319,7 +320,9 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
             f = where[n][1]
             if f not in feats:
                 feats.append(f)
-        return "; ".join(feats)
+        if len(feats) > 1:
+            return "elements " + ", ".join(dict.fromkeys(where[n][0] for n in params))
+        return feats[0]
 
     for f in forced:
         terms = _physical_terms({f: 1.0}, redundant, names)
@@ -327,9 +330,9 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
         direction[index[f]] = 1.0 / terms[f]
         el, kind, comp = where[f]
         extra = [g for g in terms if g != f]
-        words = f"{_COMPONENT_WORDS[comp]} of {kind}"
+        words = _COMPONENT_WORDS[comp]
         if extra:
-            words += " together with the same shift carried by " + ", ".join(extra)
+            words += " (with the same shift " + ", ".join(extra) + ")"
         items.append(Tolerance("", "assembly", "forced", format_terms(terms), terms, list(terms), unit[f],
                                feature_of(list(terms)), words,
                                "forced by the over-constraint: the passive joints cannot absorb it at every "
@@ -343,8 +346,7 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
         units = {unit[n] for n in terms}
         items.append(Tolerance("", "assembly", "relation", format_terms(terms), terms, list(terms),
                                unit[pivot] if len(units) == 1 else unit[pivot], feature_of(list(terms)),
-                               "relation between " + ", ".join(f"{n} ({_COMPONENT_WORDS[where[n][2]]} of "
-                                                                 f"{where[n][0]})" for n in terms),
+                               "relation between the defects of " + ", ".join(dict.fromkeys(where[n][0] for n in terms)),
                                "coupled defects: admissible only in this combination; breaking it loads the structure",
                                direction=direction))
         for n in r.terms:
@@ -393,12 +395,12 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
         eqs = merged_into.get(p.name, [])
         statement = p.name + "".join(f" ≡ {g}" for g in eqs)
         params = [p.name] + eqs
-        words = f"{_COMPONENT_WORDS[comp]} of {kind}"
+        words = _COMPONENT_WORDS[comp]
         if eqs:
-            words += "; " + ", ".join(f"{g} is the same shift carried by the previous joint" for g in eqs)
+            words += " (" + ", ".join(f"{g}: the same shift on the previous joint" for g in eqs) + ")"
         ev = {"task_influence": infl}
         if p.verdict == "coupled":
-            words += " (the coupled defects following their relation)"
+            words += ", coupled ones following"
         if infl <= 1e-9 * max(top, 1e-300) or infl < 1e-12:
             cls = "non-influent"
             why = (f"its admissible motion moves no task component ({', '.join(decl.task)}): largest task "
@@ -439,14 +441,31 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
             t.assembly_ids = [i for i in relation_of.get(p.name, [])]
         items.append(t)
 
-    # ids, cross references, parameter map
+    # ids, cross references, short reasons, parameter map
     for i, t in enumerate(items):
         t.id = f"T{i + 1}"
+        ev = t.evidence
+        if t.kind == "forced":
+            t.summary = "forced by the over-constraint"
+        elif t.kind == "relation":
+            t.summary = "coupled: only this combination is admissible"
+        elif t.cls == "non-influent":
+            t.summary = "moves no task component"
+        elif t.cls == "compensable":
+            t.summary = f"calibrated and cancelled (residual {ev['residual_share']:.0e})"
+        else:
+            parts = []
+            if ev["not_identified_share"] >= _REL:
+                parts.append(f"{100 * ev['not_identified_share']:.0f} % unseen by calibration")
+            if ev["not_cancelled_share"] >= _REL:
+                parts.append(f"{100 * ev['not_cancelled_share']:.0f} % not cancellable")
+            t.summary = "; ".join(parts)
     for t in items:
         if t.assembly_ids:
             ids = [items[i].id for i in t.assembly_ids]
             t.assembly_ids = ids
             t.why += "; also bound by the assembly condition " + ", ".join(ids)
+            t.summary += "; relation " + ", ".join(ids)
     params: dict = {}
     for t in items:
         if t.kind == "direction":
@@ -476,7 +495,7 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
     appendix = [{"name": n, "element": where[n][0], "why": why} for n, why in normal.items()]
     red = {g: {"equivalent": r["equivalent"], "coefficients": r["coefficients"], "why": r["why"]}
            for g, r in redundant.items()}
-    cal = _calibration_residual(decl, j_m, task_xi @ basis, n_s, n_rot, ls, len(q))
+    cal = _calibration_residual(decl, j_m, task_xi @ basis, n_s, n_rot, ls, len(q), decl.poses)
     cal.update({"smallest_singular_value": float(sv[-1]) if sv.size else None, "measurements": decl.measurement_kind,
                 "unknowns": int(j_m.shape[1])})
     return Classification(m.name, items, params, appendix, red, decl, int(len(q)), warns, cal)

@@ -16,7 +16,8 @@ A template (``TOLERANCING`` at module level, passed through by
   tracker frame is measured on references of the base, as a calibration campaign does
   before measuring poses; ``unknown``: it is identified with the defects) and
   ``"offsets": "known" | "unknown"`` (``known``, the default: the targets sit in nests at
-  known offsets from the output frame; ``unknown``: their offsets are identified too);
+  known offsets from the output frame; ``unknown``: their offsets are identified too) and
+  ``"poses"`` (number of calibration poses, default 60);
 * ``spec``: the required accuracy over the workspace, ``{"position_mm": ...,
   "orientation_rad": ...}`` (``hyperstat accuracy --position-accuracy`` and
   ``--orientation-accuracy`` override it);
@@ -80,6 +81,7 @@ class Declaration:
     noise_rad: float = 5e-6
     frame: str = "registered"
     offsets: str = "known"
+    poses: int = 60
     position_mm: float | None = DEFAULT_SPEC["position_mm"]
     orientation_rad: float | None = DEFAULT_SPEC["orientation_rad"]
     clearances: dict = field(default_factory=dict)
@@ -106,7 +108,7 @@ class Declaration:
         return {"task": list(self.task),
                 "measurements": {"kind": self.measurement_kind, "targets_mm": [list(t) for t in self.targets_mm],
                                  "noise_mm": self.noise_mm, "noise_rad": self.noise_rad, "frame": self.frame,
-                                 "offsets": self.offsets},
+                                 "offsets": self.offsets, "poses": self.poses},
                 "spec": {"position_mm": self.position_mm, "orientation_rad": self.orientation_rad},
                 "clearances": {"R": self.clearance("", "R") if "R" in self.clearances else DEFAULT_CLEARANCES["R"],
                                "P": self.clearance("", "P") if "P" in self.clearances else DEFAULT_CLEARANCES["P"],
@@ -168,6 +170,11 @@ def parse_declaration(doc: dict | None, source: str = "model") -> Declaration:
         if offsets not in ("known", "unknown"):
             raise ModelError(f"{source}: tolerancing.measurements.offsets must be 'known' or 'unknown', got {offsets!r}.")
         kw["offsets"] = offsets
+        if "poses" in meas:
+            poses = meas["poses"]
+            if not isinstance(poses, int) or isinstance(poses, bool) or poses < 1:
+                raise ModelError(f"{source}: tolerancing.measurements.poses must be a positive integer, got {poses!r}.")
+            kw["poses"] = poses
         for key in ("noise_mm", "noise_rad"):
             if key in meas:
                 kw[key] = _number(meas[key], f"{source}: tolerancing.measurements.{key}")
