@@ -30,7 +30,7 @@ from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, output_
 from hyperstat.solver.tolerances.classification import Classification
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
 
-__all__ = ["assign_values", "task_maps"]
+__all__ = ["assign_values", "task_maps", "monte_carlo_at_values"]
 
 
 def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, task: tuple,
@@ -146,3 +146,77 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
                     t.value_source = "the clearances absorb any small violation (no limit to first order)"
     cl.allocation = info
     return cl
+
+
+def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
+                          samples: int = 10000, seed: int = 0, distribution: str = "uniform",
+                          position_accuracy: float | None = None, orientation_accuracy: float | None = None) -> dict:
+    """Monte Carlo through the nonlinear model with every accuracy tolerance at its value (JSON-ready).
+
+    Every accuracy-critical and compensable tolerance is drawn within ``+-value`` along its
+    direction (uniform, or normal with sigma = value / 3), the mechanism re-assembled at a
+    workspace configuration and the task error measured
+    (:func:`hyperstat.solver.tolerances.montecarlo.monte_carlo` with the declared task).  Two
+    machines: as built (every tolerance drawn) and calibrated (the compensable ones cancelled,
+    so only the accuracy-critical ones remain; the calibration noise of
+    :attr:`Classification.calibration` is added to the spec check as a worst case).
+    Assembly conditions are not drawn: violating one deforms the structure, which a rigid
+    model does not describe.
+
+    Returns
+    -------
+    dict
+        ``samples``, statistics of the task errors (mm, rad), ``out_of_spec_*_percent`` for both
+        machines, ``linear_worst_case`` (triangle-inequality bound over the sample, every
+        tolerance at its extreme, mm / rad), and ``contributors`` by tolerance id, sorted
+        by position share.
+    """
+    from hyperstat.solver.tolerances.montecarlo import monte_carlo
+
+    decl = cl.declaration
+    spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
+    spec_o = orientation_accuracy if orientation_accuracy is not None else decl.orientation_rad
+    drawn = [t for t in cl.items if t.cls in ("accuracy-critical", "compensable") and t.value]
+    if not drawn:
+        return {}
+    names = [t.id for t in drawn]
+    matrix = np.stack([t.direction for t in drawn], axis=1)
+    units = [t.unit for t in drawn]
+    tol = {t.id: float(t.value) for t in drawn}
+    res = monte_carlo(mechanism, configurations, tol, samples, distribution, seed, kinematics=kin,
+                      directions=(names, matrix, units), task=decl.task)
+    out = res.summary(spec_o, spec_p)
+    label = {t.id: f"{t.id} {t.statement}" for t in drawn}
+    for c in out["contributors"]:
+        c["label"] = label.get(c["parameter"], c["parameter"])
+    out["contributors"].sort(key=lambda c: -c["position_share"])
+    rot, pos = task_maps(mechanism, kin, configurations, decl.task, matrix)
+    vals = np.array([tol[n] for n in names])
+    out["linear_worst_case"] = {
+        "position_mm": float(np.max(np.linalg.norm(pos, axis=1) @ vals)) if pos.shape[1] else None,
+        "orientation_rad": float(np.max(np.linalg.norm(rot, axis=1) @ vals)) if rot.shape[1] else None}
+    crit = [t for t in drawn if t.cls == "accuracy-critical"]
+    calibrated = {}
+    if crit:
+        cn = [t.id for t in crit]
+        res_c = monte_carlo(mechanism, configurations, {t.id: float(t.value) for t in crit}, samples, distribution,
+                            seed + 1, kinematics=kin, directions=(cn, np.stack([t.direction for t in crit], axis=1),
+                                                                  [t.unit for t in crit]), task=decl.task)
+        ok = res_c.converged
+        cal = cl.calibration
+        if spec_p is not None:
+            calibrated["out_of_spec_position_percent"] = float(
+                100 * np.mean(res_c.position[ok] + cal.get("position_mm", 0.0) > spec_p))
+        if spec_o is not None:
+            calibrated["out_of_spec_orientation_percent"] = float(
+                100 * np.mean(res_c.orientation[ok] + cal.get("orientation_rad", 0.0) > spec_o))
+        calibrated["position_max_mm"] = float(res_c.position[ok].max())
+        calibrated["orientation_max_rad"] = float(res_c.orientation[ok].max())
+    else:
+        calibrated = {"out_of_spec_position_percent": 0.0 if spec_p is not None else None,
+                      "out_of_spec_orientation_percent": 0.0 if spec_o is not None else None,
+                      "note": "no accuracy-critical tolerance: calibration leaves only its noise"}
+    out["calibrated"] = calibrated
+    out["spec"] = {"position_mm": spec_p, "orientation_rad": spec_o}
+    out["task"] = list(decl.task)
+    return out
