@@ -14,7 +14,7 @@ STAMP  := $(VENV)/.installed
 DEB_PACKAGES := chromium poppler-utils linuxcnc-uspace
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-TEMPLATE_NAMES := slider_crank tripteor_x7 triflex_ii scara hexapod
+TEMPLATE_NAMES := slider_crank tripteor_x7 triflex_ii scara hexapod five_bar
 
 # pip's and setuptools' own chatter goes to .venv/pip.log (shown only if the install fails).
 PIPLOG := $(VENV)/pip.log

@@ -249,6 +249,22 @@ def _redundant(mechanism: Mechanism, names: list) -> tuple[dict, dict]:
         outside = {k: v for k, v in coeffs.items() if k not in own} or coeffs
         eq = max(outside, key=lambda k: abs(outside[k]))
         redundant[g] = {"equivalent": eq, "coefficients": coeffs, "why": why, "vector": vec}
+    # an equivalent may itself be redundant (dc5 ≡ dc4 ≡ dc6 along parallel axes): resolve to analysis parameters
+    for _ in range(len(redundant)):
+        changed = False
+        for g, r in redundant.items():
+            inner = [k for k in r["coefficients"] if k in redundant and k != g]
+            for k in inner:
+                c = r["coefficients"].pop(k)
+                for kk, vv in redundant[k]["coefficients"].items():
+                    r["coefficients"][kk] = _clean(r["coefficients"].get(kk, 0.0) + c * vv)
+                changed = True
+            r["coefficients"] = {k: v for k, v in r["coefficients"].items() if v != 0.0 and k not in normal}
+            if r["equivalent"] in redundant:
+                r["equivalent"] = redundant[r["equivalent"]]["equivalent"]
+                changed = True
+        if not changed:
+            break
     return normal, redundant
 
 
@@ -355,7 +371,10 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
     # ---------------------------------------------------------------- admissible directions
     q = analysis.configurations if configurations is None else np.atleast_2d(configurations)
     st = kin.evaluate(q, None, jacobians=True)
-    k_xi, k_a = output_twist_maps(kin, st)
+    try:  # undamped (round-off only) at the analysis' generic configurations; damped if one is singular
+        k_xi, k_a = output_twist_maps(kin, st, damping=1e-16)
+    except np.linalg.LinAlgError:
+        k_xi, k_a = output_twist_maps(kin, st)
     ls = kin.length_scale
     sel = task_rows(decl.task, st.output_pose)  # (K, r, 6)
     n_rot = n_rotation_rows(decl.task)

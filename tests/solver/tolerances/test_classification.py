@@ -132,3 +132,26 @@ def test_declaration_errors_name_the_field():
         parse_declaration({"task": ["speed"]}, "m.json")
     with pytest.raises(ModelError, match="tolerancing.clearances.R.radial_mm must be a non-negative number"):
         parse_declaration({"clearances": {"R": {"radial_mm": -1}}}, "m.json")
+
+
+def test_five_bar_planar_loop_conditions():
+    """The planar five-bar: its axes must stay parallel and its joints in one plane (nonlinear re-assembly)."""
+    mech, kin, result = _setup("five_bar")
+    cl = classify(mech, result, kin)
+    assert result.mobility == 2 and result.overconstraint == 3
+    counts = cl.counts()
+    assert counts["assembly"] == len(result.by_verdict("forced")) + len(result.relations) == 10
+    # the out-of-plane relation keeps every shift along the parallel axes (dc5 ≡ dc4 ≡ dc6 resolved)
+    rel = [t for t in cl.items if t.kind == "relation" and "dc6" in t.terms]
+    assert len(rel) == 1 and {"dc2", "dc3", "dc4", "dc5", "dc6"} <= set(rel[0].terms)
+    q = result.configurations[:3]
+    for t in cl.items:
+        gap = np.max(_gap(kin, mech, 1e-3 * t.direction / np.max(np.abs(t.direction)), q))
+        assert (gap > 1e-4) if t.cls == "assembly" else (gap < 1e-7), (t.statement, gap)
+    # out-of-plane defects move nothing in the plane: non-influent for the task (x, y)
+    for t in cl.by_class("non-influent"):
+        xi = 1e-5 * t.direction  # a first-order effect would move C by about 1e-5 x 100 mm = 1e-3 mm
+        res = kin.assemble(q.copy(), xi)
+        moved = kin.evaluate(res.q, xi, jacobians=False).output_pose[:, :2, 3] - \
+            kin.evaluate(q, None, jacobians=False).output_pose[:, :2, 3]
+        assert np.max(np.abs(moved)) < 1e-6, t.statement  # mm: second order only
