@@ -190,8 +190,9 @@ def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declarat
     Returns
     -------
     dict
-        Tolerance id -> {"value", "worst_configuration", "limiting" (the clearances at their
-        bound at the worst configuration), "configurations"}.
+        Tolerance id -> {"value", "worst_configuration", "limiting" (the four clearances at their
+        bound with the largest effect at the worst configuration), "at_bound" (how many are at
+        their bound), "configurations"}.
     """
     model = model or clearance_model(mechanism, declaration)
     kin = Kinematics(model.mechanism)
@@ -215,12 +216,14 @@ def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declarat
             t, y = _max_violation(cg, a @ d)
             if t < best:
                 best, worst, y_worst = t, int(k), y
-        limiting = []
+        limiting, at_bound = [], 0
         if y_worst is not None:
-            order = np.argsort(-np.abs(y_worst))
-            limiting = [model.labels[j] for j in order[:4] if abs(y_worst[j]) > 0.999]
+            cg = blocks[worst][0]
+            weight = np.linalg.norm(cg, axis=0) * (np.abs(y_worst) > 0.999)  # plays at their bound, by effect
+            at_bound = int(np.sum(np.abs(y_worst) > 0.999))
+            limiting = [model.labels[j] for j in np.argsort(-weight)[:4] if weight[j] > 0]
         out[it.id] = {"value": None if not np.isfinite(best) else best, "worst_configuration": worst,
-                      "limiting": limiting, "configurations": len(blocks)}
+                      "limiting": limiting, "at_bound": at_bound, "configurations": len(blocks)}
     return out
 
 

@@ -139,7 +139,8 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
             for t in items:
                 v = vals[t.id]
                 t.value = v["value"]
-                t.evidence["assemblability"] = {k: v[k] for k in ("worst_configuration", "limiting", "configurations")}
+                t.evidence["assemblability"] = {k: v[k] for k in ("worst_configuration", "limiting", "at_bound",
+                                                                  "configurations")}
                 t.value_source = (f"largest violation the joint clearances absorb at every one of {v['configurations']} "
                                   "configurations (worst-case assemblability, linear programme)")
                 if v["value"] is None:
