@@ -121,7 +121,7 @@ def _cmd_report(args) -> int:
     from hyperstat.solver.analysis.verify import verify
     from hyperstat.solver.tolerances.accuracy import report_section, sample_workspace
     from hyperstat.solver.tolerances.classification import classify
-    from hyperstat.solver.tolerances.values import assign_values
+    from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values, monte_carlo_at_values
 
     from hyperstat.cad_plugin.plots import diagnosis_figures
     from hyperstat.cad_plugin.report import write_report
@@ -163,10 +163,13 @@ def _cmd_report(args) -> int:
                 workspace = result.configurations
             tolerances = classify(mech, result, kin)
             assign_values(tolerances, mech, kin, workspace, args.position_accuracy, args.orientation_accuracy,
-                          assembly_configurations=result.configurations[:12])
+                          assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
             accuracy = report_section(mech, result, kin)
+            montecarlo = monte_carlo_at_values(tolerances, mech, kin, workspace, samples=1000, seed=0,
+                                               position_accuracy=args.position_accuracy,
+                                               orientation_accuracy=args.orientation_accuracy) or None
         doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, tolerances,
-                              accuracy)
+                              accuracy, montecarlo)
         progress.next("layout and pictures")
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
         written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images)

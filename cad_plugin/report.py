@@ -300,9 +300,13 @@ def render_html(doc: dict, images: dict) -> str:
 
 def _montecarlo_html(mc: dict) -> str:
     e = html.escape
-    out = [f"<p>{mc['samples']} samples, every tolerance at its value ({e(mc.get('distribution', 'uniform'))}), "
-           f"{mc.get('not_assembled', 0)} did not assemble.</p><table><tr><th></th><th>mean</th><th>p99</th>"
-           "<th>max</th><th>linear worst case</th><th>out of spec</th></tr>"]
+    out = [f"<p>{mc['samples']} samples through the nonlinear model, every accuracy-critical and compensable "
+           f"tolerance drawn within ± its value ({e(mc.get('distribution', 'uniform'))}), errors on the task "
+           f"components ({e(', '.join(mc.get('task', [])))}); {mc.get('not_assembled', 0)} did not assemble. "
+           "Assembly conditions are not drawn: violating one deforms the structure.</p>"
+           "<table><tr><th></th><th>mean</th><th>p99</th>"
+           "<th>max</th><th>linear worst case</th><th>out of spec, as built</th><th>out of spec, calibrated</th></tr>"]
+    cal = mc.get("calibrated") or {}
     for key, unit, spec_key in (("position_mm", "mm", "out_of_spec_position_percent"),
                                 ("orientation_rad", "rad", "out_of_spec_orientation_percent")):
         v = mc.get(key)
@@ -310,10 +314,12 @@ def _montecarlo_html(mc: dict) -> str:
             continue
         bound = mc.get("linear_worst_case", {}).get(key)
         oos = mc.get(spec_key)
+        oos_cal = cal.get(spec_key)
         out.append(f"<tr><td>{key.split('_')[0]} error ({unit})</td><td class=num>{v['mean']:.3g}</td>"
                    f"<td class=num>{v['p99']:.3g}</td><td class=num>{v['max']:.3g}</td>"
                    f"<td class=num>{'-' if bound is None else f'{bound:.3g}'}</td>"
-                   f"<td class=num>{'-' if oos is None else f'{oos:.2f} %'}</td></tr>")
+                   f"<td class=num>{'-' if oos is None else f'{oos:.2f} %'}</td>"
+                   f"<td class=num>{'-' if oos_cal is None else f'{oos_cal:.2f} %'}</td></tr>")
     out.append("</table><table><tr><th>contributor</th><th>share of the position variance</th>"
                "<th>share of the orientation variance</th></tr>")
     for c in mc.get("contributors", [])[:10]:

@@ -56,12 +56,12 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
 def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True):
     """The tolerances of the classification module with their values (spec from the options or the template)."""
     from hyperstat.solver.tolerances.classification import classify
-    from hyperstat.solver.tolerances.values import assign_values
+    from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values
 
     result = args._stationarity
     cl = classify(mech, result, kin)
     assign_values(cl, mech, kin, q, args.position_accuracy, args.orientation_accuracy, assembly=assembly,
-                  assembly_configurations=result.configurations[:12])
+                  assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
     return cl
 
 

@@ -44,16 +44,37 @@ def relation_mathml(relation) -> str:
 
 
 def terms_mathml(coefficients: dict) -> str:
-    """``sum c_i x_i = 0`` as presentation MathML (sympy), e.g. ``dc2 + dc3 = 0``."""
-    import sympy
+    """``sum c_i x_i = 0`` as presentation MathML, e.g. ``dc2 + dc3 = 0``.
 
-    terms = []
-    for name, coefficient in coefficients.items():
-        c = sympy.nsimplify(coefficient, rational=True, tolerance=1e-9)
-        symbol = sympy.Symbol(name)
-        terms.append(c * symbol)
-    expr = sympy.Eq(sympy.Add(*terms), 0)
-    return sympy.printing.mathml(expr, printer="presentation")
+    Coefficients print as integers or fractions when they are (to 1e-9), else with six digits.
+
+    >>> terms_mathml({"dc2": 1.0, "dc3": 1.0})
+    '<math display="block"><mrow><mi>dc2</mi><mo>+</mo><mi>dc3</mi><mo>=</mo><mn>0</mn></mrow></math>'
+    >>> terms_mathml({"dI2": 1.0, "dI6": -0.8})
+    '<math display="block"><mrow><mi>dI2</mi><mo>&#8722;</mo><mfrac><mn>4</mn><mn>5</mn></mfrac><mo>&#8290;</mo><mi>dI6</mi><mo>=</mo><mn>0</mn></mrow></math>'
+    """
+    from fractions import Fraction
+    from html import escape
+
+    parts = []
+    for k, (name, c) in enumerate(coefficients.items()):
+        c = float(c)
+        if k == 0:
+            if c < 0:
+                parts.append("<mo>&#8722;</mo>")
+        else:
+            parts.append("<mo>&#8722;</mo>" if c < 0 else "<mo>+</mo>")
+        mag = abs(c)
+        if abs(mag - 1.0) > 1e-12:
+            frac = Fraction(mag).limit_denominator(1000)
+            if abs(float(frac) - mag) < 1e-9 * max(1.0, mag):
+                num = f"<mn>{frac.numerator}</mn>" if frac.denominator == 1 else \
+                    f"<mfrac><mn>{frac.numerator}</mn><mn>{frac.denominator}</mn></mfrac>"
+            else:
+                num = f"<mn>{mag:.6g}</mn>"
+            parts.append(num + "<mo>&#8290;</mo>")
+        parts.append(f"<mi>{escape(name)}</mi>")
+    return '<math display="block"><mrow>' + "".join(parts) + "<mo>=</mo><mn>0</mn></mrow></math>"
 
 
 def report_document(mechanism, provenance: dict, analysis, checks=None, hypotheses=None, identification=None,

@@ -30,7 +30,10 @@ from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, output_
 from hyperstat.solver.tolerances.classification import Classification
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
 
-__all__ = ["assign_values", "task_maps", "monte_carlo_at_values"]
+__all__ = ["assign_values", "task_maps", "monte_carlo_at_values", "ASSEMBLY_SAMPLE"]
+
+#: configurations of the stationarity sample on which the assemblability programme runs (report, accuracy)
+ASSEMBLY_SAMPLE = 8
 
 
 def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, task: tuple,

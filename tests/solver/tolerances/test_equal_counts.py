@@ -40,6 +40,9 @@ def test_counts_and_classes_are_equal_across_outputs(template, tmp_path):
                [(t["id"], t["class"], t["statement"]) for t in analysis["items"]]
         assert {k: v["class"] for k, v in out["parameters"].items()} == \
                {k: v["class"] for k, v in analysis["parameters"].items()}
+    # assembly values come from the same clearance programme on the same configurations
+    assert {t["id"]: t["value"] for t in accuracy["items"] if t["class"] == "assembly"} == \
+           {t["id"]: t["value"] for t in report["tolerances"]["items"] if t["class"] == "assembly"}
     # the per-joint table of the report carries the same class for every parameter
     assert {p["name"]: p["class"] for j in report["joints"] for p in j["parameters"]} == \
            {k: v["class"] for k, v in analysis["parameters"].items()}
