@@ -56,6 +56,9 @@ def format_tolerances(tolerances: dict, limit: int | None = None) -> str:
     if normal:
         lines.append("not tolerances (normalisation components along the nominal axis, no geometric meaning): "
                      + ", ".join(a["name"] for a in normal))
+    if items and all(t.get("value") is None for t in items):
+        lines.append("values: 'hyperstat accuracy' and 'hyperstat report' compute them (allocation against the spec, "
+                     "joint clearances); see docs/tolerances.md")
     for w in tolerances.get("warnings", []):
         lines.append(f"warning: {w}")
     return "\n".join(lines) + "\n"
