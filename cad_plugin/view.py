@@ -78,11 +78,20 @@ def element_classes(analysis: dict | None) -> tuple[dict, dict]:
 
 
 def _callout(name: str, ids: list) -> str:
-    if not ids:
+    """``"21: T13, T15-T19"``: the joint and its tolerance ids, consecutive ids as ranges.
+
+    >>> _callout("21", ["T17", "T13", "T15", "T16", "T18", "T19"])
+    '21: T13, T15-T19'
+    """
+    nums = sorted(int(t[1:]) for t in ids if t[1:].isdigit())
+    if not nums:
         return name
-    nums = sorted(ids, key=lambda t: int(t[1:]) if t[1:].isdigit() else 0)
-    text = ",".join(nums) if len(nums) <= 3 else f"{nums[0]}..{nums[-1]} ({len(nums)})"
-    return f"{name}: {text}"
+    runs, start = [], nums[0]
+    for a, b in zip(nums, nums[1:] + [None]):
+        if b != a + 1:
+            runs.append(f"T{start}" if start == a else f"T{start}-T{a}")
+            start = b
+    return f"{name}: " + ", ".join(runs)
 
 
 def _quiet_vtk() -> None:
@@ -142,6 +151,12 @@ def _scene_meshes(mech: Mechanism, verdicts: dict, size: float, colors: dict | N
         meshes.append((pv.merge(tubes), {"color": (0.62, 0.62, 0.66), "smooth_shading": True}))
     meshes += [(pv.merge(m), {"color": AXIS_COLORS[a]}) for a, m in arrows.items() if m]
     meshes += [(pv.merge(m), {"color": c, "lighting": False}) for c, m in balls.items()]
+    if callouts is not None:  # frames sharing a point (a U joint, a spherical joint) get one callout, not stacked ones
+        merged: dict = {}
+        for pt, name in zip(points, names):
+            merged.setdefault(tuple(np.round(pt / max(size, 1e-9), 3)), [pt, []])[1].append(name)
+        points = [v[0] for v in merged.values()]
+        names = ["\n".join(v[1]) for v in merged.values()]
     return meshes, points, names
 
 
