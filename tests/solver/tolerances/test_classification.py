@@ -155,3 +155,39 @@ def test_five_bar_planar_loop_conditions():
         moved = kin.evaluate(res.q, xi, jacobians=False).output_pose[:, :2, 3] - \
             kin.evaluate(q, None, jacobians=False).output_pose[:, :2, 3]
         assert np.max(np.abs(moved)) < 1e-6, t.statement  # mm: second order only
+
+
+def test_declaration_travels_from_template_to_model_file_and_back(tmp_path, capsys):
+    """The template's TOLERANCING reaches the model file (optional field) and a model file gives the same classes."""
+    import json
+
+    from hyperstat.cad_plugin.cli import main
+
+    model = tmp_path / "m.json"
+    assert main(["build", str(TEMPLATES / "tripteor_x7.py"), "--model", str(model)]) == 0
+    doc = json.loads(model.read_text())
+    assert doc["tolerancing"]["task"] == ["position", "tool-axis"]
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    assert main(["analyze", str(TEMPLATES / "tripteor_x7.py"), "--json", str(a), "--quiet"]) == 0
+    assert main(["analyze", str(model), "--json", str(b), "--quiet"]) == 0
+    ta, tb = json.loads(a.read_text())["tolerances"], json.loads(b.read_text())["tolerances"]
+    assert ta["counts"] == tb["counts"] and ta["parameters"] == tb["parameters"]
+    # a bad declaration in a model file: one sentence naming the field, exit 2, nothing written
+    doc["tolerancing"]["spec"] = {"position_mm": -1}
+    model.write_text(json.dumps(doc))
+    out = tmp_path / "c.json"
+    capsys.readouterr()
+    assert main(["analyze", str(model), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "tolerancing.spec.position_mm" in err and err.count("\n") == 1 and not out.exists()
+
+
+def test_bad_template_declaration_is_one_sentence(tmp_path, capsys):
+    from hyperstat.cad_plugin.cli import main
+
+    src = (TEMPLATES / "slider_crank.py").read_text().replace('"task": ["x"]', '"task": ["speed"]')
+    bad = tmp_path / "bad.py"
+    bad.write_text(src)
+    assert main(["analyze", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "TOLERANCING" in err and "task component 'speed' is unknown" in err and err.count("\n") == 1
