@@ -116,18 +116,18 @@ def _analysis_file(path: str | None, mech: Mechanism) -> dict | None:
 def _cmd_report(args) -> int:
     import warnings
 
-    import numpy as np
-
-    from hyperstat.solver.calibration.identify import MeasurementModel
     from hyperstat.solver.calibration.measurements import read_measurements
-    from hyperstat.solver.export.report_content import identifiable_by_design, report_document
+    from hyperstat.solver.export.report_content import report_document
     from hyperstat.solver.analysis.verify import verify
-    from hyperstat.solver.calibration.virtual import VirtualMachine
+    from hyperstat.solver.tolerances.accuracy import report_section, sample_workspace
+    from hyperstat.solver.tolerances.classification import classify
+    from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values, monte_carlo_at_values
 
     from hyperstat.cad_plugin.plots import diagnosis_figures
     from hyperstat.cad_plugin.report import write_report
 
-    stages = ["stationarity analysis", "verification", "calibration and diagnosis", "accuracy", "layout and pictures"]
+    stages = ["stationarity analysis", "verification", "calibration and diagnosis", "tolerances and accuracy",
+              "layout and pictures"]
     with solver_cli.stages(args, stages) as progress:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = solver_cli.analysis_of(args)
@@ -143,9 +143,6 @@ def _cmd_report(args) -> int:
             warnings.simplefilter("ignore")
             progress.next("verification")
             checks = verify(mech, result, kinematics=kin)
-            nominal = VirtualMachine.random(mech, result, seed=0, angle_tolerance=0.0, length_tolerance=0.0,
-                                            kinematics=kin)
-            design = identifiable_by_design(MeasurementModel(mech, result, kin), mech, nominal.poses(60, seed=0))
             progress.next("calibration and diagnosis")
             diagnosis = identification = None
             images = {}
@@ -160,12 +157,22 @@ def _cmd_report(args) -> int:
                     from hyperstat.solver.calibration.identify import identify
 
                     identification = identify(mech, result, data, validation, kinematics=kin)
-        progress.next("accuracy")
-        accuracy = _accuracy_section(mech, result, kin)
-        doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, design, accuracy)
+            progress.next("tolerances and accuracy")
+            workspace = sample_workspace(mech, 200, seed=0, kinematics=kin)
+            if len(workspace) == 0:
+                workspace = result.configurations
+            tolerances = classify(mech, result, kin)
+            assign_values(tolerances, mech, kin, workspace, args.position_accuracy, args.orientation_accuracy,
+                          assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
+            accuracy = report_section(mech, result, kin)
+            montecarlo = monte_carlo_at_values(tolerances, mech, kin, workspace, samples=1000, seed=0,
+                                               position_accuracy=args.position_accuracy,
+                                               orientation_accuracy=args.orientation_accuracy) or None
+        doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, tolerances,
+                              accuracy, montecarlo)
         progress.next("layout and pictures")
-        analysis_json = solver_cli.jsonable(result.to_dict())
-        written = write_report(doc, args.out, mech, analysis_json, images)
+        analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
+        written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
@@ -261,6 +268,10 @@ def build_parser():
     p.add_argument("--validation", metavar="VAL.csv", help="validation measurements")
     p.add_argument("--hypotheses", metavar="H.yaml", help="design hypotheses to check")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--position-accuracy", type=float, metavar="MM", help="spec: required position accuracy (mm), "
+                   "overrides the template's")
+    p.add_argument("--orientation-accuracy", type=float, metavar="RAD", help="spec: required orientation accuracy "
+                   "(rad), overrides the template's")
     p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
     p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
     p.add_argument("--quiet", action="store_true", help="print nothing")

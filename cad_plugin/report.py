@@ -14,42 +14,50 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 import tempfile
 from pathlib import Path
 
 from hyperstat.solver.atomic import dumps_json, write_bytes, write_text
-from hyperstat.solver.export.report_content import TOLERANCE_CLASSES
 
 __all__ = ["write_report", "render_html", "render_markdown", "SECTIONS"]
 
-SECTIONS = ("summary", "skeleton", "joints", "constraints", "hypotheses", "accuracy", "identification", "diagnosis")
+SECTIONS = ("summary", "skeleton", "assembly", "accuracy", "montecarlo", "calibration", "hypotheses", "identification",
+            "diagnosis", "joints", "appendix")
 
 CLASS_COLORS = {
-    "forced": "#d1007a",
-    "coupled": "#e67e00",
-    "compensable": "#0097a7",
+    "assembly": "#c2007a",
     "accuracy-critical": "#c62828",
-    "non-influent": "#8a8a8a",
-    "gauge": "#bdbdbd",
+    "compensable": "#00838f",
+    "non-influent": "#6d6d6d",
+    "normalisation": "#9e9e9e",
 }
 
 CSS = """
-body { font-family: "DejaVu Sans", Arial, sans-serif; font-size: 18px; color: #111; margin: 2em auto;
-       max-width: 1200px; line-height: 1.4; }
-h1 { font-size: 2em; border-bottom: 4px solid #111; } h2 { font-size: 1.5em; margin-top: 1.6em;
-       border-bottom: 2px solid #999; }
-table { border-collapse: collapse; margin: .6em 0; } th, td { border: 1px solid #999; padding: .2em .5em; }
-th { background: #eee; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
-.badge { display: inline-block; padding: .05em .5em; border-radius: .6em; color: white; font-weight: bold; }
-.cards { display: flex; flex-wrap: wrap; gap: .8em; } .card { border: 2px solid #111; border-radius: .4em;
-       padding: .4em .8em; min-width: 9em; } .card b { font-size: 1.8em; display: block; }
-img { max-width: 100%; border: 1px solid #ccc; } .note { color: #444; font-size: .9em; }
+body { font-family: "DejaVu Sans", Arial, sans-serif; font-size: 17px; color: #111; margin: 2em auto;
+       max-width: 1200px; line-height: 1.35; }
+h1 { font-size: 1.8em; border-bottom: 4px solid #111; margin: 0 0 .3em 0; }
+h2 { font-size: 1.35em; margin-top: 1.4em; border-bottom: 2px solid #999; break-after: avoid; page-break-after: avoid; }
+table { border-collapse: collapse; margin: .5em 0; } th, td { border: 1px solid #999; padding: .15em .4em;
+       vertical-align: top; }
+th { background: #eee; text-align: left; } td.num { text-align: right; font-variant-numeric: tabular-nums;
+       white-space: nowrap; }
+table.title td { border: none; padding: .05em .6em .05em 0; } table.title td:first-child { font-weight: bold; }
+table.tol { font-size: .85em; width: 100%; } table.tol td.stmt { font-family: "DejaVu Sans Mono", monospace;
+       max-width: 22em; overflow-wrap: anywhere; } table.tol td { padding: .05em .3em; }
+.badge { display: inline-block; padding: 0 .4em; border-radius: .5em; color: white; font-weight: bold;
+       white-space: nowrap; -webkit-print-color-adjust: exact; print-color-adjust: exact; }
+.cards { display: flex; flex-wrap: wrap; gap: .6em; margin: .4em 0; } .card { border: 2px solid #111;
+       border-radius: .4em; padding: .2em .7em; min-width: 8em; } .card b { font-size: 1.6em; display: block; }
+.bar { display: inline-block; height: .8em; background: #00838f; -webkit-print-color-adjust: exact;
+       print-color-adjust: exact; }
+img { max-width: 100%; border: 1px solid #ccc; } .note { color: #333; font-size: .9em; }
 @media print {
-  @page { size: A4; margin: 15mm; }
-  body { font-size: 10pt; max-width: none; margin: 0; }
-  h2 { page-break-before: always; } section#summary h2 { page-break-before: avoid; }
-  table, img { page-break-inside: avoid; }
+  @page { size: A4; margin: 12mm; }
+  body { font-size: 9.5pt; max-width: none; margin: 0; }
+  table.tol { font-size: 7.5pt; } h1 { font-size: 16pt; } h2 { font-size: 12pt; margin-top: .8em; }
+  section#skeleton { break-before: page; page-break-before: always; }
+  tr, img, .cards, p { break-inside: avoid; page-break-inside: avoid; }
+  img { max-height: 150mm; }
 }
 """
 
@@ -66,60 +74,153 @@ def _um(v) -> str:
     return "-" if v is None else f"{1000 * v:.1f}"
 
 
+def _value(t: dict) -> str:
+    return "-" if t.get("value") is None else f"± {t['value']:.3g} {t['unit']}"
+
+
+def _pct(v) -> str:
+    return "-" if v is None else f"{v:.1f}"
+
+
+def _spec_text(spec: dict) -> str:
+    parts = []
+    if spec.get("position_mm") is not None:
+        parts.append(f"position ± {spec['position_mm']:g} mm")
+    if spec.get("orientation_rad") is not None:
+        parts.append(f"orientation ± {spec['orientation_rad']:g} rad")
+    return ", ".join(parts) or "none declared"
+
+
 def render_html(doc: dict, images: dict) -> str:
-    """The report as one self-contained HTML page."""
+    """The report as one self-contained HTML page (page 1: title block, counts, tolerance table)."""
     s = doc["summary"]
+    tol = doc["tolerances"]
+    title = doc["title"]
     e = html.escape
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            f"<title>hyperstat tolerance report: {e(doc['mechanism'])}</title>", f"<style>{CSS}</style></head><body>",
-           f"<h1>Tolerance report: {e(doc['mechanism'])}</h1>",
-           f"<p class=\"note\">Source: {e(str(doc['source'].get('source', '')))} ({e(str(doc['source'].get('kind', '')))})."
-           " Lengths in mm, angles in rad, residuals in &micro;m.</p>"]
-    # summary
-    out.append('<section id="summary"><h2>Summary</h2><div class="cards">')
-    out.append(f'<div class="card"><b>{s["parameters"]}</b>defect parameters</div>')
-    out.append(f'<div class="card"><b>{s["mobility"]}</b>mobility</div>')
-    out.append(f'<div class="card"><b>{s["overconstraint"]}</b>degree of over-constraint</div>')
+           f"<h1>Tolerance report: {e(doc['mechanism'])}</h1>"]
+    # page 1: title block, counts, tolerance table
+    out.append('<section id="summary"><table class="title">')
+    params = ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}"
+                       for k, v in (title.get("parameters") or {}).items())
+    meas = title["measurements"]
+    rows = [("mechanism", f"{title['mechanism']}: {title.get('description') or ''}"),
+            (title.get("kind") or "source", f"{title.get('template')}" + (f" ({params})" if params else "")),
+            ("source SHA-256", title.get("source_sha256") or "-"),
+            ("task", ", ".join(title["task"])),
+            ("spec", _spec_text(title["spec"])),
+            ("calibration", f"{meas['kind']} of {len(meas['targets_mm'])} target(s), noise {meas['noise_mm']:g} mm"),
+            ("units", "lengths mm, angles rad; ± values are symmetric tolerances")]
+    for k, v in rows:
+        out.append(f"<tr><td>{e(k)}</td><td>{e(str(v))}</td></tr>")
+    out.append("</table><div class=\"cards\">")
     for cls, n in s["tolerance_classes"].items():
         out.append(f'<div class="card" style="border-color:{CLASS_COLORS[cls]}"><b>{n}</b>{e(cls)}</div>')
-    out.append("</div><table><tr><th>class</th><th>meaning</th><th>parameters</th></tr>")
-    for cls, meaning in TOLERANCE_CLASSES.items():
-        names = [p["name"] for j in doc["joints"] for p in j["parameters"] if p["class"] == cls]
-        out.append(f"<tr><td>{_badge(cls)}</td><td>{e(meaning)}</td><td>{e(', '.join(names)) or '-'}</td></tr>")
+    out.append(f'<div class="card"><b>{s["parameters"]}</b>defect parameters</div>'
+               f'<div class="card"><b>{s["overconstraint"]}</b>degree of over-constraint</div></div>')
+    out.append(f"<p class=\"note\">{s['tolerances']} tolerances from {s['parameters']} defect parameters; "
+               f"{s['normalisation_components']} normalisation components are not tolerances (appendix). "
+               + " ".join(f"<b>{e(c)}</b>: {e(m)}." for c, m in doc["tolerance_class_meaning"].items()) + "</p>")
+    out.append('<table class="tol" id="tolerance-table"><tr><th>id</th><th>feature</th><th>what it is</th>'
+               "<th>statement</th><th>value</th><th>class</th><th>why</th><th>contr. %</th></tr>")
+    for t in tol["items"]:
+        out.append(f"<tr><td>{e(t['id'])}</td><td>{e(t['feature'])}</td><td>{e(t['words'])}</td>"
+                   f"<td class=\"stmt\">{e(t['statement'])}</td><td class=\"num\">{e(_value(t))}</td>"
+                   f"<td>{_badge(t['class'])}</td><td>{e(t['summary'])}</td><td class=\"num\">"
+                   f"{_pct(t.get('contribution_percent'))}</td></tr>")
     out.append("</table>")
     gap = s["singular_value_gap"]
-    out.append(f"<p>Constraint rank {s['rank']}, singular-value gap "
+    out.append(f"<p class=\"note\">Constraint rank {s['rank']}, singular-value gap "
                f"{'none (full rank)' if gap is None or gap == float('inf') else f'{gap:.3g}'}"
                + (f"; {s['verified']['confirmed']} of {s['verified']['total']} verdicts confirmed by nonlinear "
-                  f"re-assembly" if s["verified"] else "") + ".</p></section>")
+                  f"re-assembly" if s["verified"] else "")
+               + ". Contribution: share of the first-order task-error variance with every accuracy tolerance at "
+               "its value, without calibration.</p></section>")
     # skeleton
-    out.append('<section id="skeleton"><h2>Skeleton and verdicts</h2>')
+    out.append('<section id="skeleton"><h2>Skeleton and tolerances</h2>')
     if "views" in images:
-        out.append(_img(images["views"], "skeleton views coloured by verdict"))
-    out.append('<p class="note">Markers: magenta forced, orange coupled, cyan free and influential, grey free and '
-               "non-influent, white gauge only.</p></section>")
-    # joints
-    out.append('<section id="joints"><h2>Defects per joint</h2><table><tr><th>joint</th><th>type</th><th>role</th>'
-               "<th>parameter</th><th>unit</th><th>verdict</th><th>class</th><th>nonlinear check</th></tr>")
-    for j in doc["joints"]:
-        for k, p in enumerate(j["parameters"]):
-            check = p.get("check")
-            ctext = "-" if not check else ("confirmed" if check["confirmed"] else "NOT confirmed") + \
-                f" ({check['residual_mm']:.2g} mm)"
-            head = (f"<td rowspan=\"{len(j['parameters'])}\">{e(j['element'])}</td><td rowspan=\"{len(j['parameters'])}\">"
-                    f"{e(j['type'])}</td><td rowspan=\"{len(j['parameters'])}\">{e(j['role'])}</td>") if k == 0 else ""
-            out.append(f"<tr>{head}<td>{e(p['name'])}</td><td>{e(p['unit'])}</td><td>{e(p['verdict'])}</td>"
-                       f"<td>{_badge(p['class'])}</td><td>{e(ctext)}</td></tr>")
-    out.append("</table></section>")
-    # constraints
-    out.append('<section id="constraints"><h2>Constraint equations</h2>')
-    if doc["forced"]:
-        out.append("<p>Forced to zero: " + ", ".join(f"<math><mi>{e(n)}</mi><mo>=</mo><mn>0</mn></math>"
-                                                     for n in doc["forced"]) + "</p>")
+        out.append(_img(images["views"], "skeleton views, markers coloured by tolerance class, numbered callouts"))
+    out.append('<p class="note">Each joint marker is coloured by the most severe class of its tolerances and labelled '
+               "with the joint and its tolerance ids (iso view).</p></section>")
+    # assembly conditions
+    out.append('<section id="assembly"><h2>Assembly conditions</h2>')
+    if doc["assembly_conditions"]:
+        out.append("<table><tr><th>id</th><th>condition</th><th>value</th><th>feature</th><th>how the value is "
+                   "obtained</th></tr>")
+        for a in doc["assembly_conditions"]:
+            out.append(f"<tr><td>{e(a['id'])}</td><td>{a['mathml']}</td><td class=\"num\">{e(_value(a))}</td>"
+                       f"<td>{e(a['feature'])}</td><td>{e(a['value_source'])}</td></tr>")
+        out.append("</table>")
+        red = tol.get("redundant", {})
+        if red:
+            out.append("<p>Redundant shifts shown with their equivalent (the same physical shift): "
+                       + ", ".join(f"{e(g)} &equiv; {e(r['equivalent'])}" for g, r in red.items()) + ".</p>")
+        out.append('<p class="note">Clearances: ' + "; ".join(
+            f"{k}: radial {c['radial_mm']:g} mm, axial {c['axial_mm']:g} mm, tilt {c['tilt_rad']:g} rad "
+            f"({e(c.get('source', ''))})" for k, c in tol["declaration"]["clearances"].items() if k in ("R", "P"))
+            + ". Worst-case assemblability after Dantan &amp; Qureshi, Computer-Aided Design 41(1), 2009.</p>")
     else:
-        out.append("<p>No defect is forced: the mechanism is not over-constrained.</p>")
-    for r in doc["relations"]:
-        out.append(f"<p>{r['mathml']}</p>")
+        out.append("<p>No assembly condition: the mechanism is not over-constrained.</p>")
+    out.append("</section>")
+    # accuracy
+    out.append('<section id="accuracy"><h2>Accuracy and allocation</h2>')
+    alloc = tol.get("allocation") or {}
+    if alloc:
+        out.append(f"<p>Spec {e(_spec_text(alloc.get('spec', {})))}; {e(alloc.get('method', ''))} "
+                   f"({alloc.get('configurations', 0)} configurations).</p>")
+        for key, label in (("calibrated", "accuracy-critical, after calibration"),
+                           ("uncalibrated", "every influential tolerance, without calibration")):
+            a = alloc.get(key)
+            if not a:
+                continue
+            cells = [f"{k}: {('± %.3g %s' % (c['tolerance'], c['unit'])) if c['tolerance'] is not None else 'no limit'}"
+                     f" ({len(c['parameters'])})" for k, c in a["classes"].items()]
+            out.append(f"<p><b>{e(label)}</b>: " + e("; ".join(cells)) + "</p>")
+    acc = doc.get("accuracy")
+    if acc and acc.get("coefficients"):
+        out.append("<table><tr><th>coefficient (paper 2, eq. 18)</th><th>min</th><th>mean</th><th>max</th>"
+                   "<th>unit</th></tr>")
+        for name, v in acc["coefficients"].items():
+            out.append(f"<tr><td>{e(name)}</td><td class=num>{v['min']:.4g}</td><td class=num>{v['mean']:.4g}</td>"
+                       f"<td class=num>{v['max']:.4g}</td><td>{e(acc.get('units', {}).get(name, ''))}</td></tr>")
+        out.append(f"</table><p class=\"note\">Over {acc.get('configurations')} workspace configurations "
+                   f"({e(str(acc.get('geometric_errors', '')))}).</p>")
+    for name in ("accuracy_map",):
+        if name in images:
+            out.append(_img(images[name], name))
+    out.append("</section>")
+    # Monte Carlo
+    out.append('<section id="montecarlo"><h2>Monte Carlo</h2>')
+    mc = doc.get("montecarlo")
+    if mc:
+        out.append(_montecarlo_html(mc))
+    else:
+        out.append("<p>Not run for this report.</p>")
+    out.append("</section>")
+    # calibration
+    cal = doc.get("calibration") or {}
+    out.append('<section id="calibration"><h2>Calibration</h2>')
+    out.append(f"<p>Compensable tolerances assume a calibration from {e(str(cal.get('measurements', '-')))} "
+               f"({cal.get('poses', '-')} poses, noise {cal.get('noise_mm', 0):g} mm). What it leaves on the task "
+               f"(3&sigma;, worst configuration): position {_um(cal.get('position_mm'))} &micro;m, orientation "
+               f"{cal.get('orientation_rad', 0):.2g} rad; the accuracy-critical allocation uses the spec less "
+               "this residual.</p>")
+    ident = doc["identification"]
+    if ident:
+        out.append(f"<p>Rank {ident['rank']} of {ident['unknowns']} unknowns, condition number "
+                   f"{ident['condition_number']:.3g}.</p><table><tr><th></th><th>mean (&micro;m)</th>"
+                   "<th>max (&micro;m)</th><th>RMS (&micro;m)</th></tr>")
+        for key in ("identification", "validation"):
+            v = ident.get(key)
+            if v:
+                out.append(f"<tr><td>{key}</td><td class=num>{_um(v['mean'])}</td><td class=num>{_um(v['max'])}</td>"
+                           f"<td class=num>{_um(v['rms'])}</td></tr>")
+        if ident.get("noise_rms"):
+            out.append(f"<tr><td>noise floor</td><td></td><td></td><td class=num>{_um(ident['noise_rms'])}</td></tr>")
+        out.append("</table>")
+    else:
+        out.append("<p class=\"note\">No measurements were given (run with <code>--data</code>).</p>")
     out.append("</section>")
     # hypotheses
     out.append('<section id="hypotheses"><h2>Design hypotheses</h2>')
@@ -129,49 +230,19 @@ def render_html(doc: dict, images: dict) -> str:
             out.append(f"<tr><td>{e(h['id'])}</td><td>{e(h['verdict'])}</td><td>{e(h['reason'])}</td></tr>")
         out.append("</table>")
     else:
-        out.append("<p>No hypothesis file was given.</p>")
+        out.append("<p class=\"note\">No hypothesis file was given.</p>")
     out.append("</section>")
-    # accuracy
-    out.append('<section id="accuracy"><h2>Accuracy and tolerances</h2>')
-    acc = doc.get("accuracy")
-    if acc:
-        coeffs = acc.get("coefficients", {})
-        if coeffs:
-            out.append("<table><tr><th>coefficient</th><th>min</th><th>mean</th><th>max</th></tr>")
-            for name, v in coeffs.items():
-                out.append(f"<tr><td>{e(name)}</td><td class=num>{v['min']:.4g}</td><td class=num>{v['mean']:.4g}</td>"
-                           f"<td class=num>{v['max']:.4g}</td></tr>")
-            out.append("</table>")
-        alloc = acc.get("allocation")
-        if alloc:
-            out.append("<pre>" + e(json.dumps(alloc, indent=1, sort_keys=True)[:4000]) + "</pre>")
-        for name in ("accuracy_map", "contributors"):
-            if name in images:
-                out.append(_img(images[name], name))
-    else:
-        out.append("<p>Accuracy coefficients were not computed for this report.</p>")
-    out.append("</section>")
-    # identification
+    # identification details
     out.append('<section id="identification"><h2>Identification</h2>')
-    ident = doc["identification"]
     if ident:
-        out.append(f"<p>Rank {ident['rank']} of {ident['unknowns']} unknowns, condition number "
-                   f"{ident['condition_number']:.3g}.</p><table><tr><th></th><th>mean</th><th>max</th><th>RMS</th></tr>")
-        for key in ("identification", "validation"):
-            v = ident.get(key)
-            if v:
-                out.append(f"<tr><td>{key}</td><td class=num>{_um(v['mean'])}</td><td class=num>{_um(v['max'])}</td>"
-                           f"<td class=num>{_um(v['rms'])}</td></tr>")
-        if ident.get("noise_rms"):
-            out.append(f"<tr><td>noise floor</td><td></td><td></td><td class=num>{_um(ident['noise_rms'])}</td></tr>")
-        out.append("</table><table><tr><th>parameter</th><th>unit</th><th>estimate</th><th>std</th></tr>")
+        out.append("<table><tr><th>parameter</th><th>unit</th><th>estimate</th><th>std</th></tr>")
         for p in ident["parameters"]:
             if p["identifiable"]:
                 out.append(f"<tr><td>{e(p['name'])}</td><td>{e(p['unit'])}</td><td class=num>{p['estimate']:.6g}</td>"
                            f"<td class=num>{p['std']:.3g}</td></tr>")
         out.append("</table>")
     else:
-        out.append("<p>No measurements were given (run with <code>--data</code>).</p>")
+        out.append("<p class=\"note\">No measurements were given.</p>")
     out.append("</section>")
     # diagnosis
     out.append('<section id="diagnosis"><h2>Sim-to-real gap</h2>')
@@ -192,31 +263,117 @@ def render_html(doc: dict, images: dict) -> str:
             if name in images:
                 out.append(_img(images[name], name))
     else:
-        out.append("<p>No measurements were given.</p>")
+        out.append("<p class=\"note\">No measurements were given.</p>")
+    out.append("</section>")
+    # defects per joint
+    out.append('<section id="joints"><h2>Defects per joint</h2><table class="tol"><tr><th>joint</th><th>type</th>'
+               "<th>role</th><th>parameter</th><th>unit</th><th>stationarity</th><th>tolerance</th><th>class</th>"
+               "<th>nonlinear check</th></tr>")
+    for j in doc["joints"]:
+        for k, p in enumerate(j["parameters"]):
+            check = p.get("check")
+            ctext = "-" if not check else ("confirmed" if check["confirmed"] else "NOT confirmed") + \
+                f" ({check['residual_mm']:.2g} mm)"
+            n = len(j["parameters"])
+            head = (f"<td rowspan=\"{n}\">{e(j['element'])}</td><td rowspan=\"{n}\">{e(j['type'])}</td>"
+                    f"<td rowspan=\"{n}\">{e(j['role'])}</td>") if k == 0 else ""
+            tid = p["tolerance_id"] or "-"
+            if p.get("equivalent"):
+                tid += f" (&equiv; {e(p['equivalent'])})"
+            out.append(f"<tr>{head}<td>{e(p['name'])}</td><td>{e(p['unit'])}</td><td>{e(p['verdict'])}</td>"
+                       f"<td>{tid}</td><td>{_badge(p['class'])}</td><td>{e(ctext)}</td></tr>")
+    out.append("</table></section>")
+    # appendix
+    out.append('<section id="appendix"><h2>Appendix: normalisation components (not tolerances)</h2>')
+    normal = tol["appendix"]["normalisation"]
+    if normal:
+        out.append("<p>An axis carries three components for two directions of tilt; the component along the nominal "
+                   "axis only normalises it (n &middot; dn = 0) and has no geometric meaning: "
+                   + ", ".join(f"{e(a['name'])} (joint {e(a['element'])})" for a in normal) + ".</p>")
+    else:
+        out.append("<p>None.</p>")
+    for w in tol.get("warnings", []):
+        out.append(f"<p><b>warning</b>: {e(w)}</p>")
     out.append("</section></body></html>")
     return "\n".join(out) + "\n"
+
+
+def _montecarlo_html(mc: dict) -> str:
+    e = html.escape
+    out = [f"<p>{mc['samples']} samples through the nonlinear model, every accuracy-critical and compensable "
+           f"tolerance drawn within ± its value ({e(mc.get('distribution', 'uniform'))}), errors on the task "
+           f"components ({e(', '.join(mc.get('task', [])))}); {mc.get('not_assembled', 0)} did not assemble. "
+           "Assembly conditions are not drawn: violating one deforms the structure.</p>"
+           "<table><tr><th></th><th>mean</th><th>p99</th>"
+           "<th>max</th><th>linear worst case</th><th>out of spec, as built</th><th>out of spec, calibrated</th></tr>"]
+    cal = mc.get("calibrated") or {}
+    for key, unit, spec_key in (("position_mm", "mm", "out_of_spec_position_percent"),
+                                ("orientation_rad", "rad", "out_of_spec_orientation_percent")):
+        v = mc.get(key)
+        if not v:
+            continue
+        bound = mc.get("linear_worst_case", {}).get(key)
+        oos = mc.get(spec_key)
+        oos_cal = cal.get(spec_key)
+        out.append(f"<tr><td>{key.split('_')[0]} error ({unit})</td><td class=num>{v['mean']:.3g}</td>"
+                   f"<td class=num>{v['p99']:.3g}</td><td class=num>{v['max']:.3g}</td>"
+                   f"<td class=num>{'-' if bound is None else f'{bound:.3g}'}</td>"
+                   f"<td class=num>{'-' if oos is None else f'{oos:.2f} %'}</td>"
+                   f"<td class=num>{'-' if oos_cal is None else f'{oos_cal:.2f} %'}</td></tr>")
+    out.append("</table><table><tr><th>contributor</th><th>share of the position variance</th>"
+               "<th>share of the orientation variance</th></tr>")
+    for c in mc.get("contributors", [])[:10]:
+        out.append(f"<tr><td>{e(c.get('label', c['parameter']))}</td>"
+                   f"<td><span class=\"bar\" style=\"width:{3 * 100 * c['position_share']:.0f}px\"></span> "
+                   f"{100 * c['position_share']:.1f} %</td>"
+                   f"<td><span class=\"bar\" style=\"width:{3 * 100 * c['orientation_share']:.0f}px\"></span> "
+                   f"{100 * c['orientation_share']:.1f} %</td></tr>")
+    out.append("</table>")
+    return "".join(out)
 
 
 def render_markdown(doc: dict) -> str:
     """The same report in Markdown (images are left to the HTML)."""
     s = doc["summary"]
-    lines = [f"# Tolerance report: {doc['mechanism']}", "", "Lengths in mm, angles in rad, residuals in um.", "",
-             "## Summary", "", f"* defect parameters: {s['parameters']}", f"* mobility: {s['mobility']}",
-             f"* degree of over-constraint: {s['overconstraint']}", f"* constraint rank: {s['rank']}"]
+    tol = doc["tolerances"]
+    title = doc["title"]
+    lines = [f"# Tolerance report: {doc['mechanism']}", "",
+             f"* mechanism: {title['mechanism']}: {title.get('description') or ''}",
+             f"* {title.get('kind') or 'source'}: {title.get('template')}",
+             f"* source SHA-256: {title.get('source_sha256') or '-'}",
+             f"* task: {', '.join(title['task'])}", f"* spec: {_spec_text(title['spec'])}",
+             "* units: lengths mm, angles rad", "", "## Summary", ""]
     lines += [f"* {cls}: {n}" for cls, n in s["tolerance_classes"].items()]
-    lines += ["", "## Defects per joint", "", "| joint | parameter | unit | verdict | class |", "|---|---|---|---|---|"]
-    for j in doc["joints"]:
-        for p in j["parameters"]:
-            lines.append(f"| {j['element']} | {p['name']} | {p['unit']} | {p['verdict']} | {p['class']} |")
-    lines += ["", "## Constraint equations", ""]
-    lines += [f"* {n} = 0" for n in doc["forced"]] + [f"* {r['text']}" for r in doc["relations"]]
-    if doc["hypotheses"]:
-        lines += ["", "## Design hypotheses", "", "| hypothesis | verdict |", "|---|---|"]
-        lines += [f"| {h['id']} | {h['verdict']} |" for h in doc["hypotheses"]]
+    lines += [f"* defect parameters: {s['parameters']}", f"* degree of over-constraint: {s['overconstraint']}",
+              f"* normalisation components (not tolerances): {s['normalisation_components']}", "",
+              "## Tolerances", "", "| id | feature | what it is | statement | value | class | why | contr. % |",
+              "|---|---|---|---|---|---|---|---|"]
+    for t in tol["items"]:
+        lines.append(f"| {t['id']} | {t['feature']} | {t['words']} | `{t['statement']}` | {_value(t)} | {t['class']} | "
+                     f"{t['summary']} | {_pct(t.get('contribution_percent'))} |")
+    lines += ["", "## Assembly conditions", ""]
+    lines += [f"* {a['id']}: {a['statement']} ({_value(a)})" for a in doc["assembly_conditions"]] or ["* none"]
+    red = tol.get("redundant", {})
+    if red:
+        lines += ["", "Redundant shifts: " + ", ".join(f"{g} ≡ {r['equivalent']}" for g, r in red.items())]
     if doc.get("accuracy") and doc["accuracy"].get("coefficients"):
         lines += ["", "## Accuracy coefficients", "", "| coefficient | min | mean | max |", "|---|---|---|---|"]
         lines += [f"| {k} | {v['min']:.4g} | {v['mean']:.4g} | {v['max']:.4g} |"
                   for k, v in doc["accuracy"]["coefficients"].items()]
+    mc = doc.get("montecarlo")
+    if mc:
+        lines += ["", "## Monte Carlo", "", f"{mc['samples']} samples, every tolerance at its value."]
+        for key in ("out_of_spec_position_percent", "out_of_spec_orientation_percent"):
+            if mc.get(key) is not None:
+                lines.append(f"* {key.replace('_', ' ')}: {mc[key]:.2f} %")
+        lines += [f"* {c.get('label', c['parameter'])}: position {100 * c['position_share']:.1f} %, orientation "
+                  f"{100 * c['orientation_share']:.1f} %" for c in mc.get("contributors", [])[:10]]
+    cal = doc.get("calibration") or {}
+    lines += ["", "## Calibration", "", f"residual after calibration (3 sigma): position {_um(cal.get('position_mm'))} um, "
+              f"orientation {cal.get('orientation_rad', 0):.2g} rad"]
+    if doc["hypotheses"]:
+        lines += ["", "## Design hypotheses", "", "| hypothesis | verdict |", "|---|---|"]
+        lines += [f"| {h['id']} | {h['verdict']} |" for h in doc["hypotheses"]]
     if doc["identification"]:
         i = doc["identification"]
         lines += ["", "## Identification", "", f"rank {i['rank']} of {i['unknowns']}, condition number "
@@ -230,6 +387,14 @@ def render_markdown(doc: dict) -> str:
         lines += ["", "## Sim-to-real gap", "", f"gap significant: {d['gap_significant']}; selected: "
                   f"{', '.join(d['selected']) or 'none'}", "", "| effect | CV RMS (um) | dBIC |", "|---|---|---|"]
         lines += [f"| {r['effect']} | {_um(r['cv_rms'])} | {r['criterion']:.1f} |" for r in d["ranking"]]
+    lines += ["", "## Defects per joint", "", "| joint | parameter | unit | stationarity | tolerance | class |",
+              "|---|---|---|---|---|---|"]
+    for j in doc["joints"]:
+        for p in j["parameters"]:
+            lines.append(f"| {j['element']} | {p['name']} | {p['unit']} | {p['verdict']} | {p['tolerance_id'] or '-'} | "
+                         f"{p['class']} |")
+    lines += ["", "## Appendix: normalisation components (not tolerances)", ""]
+    lines += [f"* {a['name']} (joint {a['element']})" for a in tol["appendix"]["normalisation"]] or ["* none"]
     return "\n".join(lines) + "\n"
 
 

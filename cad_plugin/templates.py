@@ -109,4 +109,13 @@ def build_template(path: str | Path, overrides: list[str] | dict[str, Any] | Non
     if not isinstance(skeleton, Skeleton):
         raise TemplateError(f"{path}: build() must return a hyperstat.cad_plugin.skeleton.Skeleton, got {type(skeleton).__name__}.")
     skeleton.metadata.setdefault("template", path.name)
+    declared = getattr(module, "TOLERANCING", None)
+    if declared is not None:  # task, measurements, spec, clearances (hyperstat.solver.tolerances.declaration)
+        from hyperstat.solver.tolerances.declaration import parse_declaration
+
+        try:
+            parse_declaration(declared, path.name)
+        except HyperstatError as exc:
+            raise TemplateError(f"{path}: TOLERANCING: {exc}") from None
+        skeleton.metadata.setdefault("tolerancing", dict(declared))
     return skeleton

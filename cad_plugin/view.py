@@ -24,7 +24,7 @@ from hyperstat.solver.kinematics.model import Mechanism
 
 from hyperstat.cad_plugin.assembly import AXIS_COLORS, VERDICT_COLORS, element_verdicts
 
-__all__ = ["render_png", "VIEWS", "LEGEND_LABELS"]
+__all__ = ["render_png", "VIEWS", "LEGEND_LABELS", "CLASS_COLORS", "element_classes"]
 
 VIEWS = ("iso", "front", "side", "top")
 LEGEND_LABELS = {
@@ -34,6 +34,64 @@ LEGEND_LABELS = {
     "free-non-influent": "free, non-influent",
     "none": "no defect / gauge only",
 }
+#: tolerance class -> marker colour (the vocabulary of hyperstat.solver.tolerances.classification)
+CLASS_COLORS = {
+    "assembly": (0.85, 0.1, 0.6),  # magenta
+    "accuracy-critical": (0.78, 0.16, 0.16),  # red
+    "compensable": (0.0, 0.7, 0.8),  # cyan
+    "non-influent": (0.55, 0.55, 0.55),  # grey
+    "none": (0.95, 0.95, 0.95),  # no tolerance (normalisation components only, or no defect)
+}
+_CLASS_LABELS = {"assembly": "assembly condition", "accuracy-critical": "accuracy-critical", "compensable": "compensable",
+                 "non-influent": "non-influent", "none": "no tolerance"}
+
+
+def element_classes(analysis: dict | None) -> tuple[dict, dict]:
+    """Most severe tolerance class per element and the tolerance ids of each element.
+
+    Reads the ``tolerances`` object of ``hyperstat analyze --json`` (``parameters[name]["class"]``
+    and ``["tolerance_ids"]``) and the elements of its ``parameters`` list.
+
+    >>> a = {"parameters": [{"name": "dc2", "element": "2"}, {"name": "dK2", "element": "2"}],
+    ...      "tolerances": {"parameters": {"dc2": {"class": "assembly", "tolerance_ids": ["T5"]},
+    ...                                    "dK2": {"class": "normalisation", "tolerance_ids": []}}}}
+    >>> element_classes(a)
+    ({'2': 'assembly'}, {'2': ['T5']})
+    """
+    order = ["assembly", "accuracy-critical", "compensable", "non-influent", "none"]
+    classes: dict = {}
+    ids: dict = {}
+    tol = (analysis or {}).get("tolerances") or {}
+    entries = tol.get("parameters", {})
+    for p in (analysis or {}).get("parameters", []):
+        e = entries.get(p["name"])
+        if e is None:
+            continue
+        cls = e["class"] if e["class"] in order else "none"
+        el = p["element"]
+        if el not in classes or order.index(cls) < order.index(classes[el]):
+            classes[el] = cls
+        for t in e.get("tolerance_ids") or ([e["tolerance_id"]] if e.get("tolerance_id") else []):
+            if t not in ids.setdefault(el, []):
+                ids[el].append(t)
+    return classes, ids
+
+
+def _callout(name: str, ids: list) -> str:
+    """``"21: T13, T15-T19"``: the joint and its tolerance ids, consecutive ids as ranges.
+
+    >>> _callout("21", ["T17", "T13", "T15", "T16", "T18", "T19"])
+    '21: T13, T15-T19'
+    """
+    nums = sorted(int(t[1:]) for t in ids if t[1:].isdigit())
+    if not nums:
+        return name
+    runs, start = [], nums[0]
+    for a, b in zip(nums, nums[1:] + [None]):
+        if b != a + 1:
+            runs.append(f"T{start}" if start == a else f"T{start}-T{a}")
+            start = b
+    return f"{name}: " + ", ".join(runs)
 
 
 def _quiet_vtk() -> None:
@@ -44,7 +102,8 @@ def _quiet_vtk() -> None:
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
 
 
-def _scene_meshes(mech: Mechanism, verdicts: dict, size: float) -> tuple[list, list, list]:
+def _scene_meshes(mech: Mechanism, verdicts: dict, size: float, colors: dict | None = None,
+                  callouts: dict | None = None) -> tuple[list, list, list]:
     """The scene's geometry, built once for all views: ``(mesh, options)`` pairs merged by colour
     (one actor per colour instead of one per arrow: the views render several times faster),
     and the label points and names of the joint frames."""
@@ -79,11 +138,11 @@ def _scene_meshes(mech: Mechanism, verdicts: dict, size: float) -> tuple[list, l
             t = elems[(ci, ei)]
             triad(t, 1.0)
             if verdicts:
-                color = VERDICT_COLORS[verdicts.get(el.name) or "none"]
+                color = (colors or VERDICT_COLORS)[verdicts.get(el.name) or "none"]
                 # off the origin along the joint axis, so that frames sharing a point stay apart
                 balls.setdefault(color, []).append(pv.Sphere(radius=0.2 * size,
                                                              center=t[:3, 3] + 0.45 * size * t[:3, 2]))
-            names.append(el.name)
+            names.append(_callout(el.name, (callouts or {}).get(el.name, [])) if callouts is not None else el.name)
             points.append(t[:3, 3] + 0.3 * size * np.array([1.0, 1.0, 1.0]))
     for t in frames.values():
         triad(t, 1.6)
@@ -92,6 +151,12 @@ def _scene_meshes(mech: Mechanism, verdicts: dict, size: float) -> tuple[list, l
         meshes.append((pv.merge(tubes), {"color": (0.62, 0.62, 0.66), "smooth_shading": True}))
     meshes += [(pv.merge(m), {"color": AXIS_COLORS[a]}) for a, m in arrows.items() if m]
     meshes += [(pv.merge(m), {"color": c, "lighting": False}) for c, m in balls.items()]
+    if callouts is not None:  # frames sharing a point (a U joint, a spherical joint) get one callout, not stacked ones
+        merged: dict = {}
+        for pt, name in zip(points, names):
+            merged.setdefault(tuple(np.round(pt / max(size, 1e-9), 3)), [pt, []])[1].append(name)
+        points = [v[0] for v in merged.values()]
+        names = ["\n".join(v[1]) for v in merged.values()]
     return meshes, points, names
 
 
@@ -139,12 +204,16 @@ def render_png(
 
     _quiet_vtk()
     pv.OFF_SCREEN = True
-    verdicts = element_verdicts(analysis)
+    classes, callouts = element_classes(analysis)
+    if classes:  # tolerance classes and numbered callouts (the report's vocabulary)
+        verdicts, colors, labels = classes, CLASS_COLORS, _CLASS_LABELS
+    else:
+        verdicts, colors, labels, callouts = element_verdicts(analysis), VERDICT_COLORS, LEGEND_LABELS, None
     size = marker_size or 0.12 * Kinematics(mech).length_scale
     n = len(views)
     shape = (1, 1) if n == 1 else (2, 2) if n <= 4 else (2, (n + 1) // 2)
     plotter = pv.Plotter(off_screen=True, shape=shape, window_size=list(window_size), border=False)
-    meshes, points, names = _scene_meshes(mech, verdicts, size)
+    meshes, points, names = _scene_meshes(mech, verdicts, size, colors, callouts)
     for k, view in enumerate(views):
         plotter.subplot(k // shape[1], k % shape[1])
         plotter.set_background("white")
@@ -161,8 +230,8 @@ def render_png(
         plotter.reset_camera()
         plotter.camera.zoom(1.1)
         if k == 0 and verdicts:
-            used = [c for c in VERDICT_COLORS if c in set(verdicts.values())]
-            plotter.add_legend([[LEGEND_LABELS[c], VERDICT_COLORS[c]] for c in used], bcolor="white",
+            used = [c for c in colors if c in set(verdicts.values())]
+            plotter.add_legend([[labels[c], colors[c]] for c in used], bcolor="white",
                                size=(0.45, 0.055 * len(used) + 0.03), loc="lower left", face="circle")
     img = plotter.screenshot(return_img=True)
     plotter.close()

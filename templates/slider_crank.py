@@ -21,6 +21,15 @@ from hyperstat.cad_plugin.params import param
 from hyperstat.cad_plugin.skeleton import Skeleton
 
 
+#: Tolerancing declaration (hyperstat.solver.tolerances.declaration): the task is the slider's stroke along
+#: x_R0, a tracker target on the slider block measures it; pins and slide are plain fits (the defaults, ISO 286
+#: H7/g6 on 20 mm); spec of a light tooling slide.
+TOLERANCING = {
+    "task": ["x"],
+    "measurements": {"kind": "positions", "targets_mm": [[0.0, 0.0, 0.0]], "noise_mm": 0.002},
+    "spec": {"position_mm": 0.02, "orientation_rad": None},
+}
+
 @dataclass
 class Parameters:
     """Slider-crank dimensions (mm) and home crank angle (rad)."""

@@ -52,6 +52,14 @@ from hyperstat.cad_plugin.params import make_parameters, param
 from hyperstat.cad_plugin.skeleton import Skeleton
 
 
+#: Tolerancing declaration (hyperstat.solver.tolerances.declaration): a translational manipulator, so the task is
+#: the platform position (paper 2, section 5.3 allocates against a position accuracy).
+TOLERANCING = {
+    "task": ["position"],
+    "measurements": {"kind": "positions", "targets_mm": [[0.0, 0.0, 0.0]], "noise_mm": 0.001},
+    "spec": {"position_mm": 0.01, "orientation_rad": None},
+}
+
 @dataclass
 class Parameters:
     """Triflex-II data (paper 2, section 5.3) in length units, and the home position."""

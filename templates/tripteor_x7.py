@@ -37,6 +37,22 @@ from hyperstat.cad_plugin.params import make_parameters, param
 from hyperstat.cad_plugin.skeleton import Skeleton
 
 
+#: Tolerancing declaration (hyperstat.solver.tolerances.declaration): a 5-axis machine tool machines with the tool
+#: tip and the tool-axis direction (the rotation about the spindle does not matter); a laser tracker measures two
+#: targets on a tool-axis adapter (tip and 100 mm up) at 107 poses, their offsets identified with the defects; spec
+#: of a finishing machine tool.
+TOLERANCING = {
+    "task": ["position", "tool-axis"],
+    "measurements": {"kind": "positions", "targets_mm": [[0.0, 0.0, 0.0], [0.0, 0.0, 100.0]], "noise_mm": 0.005,
+                     "offsets": "unknown", "poses": 107},
+    "spec": {"position_mm": 0.05, "orientation_rad": 2e-4},
+    "clearances": {"R": {"radial_mm": 0.005, "axial_mm": 0.005, "tilt_rad": 1e-4, "twist_rad": 0.0,
+                         "source": "assumed: preloaded rolling bearings of a machine tool, play at most 5 um "
+                                   "over a 50 mm bearing span"},
+                   "P": {"radial_mm": 0.002, "axial_mm": 0.0, "tilt_rad": 2e-5, "twist_rad": 2e-5,
+                         "source": "assumed: preloaded linear guide or ball screw (no play; 2 um, 20 urad)"}},
+}
+
 @dataclass
 class Parameters:
     """Tripteor X7 dimensions (mm)."""

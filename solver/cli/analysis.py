@@ -31,8 +31,12 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
                          samples=args.samples)
     checks = verify(mech, result, kinematics=kin) if args.verify else None
     exact = exact_check(mech, kin=kin) if args.exact else None
+    from hyperstat.solver.tolerances.classification import classify
+
+    tolerances = classify(mech, result, kin).to_dict()
     doc = result.to_dict()
     doc["source"] = provenance
+    doc["tolerances"] = tolerances
     if checks is not None:
         doc["verification"] = [c.to_dict() for c in checks]
     if exact is not None:
@@ -40,7 +44,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     if args.json:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
-        sys.stdout.write(format_analysis(result, checks, exact))
+        sys.stdout.write(format_analysis(result, checks, exact, tolerances))
         combined = [c for c in checks or [] if c.kind.startswith("combination")]
         if combined:
             sys.stdout.write(f"\nChecks in combination, at all {result.n_configurations} configurations (mm):\n")

@@ -50,7 +50,10 @@ def _cmd_export_controller(args: argparse.Namespace) -> int:
                 effects.append(make_effect(name, mech, result, data, **options))
             res = identify(mech, result, data, validation, effects=tuple(effects), kinematics=kin)
     files = [args.data] + ([args.validation] if args.validation else [])
-    doc = controller_document(mech, res, tuple(effects), provenance, tuple(files))
+    from hyperstat.solver.tolerances.classification import classify
+
+    tolerances = classify(mech, result, kin).to_dict()
+    doc = controller_document(mech, res, tuple(effects), provenance, tuple(files), tolerances)
     path = write_controller(args.out, doc)
     if not args.quiet:
         v = res.validation or res.identification

@@ -49,7 +49,26 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
     if len(q) == 0:
         raise HyperstatError(f"no configuration of '{mech.name}' assembles in the actuated ranges.")
     over = result.overconstraint > 0
+    args._stationarity = result  # the tolerance classes need it whatever the over-constraint
     return mech, provenance, kin, (result if over else None), q, over
+
+
+def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True):
+    """The tolerances of the classification module with their values (spec from the options or the template)."""
+    from hyperstat.solver.tolerances.classification import classify
+    from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values
+
+    result = args._stationarity
+    cl = classify(mech, result, kin)
+    assign_values(cl, mech, kin, q, args.position_accuracy, args.orientation_accuracy, assembly=assembly,
+                  assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
+    return cl
+
+
+def _tolerance_lines(tol: dict) -> str:
+    from hyperstat.solver.export.text import format_tolerances
+
+    return format_tolerances(tol)
 
 
 def _fixed(specs: list | None) -> dict:
@@ -66,20 +85,21 @@ def _fixed(specs: list | None) -> dict:
 
 
 def _cmd_accuracy(args: argparse.Namespace) -> int:
-    from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate, compensable
+    from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate
 
-    with stages(args, ["stationarity analysis", "workspace sampling", "accuracy maps"]) as progress:
+    with stages(args, ["stationarity analysis", "workspace sampling", "accuracy maps", "tolerances"]) as progress:
         mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress)
         progress.next("accuracy maps")
         maps = accuracy_maps(mech, q, analysis, kinematics=kin)
         allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed))
-        comp = compensable(q[: min(len(q), 200)], mech, analysis, kinematics=kin)
+        progress.next("tolerances")
+        tolerances = _tolerances(args, mech, kin, q).to_dict()
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
            "configurations": len(q), "coefficients": maps.summary(), "coefficient_units": maps.units,
            "groups": maps.groups, "allocation": allocation,
            "per_parameter": {n: {k: {"max": float(v.max()), "mean": float(v.mean())} for k, v in d.items()}
                              for n, d in maps.per_parameter.items()},
-           "compensable_by_calibration": {n: r < 1e-6 for n, r in comp.items()},
+           "tolerances": tolerances,
            "geometric_errors": "admissible influential defects only (the forced ones are assembly conditions)"
            if over else "every defect parameter of the model"}
     if args.map:
@@ -107,8 +127,7 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
         for key in ("orientation_bound", "position_bound"):
             if allocation.get(key) is not None:
                 sys.stdout.write(f"  {key.replace('_', ' ')}: {allocation[key]:.6g}\n")
-        held = [n for n, ok in doc["compensable_by_calibration"].items() if not ok]
-        sys.stdout.write(f"  held by manufacturing (not compensable by calibration): {', '.join(held) or 'none'}\n")
+        sys.stdout.write("\n" + _tolerance_lines(tolerances))
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
     return 0
@@ -117,39 +136,94 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
     from hyperstat.solver.tolerances.accuracy import geometric_parameters
     from hyperstat.solver.tolerances.montecarlo import monte_carlo
+    from hyperstat.solver.tolerances.values import monte_carlo_at_values
 
     if args.samples < 1:
         raise HyperstatError(f"--samples must be at least 1, got {args.samples}.")
-    with stages(args, ["stationarity analysis", "workspace sampling", "Monte Carlo"]) as progress:
+    uniform = args.angle_tolerance is not None or args.length_tolerance is not None
+    with stages(args, ["stationarity analysis", "workspace sampling", "tolerances", "Monte Carlo"]) as progress:
         mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress)
-        names, _ = geometric_parameters(mech, analysis)
-        units = {p.name: p.unit for p in mech.parameters}
-        tol = {n: args.angle_tolerance if units[n] == "rad" else args.length_tolerance for n in names}
-        for i in mech.actuated:
-            j = mech.joints[i]
-            tol[j.name] = args.actuation_tolerance_angle if j.type == "R" else args.actuation_tolerance_length
+        progress.next("tolerances")
+        cl = _tolerances(args, mech, kin, q, assembly=False)
         progress.next("Monte Carlo")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = monte_carlo(mech, q, tol, args.samples, args.distribution, args.seed, analysis, kin)
-    summary = res.summary(args.orientation_accuracy, args.position_accuracy)
+            if uniform:  # the same tolerance on every geometric parameter (the options), as before
+                names, _ = geometric_parameters(mech, analysis)
+                units = {p.name: p.unit for p in mech.parameters}
+                tol = {n: (args.angle_tolerance or 0.0) if units[n] == "rad" else (args.length_tolerance or 0.0)
+                       for n in names}
+                for i in mech.actuated:
+                    j = mech.joints[i]
+                    tol[j.name] = args.actuation_tolerance_angle if j.type == "R" else args.actuation_tolerance_length
+                res = monte_carlo(mech, q, tol, args.samples, args.distribution, args.seed, analysis, kin,
+                                  task=cl.declaration.task)
+                spec_o = args.orientation_accuracy if args.orientation_accuracy is not None else \
+                    cl.declaration.orientation_rad
+                spec_p = args.position_accuracy if args.position_accuracy is not None else cl.declaration.position_mm
+                summary = res.summary(spec_o, spec_p)
+                summary["spec"] = {"position_mm": spec_p, "orientation_rad": spec_o}
+                summary["task"] = list(cl.declaration.task)
+                drawn = "every geometric parameter at the given tolerance"
+            else:
+                summary = monte_carlo_at_values(cl, mech, kin, q, args.samples, args.seed, args.distribution,
+                                                args.position_accuracy, args.orientation_accuracy)
+                drawn = "every accuracy tolerance at its value (hyperstat accuracy)"
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
-           "geometric_errors": "admissible influential defects only (the forced ones are assembly conditions)"
-           if over else "every defect parameter of the model", **summary}
+           "drawn": drawn, "tolerance_counts": cl.counts(), **summary}
     if args.json:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
-        o, p = summary["orientation_rad"], summary["position_mm"]
-        sys.stdout.write(f"Monte Carlo, {summary['samples']} samples ({args.distribution}):\n"
-                         f"  orientation error: mean {o['mean']:.4g}  p99 {o['p99']:.4g}  max {o['max']:.4g} rad\n"
-                         f"  position error:    mean {p['mean']:.4g}  p99 {p['p99']:.4g}  max {p['max']:.4g} mm\n"
-                         f"  worst case / linear bound: orientation {summary['worst_over_bound']['orientation']:.3f}, "
-                         f"position {summary['worst_over_bound']['position']:.3f}\n"
-                         "  main contributors: " + ", ".join(f"{c['parameter']} ({100 * c['position_share']:.0f} %)"
-                                                           for c in summary["contributors"][:5]) + "\n")
+        sys.stdout.write(format_montecarlo(doc))
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
     return 0
+
+
+def format_montecarlo(doc: dict) -> str:
+    """Text summary of a Monte Carlo run: errors, out of spec, worst case against the bound, both rankings.
+
+    >>> doc = {"samples": 10, "distribution": "uniform", "drawn": "x", "task": ["x"],
+    ...        "spec": {"position_mm": 0.02, "orientation_rad": None},
+    ...        "position_mm": {"mean": 0.01, "p99": 0.02, "max": 0.03}, "orientation_rad": {"mean": 0, "p99": 0, "max": 0},
+    ...        "out_of_spec_position_percent": 10.0, "worst_over_bound": {"position": 0.5, "orientation": 0.0},
+    ...        "contributors": [{"parameter": "T1", "label": "T1 da2", "position_share": 0.9, "orientation_share": 0.0},
+    ...                         {"parameter": "T2", "label": "T2 dK4", "position_share": 0.1, "orientation_share": 1.0}]}
+    >>> print(format_montecarlo(doc).splitlines()[3])
+      out of spec (position > 0.02 mm): 10.00 % of the samples
+    """
+    spec = doc.get("spec", {})
+    o, p = doc["orientation_rad"], doc["position_mm"]
+    lines = [f"Monte Carlo, {doc['samples']} samples ({doc['distribution']}), {doc['drawn']}; task "
+             f"{', '.join(doc.get('task', []))}:",
+             f"  position error:    mean {p['mean']:.4g}  p99 {p['p99']:.4g}  max {p['max']:.4g} mm",
+             f"  orientation error: mean {o['mean']:.4g}  p99 {o['p99']:.4g}  max {o['max']:.4g} rad"]
+    for key, spec_key, unit, label in (("out_of_spec_position_percent", "position_mm", "mm", "position"),
+                                       ("out_of_spec_orientation_percent", "orientation_rad", "rad", "orientation")):
+        if doc.get(key) is not None:
+            lines.append(f"  out of spec ({label} > {spec[spec_key]:g} {unit}): {doc[key]:.2f} % of the samples")
+        elif spec.get(spec_key) is None:
+            lines.append(f"  out of spec ({label}): no {label} spec")
+    cal = doc.get("calibrated")
+    if cal:
+        parts = [f"{k.split('_')[3]} {v:.2f} %" for k, v in cal.items() if k.startswith("out_of_spec") and v is not None]
+        if parts:
+            lines.append("  after calibration (compensable tolerances cancelled, calibration noise added): out of spec "
+                         + ", ".join(parts))
+    w = doc["worst_over_bound"]
+    lines.append(f"  worst sample / its linear bound (paper 2, eq. 18): position {w['position']:.3f}, orientation "
+                 f"{w['orientation']:.3f}")
+    lw = doc.get("linear_worst_case")
+    if lw:
+        lines.append("  linear worst case, every tolerance at its extreme: " + ", ".join(
+            f"{k.split('_')[0]} {v:.4g} {k.split('_')[1]}" for k, v in lw.items() if v is not None))
+    contributors = doc.get("contributors", [])
+    for share, label in (("position_share", "position"), ("orientation_share", "orientation")):
+        ranked = sorted(contributors, key=lambda c: -c[share])[:5]
+        ranked = [c for c in ranked if c[share] > 0]
+        lines.append(f"  main contributors to the {label} variance: " + (", ".join(
+            f"{c.get('label', c['parameter'])} ({100 * c[share]:.0f} %)" for c in ranked) or "none"))
+    return "\n".join(lines) + "\n"
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
@@ -161,8 +235,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--range", action="append", metavar="JOINT=LO:HI", help="actuated range for the workspace")
         p.add_argument("--workspace-configurations", dest="configurations_workspace", type=int, default=2000,
                        help="configurations sampled over the workspace (default 2000)")
-        p.add_argument("--orientation-accuracy", type=float, metavar="RAD", help="required |dphi|max (rad)")
-        p.add_argument("--position-accuracy", type=float, metavar="MM", help="required ||dO_p||max (mm)")
+        p.add_argument("--orientation-accuracy", type=float, metavar="RAD",
+                       help="spec: required |dphi|max (rad), overrides the template's")
+        p.add_argument("--position-accuracy", type=float, metavar="MM",
+                       help="spec: required ||dO_p||max (mm), overrides the template's")
         common_options(p)
         if name == "accuracy":
             p.add_argument("--map", metavar="J1,J2", help="map the coefficients over a grid of two actuated joints")
@@ -174,8 +250,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         else:
             p.add_argument("--samples", type=int, default=10000, help="Monte Carlo samples (default 10000)")
             p.add_argument("--distribution", choices=["uniform", "normal"], default="uniform")
-            p.add_argument("--angle-tolerance", type=float, default=1e-3, help="angular defects within +- (rad)")
-            p.add_argument("--length-tolerance", type=float, default=0.01, help="length defects within +- (mm)")
+            p.add_argument("--angle-tolerance", type=float, help="draw every angular defect within +- this (rad) "
+                           "instead of the tolerances' values")
+            p.add_argument("--length-tolerance", type=float, help="draw every length defect within +- this (mm) "
+                           "instead of the tolerances' values")
             p.add_argument("--actuation-tolerance-length", type=float, default=0.0, help="prismatic actuators (mm)")
             p.add_argument("--actuation-tolerance-angle", type=float, default=0.0, help="revolute actuators (rad)")
             p.set_defaults(func=_cmd_montecarlo)

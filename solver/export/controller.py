@@ -60,7 +60,7 @@ def content_hash(doc: dict) -> str:
 
 
 def controller_document(mechanism, identification, effects: tuple = (), source: dict | None = None,
-                        data_files: tuple = ()) -> dict:
+                        data_files: tuple = (), tolerances: dict | None = None) -> dict:
     """Controller file content from an identification (and the effects fitted with it).
 
     Parameters
@@ -75,6 +75,10 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
         Provenance of the model (template path and parameters).
     data_files : tuple of path-like
         Measurement files used (their SHA-256 is recorded).
+    tolerances : dict, optional
+        :meth:`~hyperstat.solver.tolerances.classification.Classification.to_dict` of the model: its
+        counts per class and the class and tolerance id of every parameter are recorded (the same
+        vocabulary as ``analyze`` and the report).
     """
     model = identification.model
     theta = identification.theta
@@ -111,6 +115,10 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
         "provenance": {"source": dict(source or {}),
                        "data": [{"file": Path(f).name, "sha256": file_sha256(f)} for f in data_files]},
     }
+    if tolerances is not None:
+        doc["tolerances"] = {"counts": dict(tolerances["counts"]), "task": list(tolerances.get("task", [])),
+                             "parameters": {n: {"class": e["class"], "tolerance_id": e["tolerance_id"]}
+                                            for n, e in tolerances["parameters"].items()}}
     doc = json.loads(dumps_json(doc))  # plain JSON types, as a reader will see them
     doc["sha256"] = content_hash(doc)
     return doc

@@ -4,76 +4,81 @@ Units: lengths in mm, angles in rad (stated in the document's ``units`` field).
 
 The renderers (:mod:`hyperstat.cad_plugin.report`: HTML with inline images, Markdown) only lay out
 this document, so ``report.json``, ``report.md`` and ``report.html`` say the same thing.
-Every defect parameter gets one *tolerance class*:
-
-* ``forced``: forced to zero by the over-constraint: an assembly condition, held by
-  manufacturing (or the machine assembles only by deforming);
-* ``coupled``: free only together with others (a relation holds);
-* ``compensable``: free and influential, and a position calibration identifies it (or
-  the combination that absorbs it): its tolerance can be loose if the machine is calibrated;
-* ``accuracy-critical``: free and influential but invisible to a position calibration
-  (it moves the tool's orientation only, or is swamped): its tolerance sets the accuracy;
-* ``non-influent``: moves nothing at the tool: the loosest tolerance;
-* ``gauge``: a naming redundancy of the formalism (no physical meaning).
+The tolerances, their classes, values and reasons come from one place,
+:mod:`hyperstat.solver.tolerances.classification` (with the values of
+:mod:`hyperstat.solver.tolerances.values`): ``assembly``, ``accuracy-critical``,
+``compensable``, ``non-influent`` (:data:`~hyperstat.solver.tolerances.classification.CLASSES`);
+normalisation components are not tolerances and appear in an appendix.
 """
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import numpy as np
 
-__all__ = ["TOLERANCE_CLASSES", "tolerance_classes", "report_document", "relation_mathml", "identifiable_by_design"]
+from hyperstat.solver.tolerances.classification import CLASS_MEANING, CLASSES
 
-TOLERANCE_CLASSES = {
-    "forced": "forced by over-constraint (assembly condition: manufacturing must hold it)",
-    "coupled": "coupled with others through a relation",
-    "compensable": "compensable by calibration (identified from tracker positions)",
-    "accuracy-critical": "accuracy-critical (influential, not identifiable from positions)",
-    "non-influent": "non-influent (moves nothing at the tool)",
-    "gauge": "gauge (naming redundancy, no physical meaning)",
-}
+__all__ = ["TOLERANCE_CLASSES", "report_document", "relation_mathml", "terms_mathml", "source_hash"]
+
+#: class -> meaning, in the order of the report (the classification's vocabulary)
+TOLERANCE_CLASSES = {c: CLASS_MEANING[c] for c in CLASSES}
 
 
-def tolerance_classes(analysis, identifiable: set) -> dict:
-    """Tolerance class of every defect parameter (see the module docstring).
+def source_hash(provenance: dict) -> str | None:
+    """SHA-256 of the source file named in ``provenance`` (None when it cannot be read).
 
-    Parameters
-    ----------
-    analysis : StationarityResult
-        The stationarity analysis.
-    identifiable : set of str
-        Defects a position calibration sees (base parameters and those absorbed in a
-        combination).
+    >>> source_hash({"source": "/no/such/file"}) is None
+    True
     """
-    out = {}
-    for p in analysis.parameters:
-        if p.verdict in ("gauge", "forced"):
-            out[p.name] = p.verdict
-        elif p.verdict == "coupled" and p.name not in identifiable:
-            out[p.name] = "coupled"
-        elif not p.influential:
-            out[p.name] = "non-influent"
-        elif p.name in identifiable:
-            out[p.name] = "compensable"
-        else:
-            out[p.name] = "accuracy-critical"
-    return out
+    try:
+        return hashlib.sha256(Path(provenance.get("source", "")).read_bytes()).hexdigest()
+    except OSError:
+        return None
 
 
 def relation_mathml(relation) -> str:
     """A relation as presentation MathML (sympy), e.g. ``dK21 - dK23 = 0``."""
-    import sympy
+    return terms_mathml(relation.terms)
 
-    terms = []
-    for name, coefficient in relation.terms.items():
-        c = sympy.nsimplify(coefficient, rational=True, tolerance=1e-9)
-        symbol = sympy.Symbol(name)
-        terms.append(c * symbol)
-    expr = sympy.Eq(sympy.Add(*terms), 0)
-    return sympy.printing.mathml(expr, printer="presentation")
+
+def terms_mathml(coefficients: dict) -> str:
+    """``sum c_i x_i = 0`` as presentation MathML, e.g. ``dc2 + dc3 = 0``.
+
+    Coefficients print as integers or fractions when they are (to 1e-9), else with six digits.
+
+    >>> terms_mathml({"dc2": 1.0, "dc3": 1.0})
+    '<math display="block"><mrow><mi>dc2</mi><mo>+</mo><mi>dc3</mi><mo>=</mo><mn>0</mn></mrow></math>'
+    >>> terms_mathml({"dI2": 1.0, "dI6": -0.8})
+    '<math display="block"><mrow><mi>dI2</mi><mo>&#8722;</mo><mfrac><mn>4</mn><mn>5</mn></mfrac><mo>&#8290;</mo><mi>dI6</mi><mo>=</mo><mn>0</mn></mrow></math>'
+    """
+    from fractions import Fraction
+    from html import escape
+
+    parts = []
+    for k, (name, c) in enumerate(coefficients.items()):
+        c = float(c)
+        if k == 0:
+            if c < 0:
+                parts.append("<mo>&#8722;</mo>")
+        else:
+            parts.append("<mo>&#8722;</mo>" if c < 0 else "<mo>+</mo>")
+        mag = abs(c)
+        if abs(mag - 1.0) > 1e-12:
+            frac = Fraction(mag).limit_denominator(1000)
+            if abs(float(frac) - mag) < 1e-9 * max(1.0, mag):
+                num = f"<mn>{frac.numerator}</mn>" if frac.denominator == 1 else \
+                    f"<mfrac><mn>{frac.numerator}</mn><mn>{frac.denominator}</mn></mfrac>"
+            else:
+                num = f"<mn>{mag:.6g}</mn>"
+            parts.append(num + "<mo>&#8290;</mo>")
+        parts.append(f"<mi>{escape(name)}</mi>")
+    return '<math display="block"><mrow>' + "".join(parts) + "<mo>=</mo><mn>0</mn></mrow></math>"
 
 
 def report_document(mechanism, provenance: dict, analysis, checks=None, hypotheses=None, identification=None,
-                    diagnosis=None, design_identifiable: set | None = None, accuracy: dict | None = None) -> dict:
+                    diagnosis=None, tolerances=None, accuracy: dict | None = None, montecarlo: dict | None = None) -> dict:
     """The report as a JSON-ready dictionary (units: mm, rad).
 
     Parameters
@@ -87,18 +92,21 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
     hypotheses : list of HypothesisVerdict, optional
     identification : IdentificationResult, optional
     diagnosis : Diagnosis, optional
-    design_identifiable : set of str, optional
-        Identifiable defects from a design Jacobian when no data are given.
+    tolerances : Classification, optional
+        The tolerances (:func:`hyperstat.solver.tolerances.classification.classify`, values filled by
+        :func:`hyperstat.solver.tolerances.values.assign_values`); classified here with
+        defaults when omitted.
     accuracy : dict, optional
-        Accuracy coefficients and allocation (``hyperstat accuracy`` JSON).
+        Accuracy coefficients (``hyperstat accuracy`` JSON).
+    montecarlo : dict, optional
+        Monte Carlo summary with every tolerance at its value.
     """
-    if identification is not None:
-        seen = {p["name"] for p in identification.parameters if p["identifiable"]}
-        seen |= {u["name"] for u in identification.unidentifiable if u["combination"]}
-    else:
-        seen = set(design_identifiable or ())
-    classes = tolerance_classes(analysis, seen)
-    counts = {k: sum(1 for v in classes.values() if v == k) for k in TOLERANCE_CLASSES}
+    if tolerances is None:
+        from hyperstat.solver.tolerances.classification import classify
+
+        tolerances = classify(mechanism, analysis)
+    tol = tolerances.to_dict()
+    counts = tol["counts"]
     checks_by = {c.subject: c for c in (checks or []) if c.kind in ("parameter", "gauge")}
     joints = []
     by_element: dict = {}
@@ -110,17 +118,35 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
         jt, role = kinds.get(element, ("F", "fixed"))
         rows = []
         for p in params:
-            row = {"name": p.name, "component": p.component, "unit": p.unit, "verdict": p.verdict,
-                   "influential": p.influential, "class": classes[p.name], "reason": p.reason}
+            entry = tol["parameters"][p.name]
+            verdict = p.verdict
+            if verdict == "gauge":
+                verdict = "normalisation" if p.component in "IJK" else "redundant"
+            row = {"name": p.name, "component": p.component, "unit": p.unit, "verdict": verdict,
+                   "influential": p.influential, "class": entry["class"], "tolerance_id": entry["tolerance_id"],
+                   "equivalent": entry.get("equivalent"), "reason": p.reason}
             if p.name in checks_by:
                 c = checks_by[p.name]
                 row["check"] = {"confirmed": c.confirmed, "residual_mm": c.residual}
             rows.append(row)
         joints.append({"element": element, "type": jt, "role": role, "parameters": rows})
+    decl = tol["declaration"]
+    spec = tol["allocation"].get("spec") or decl["spec"]
+    assembly = []
+    for it in tol["items"]:
+        if it["class"] == "assembly":
+            assembly.append({"id": it["id"], "statement": it["statement"], "mathml": terms_mathml(it["terms"]),
+                             "value": it["value"], "unit": it["unit"], "why": it["why"],
+                             "value_source": it["value_source"], "feature": it["feature"]})
     doc = {
         "units": {"length": "mm", "angle": "rad"},
         "mechanism": mechanism.name,
+        "description": mechanism.description,
         "source": provenance,
+        "title": {"mechanism": mechanism.name, "description": mechanism.description,
+                  "template": provenance.get("source"), "kind": provenance.get("kind"),
+                  "parameters": provenance.get("parameters", {}), "source_sha256": source_hash(provenance),
+                  "task": list(tol["task"]), "measurements": decl["measurements"], "spec": spec},
         "summary": {
             "parameters": len(analysis.parameters),
             "mobility": analysis.mobility,
@@ -129,15 +155,23 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
             "singular_value_gap": analysis.gap,
             "verdicts": analysis.counts(),
             "tolerance_classes": counts,
+            "tolerances": len(tol["items"]),
+            "normalisation_components": len(tol["appendix"]["normalisation"]),
             "verified": None if checks is None else {"confirmed": sum(c.confirmed for c in checks),
                                                      "total": len(checks)},
         },
-        "tolerance_class_meaning": TOLERANCE_CLASSES,
+        "tolerance_class_meaning": dict(TOLERANCE_CLASSES),
+        "tolerances": tol,
+        "assembly_conditions": assembly,
         "joints": joints,
         "forced": [p.name for p in analysis.parameters if p.verdict == "forced"],
-        "relations": [{"text": r.text, "terms": r.terms, "mathml": relation_mathml(r)} for r in analysis.relations],
+        "relations": [{"id": a["id"], "text": a["statement"], "terms": it["terms"], "mathml": a["mathml"]}
+                      for a, it in zip(assembly, [i for i in tol["items"] if i["class"] == "assembly"])
+                      if it["kind"] == "relation"],
         "hypotheses": None if hypotheses is None else [h.to_dict() for h in hypotheses],
         "accuracy": accuracy,
+        "montecarlo": montecarlo,
+        "calibration": tol["calibration"],
         "identification": None if identification is None else {
             k: v for k, v in identification.to_dict().items() if k != "correlations"},
         "diagnosis": None if diagnosis is None else _diagnosis_summary(diagnosis),
@@ -151,35 +185,3 @@ def _diagnosis_summary(diag) -> dict:
     where["spectra"] = [{k: v for k, v in s.items() if k not in ("periods_mm", "power")} for s in where["spectra"]]
     d["where"] = where
     return d
-
-
-def identifiable_by_design(model, mechanism, poses: np.ndarray) -> set:
-    """Defects a position calibration at ``poses`` would see (design Jacobian, nominal model)."""
-    from hyperstat.solver.calibration.identify import _column_scale, base_parameters
-    from hyperstat.solver.calibration.measurements import MeasurementSet
-    from hyperstat.solver.calibration.virtual import default_tracker
-
-    k = len(poses)
-    data = MeasurementSet([str(i) for i in range(k)], [], poses, np.zeros((k, 3)))
-    theta = model.initial(default_tracker(model.kin), np.array([12.0, -8.0, -25.0]))
-    pred = model.predict(theta, data, jacobian=True)
-    jac = pred.jacobian.reshape(-1, model.n) * _column_scale(model)
-    preferred = [j for j, kind in enumerate(model.kinds) if kind in ("tracker", "target")]
-    base, rank, _, visible = base_parameters(jac, preferred)
-    seen = {model.names[j] for j in base if model.kinds[j] == "geometry"}
-    # non-base columns that the base spans are seen in combination
-    jb = jac[:, base]
-    for j in range(model.n):
-        if j in base or not visible[j] or model.kinds[j] != "geometry":
-            continue
-        coef, *_ = np.linalg.lstsq(jb, jac[:, j], rcond=None)
-        if np.linalg.norm(jb @ coef - jac[:, j]) < 1e-6 * np.linalg.norm(jac[:, j]):
-            seen.add(model.names[j])
-    # coupled pivots follow their coordinates
-    names, matrix = model.analysis.parameterization(mechanism, influential_only=True)
-    index = mechanism.parameter_index
-    for p in mechanism.parameters:
-        col = matrix[index[p.name]]
-        if p.name not in names and np.any(col) and all(names[i] in seen for i in np.nonzero(col)[0]):
-            seen.add(p.name)
-    return seen

@@ -4,14 +4,68 @@ from __future__ import annotations
 
 from hyperstat.solver.analysis.stationarity import StationarityResult
 
-__all__ = ["format_analysis", "format_identification", "format_diagnosis"]
+__all__ = ["format_analysis", "format_tolerances", "format_identification", "format_diagnosis"]
 
 
 def _fmt_gap(gap: float) -> str:
     return "none (full rank)" if gap == float("inf") else f"{gap:.3g}"
 
 
-def format_analysis(result: StationarityResult, checks: list | None = None, exact=None) -> str:
+def _value(t: dict) -> str:
+    v = t.get("value")
+    if v is None:
+        return "-"
+    return f"+-{v:.3g} {t['unit']}"
+
+
+def format_tolerances(tolerances: dict, limit: int | None = None) -> str:
+    """The tolerance table of a :meth:`~hyperstat.solver.tolerances.classification.Classification.to_dict`.
+
+    One line per tolerance (id, class, statement, value, why), the counts per class, the
+    redundant shifts merged with their equivalents and the normalisation components
+    (not tolerances).
+
+    >>> doc = {"counts": {"assembly": 1, "accuracy-critical": 0, "compensable": 0, "non-influent": 0},
+    ...        "items": [{"id": "T1", "class": "assembly", "statement": "dc2 + dc3 = 0", "value": 0.02, "unit": "mm",
+    ...                   "why": "forced"}], "task": ["x"], "declaration": {"measurements": {"kind": "positions"}},
+    ...        "redundant": {"dc2": {"equivalent": "dc3"}}, "appendix": {"normalisation": [{"name": "dK2"}]}}
+    >>> print(format_tolerances(doc).splitlines()[1])
+    counts: assembly 1, accuracy-critical 0, compensable 0, non-influent 0
+    """
+    decl = tolerances.get("declaration", {})
+    spec = decl.get("spec", {})
+    head = (f"Tolerances (task: {', '.join(tolerances.get('task', []))}; measurements: "
+            f"{decl.get('measurements', {}).get('kind', '-')}")
+    if spec.get("position_mm") is not None or spec.get("orientation_rad") is not None:
+        head += "; spec " + ", ".join(f"{v:g} {u}" for v, u in ((spec.get("position_mm"), "mm"),
+                                                                  (spec.get("orientation_rad"), "rad")) if v is not None)
+    lines = [head + "):", "counts: " + ", ".join(f"{k} {n}" for k, n in tolerances["counts"].items())]
+    items = tolerances["items"]
+    width = max([len(t["statement"]) for t in items] + [9])
+    width = min(width, 60)
+    lines.append(f"{'id':<5}{'class':<19}{'statement':<{width + 2}}{'value':<17}why")
+    for t in items[:limit] if limit else items:
+        lines.append(f"{t['id']:<5}{t['class']:<19}{t['statement']:<{width + 2}}{_value(t):<17}{t['why']}")
+    if limit and len(items) > limit:
+        lines.append(f"... {len(items) - limit} more (see the JSON or the report)")
+    red = tolerances.get("redundant", {})
+    if red:
+        lines.append("redundant shifts, merged with their equivalent (the same physical shift): "
+                     + ", ".join(f"{g} ≡ {r['equivalent']}" for g, r in red.items()))
+    normal = tolerances.get("appendix", {}).get("normalisation", [])
+    if normal:
+        lines.append("not tolerances (normalisation components along the nominal axis, no geometric meaning): "
+                     + ", ".join(a["name"] for a in normal))
+    if items and all(t.get("value") is None for t in items):
+        lines.append("values: 'hyperstat accuracy' and 'hyperstat report' compute them (allocation against the spec, "
+                     "joint clearances); see docs/tolerances.md")
+    for w in tolerances.get("warnings", []):
+        lines.append(f"warning: {w}")
+    return "\n".join(lines) + "\n"
+
+
+def format_analysis(result: StationarityResult, checks: list | None = None, exact=None,
+                    tolerances: dict | None = None) -> str:
     """Readable table of a stationarity analysis, grouped by joint, with the checks if given."""
     c = result.counts()
     lines = [
@@ -28,7 +82,10 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
     for ch in checks or []:
         if ch.kind in ("parameter", "gauge"):
             by_name[ch.subject] = ch
+    params = (tolerances or {}).get("parameters", {})
     header = f"{'element':<10}{'parameter':<11}{'unit':<5}{'verdict':<9}{'effect on output':<18}"
+    if params:
+        header += f"{'tolerance':<24}"
     if checks:
         header += "nonlinear check"
     lines.append(header)
@@ -38,7 +95,16 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
         el = p.element if p.element != previous else ""
         previous = p.element
         effect = "-" if p.influential is None else ("influential" if p.influential else "non-influent")
-        row = f"{el:<10}{p.name:<11}{p.unit:<5}{p.verdict:<9}{effect:<18}"
+        verdict = p.verdict
+        if verdict == "gauge":  # one vocabulary: a gauge is a normalisation component or a redundant shift
+            verdict = "normal." if p.component in "IJK" else "redund."
+        row = f"{el:<10}{p.name:<11}{p.unit:<5}{verdict:<9}{effect:<18}"
+        if params:
+            e = params.get(p.name, {})
+            tol = f"{e.get('tolerance_id') or '-'} {e.get('class', '')}"
+            if e.get("equivalent"):
+                tol += f" (≡ {e['equivalent']})"
+            row += f"{tol:<24}"
         if p.name in by_name and by_name[p.name].kind == "gauge":
             ch = by_name[p.name]
             mark = "confirmed" if ch.confirmed else "NOT CONFIRMED"
@@ -53,9 +119,11 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
             row += p.reason
         lines.append(row.rstrip())
     lines.append("")
+    n_normal = sum(p.verdict == "gauge" and p.component in "IJK" for p in result.parameters)
     lines.append(
-        f"counts: gauge {c['gauge']}, forced {c['forced']}, coupled {c['coupled']}, free {c['free']} "
-        f"({c['free_influential']} influential, {c['free_non_influent']} non-influent)"
+        f"stationarity verdicts: forced {c['forced']}, coupled {c['coupled']}, free {c['free']} "
+        f"({c['free_influential']} influential, {c['free_non_influent']} non-influent), normalisation {n_normal}, "
+        f"redundant shifts {c['gauge'] - n_normal}"
     )
     if result.relations:
         lines.append("relations between coupled defects (coefficients per rad or per mm):")
@@ -79,6 +147,8 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
             lines.append(f"exact check unavailable: {exact.reason}")
     for w in result.warnings:
         lines.append(f"warning: {w}")
+    if tolerances is not None:
+        lines += ["", format_tolerances(tolerances).rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 

@@ -88,7 +88,8 @@ def mechanism_to_dict(m: Mechanism) -> dict:
         "base": m.base,
         "output": m.output,
         "chains": chains,
-        "metadata": m.metadata,
+        "metadata": {k: v for k, v in m.metadata.items() if k != "tolerancing"},
+        **({"tolerancing": m.metadata["tolerancing"]} if m.metadata.get("tolerancing") else {}),
     }
 
 
@@ -171,9 +172,12 @@ def mechanism_from_dict(doc: Any, source: str = "model") -> Mechanism:
             else:
                 els.append(ConfigurationFrame(e["name"], placement(e["placement"])))
         chains.append(Chain(ch["name"], ch["start"], ch["end"], tuple(els)))
+    metadata = dict(doc.get("metadata", {}))
+    if "tolerancing" in doc:  # optional, checked by the schema: task, measurements, spec, clearances
+        metadata["tolerancing"] = doc["tolerancing"]
     try:
         return Mechanism(doc["name"], doc["base"], doc["output"], tuple(chains), doc.get("description", ""),
-                         dict(doc.get("metadata", {})))
+                         metadata)
     except ModelError as exc:
         raise ModelError(f"{source}: {exc}") from None
 

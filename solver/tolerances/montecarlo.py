@@ -82,9 +82,21 @@ class MonteCarloResult:
         return out
 
 
+def _top_singular(block: np.ndarray) -> np.ndarray:
+    """Largest singular value of each matrix of a stack (K, r, n); closed form when r = 3."""
+    from hyperstat.solver.tolerances.accuracy import largest_singular_value
+
+    if block.shape[1] == 3:
+        return largest_singular_value(block)
+    if block.shape[1] == 0 or block.shape[2] == 0:
+        return np.zeros(block.shape[0])
+    return np.linalg.svd(block, compute_uv=False)[:, 0]
+
+
 def monte_carlo(mechanism: Mechanism, configurations: np.ndarray, tolerances: dict, samples: int = 10000,
                 distribution: str = "uniform", seed: int = 0, analysis=None,
-                kinematics: Kinematics | None = None, chunk: int = 20000) -> MonteCarloResult:
+                kinematics: Kinematics | None = None, chunk: int = 20000, directions: tuple | None = None,
+                task: tuple | None = None) -> MonteCarloResult:
     """Sample defects within ``tolerances`` and measure the platform's pose error (see module docstring).
 
     Parameters
@@ -96,9 +108,21 @@ def monte_carlo(mechanism: Mechanism, configurations: np.ndarray, tolerances: di
         (rad or mm), and optionally actuated joint name -> tolerance.
     distribution : {"uniform", "normal"}
         Uniform in +-t, or normal with sigma = t / 3.
+    directions : (list of str, ndarray (n_xi, n), list of str), optional
+        Named defect directions (rad / mm per unit) and their units to draw instead of the geometric
+        parameters, e.g. the tolerances of :mod:`hyperstat.solver.tolerances.classification`
+        (``tolerances`` is then keyed by these names).
+    task : tuple of str, optional
+        Task components (:data:`hyperstat.solver.tolerances.declaration.TASK_COMPONENTS`):
+        the errors, bounds and shares are measured on them only (e.g. the tool-axis tilt,
+        not the rotation about the spindle); default: full orientation and position.
     """
     kin = kinematics or Kinematics(mechanism)
-    names, matrix = geometric_parameters(mechanism, analysis)
+    names, matrix = directions[:2] if directions is not None else geometric_parameters(mechanism, analysis)
+    if task is not None:
+        from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
+
+        n_rot = n_rotation_rows(tuple(task))
     act = mechanism.actuated
     f_names = [mechanism.joints[i].name for i in act]
     t_g = np.array([float(tolerances.get(n, 0.0)) for n in names])
@@ -110,9 +134,11 @@ def monte_carlo(mechanism: Mechanism, configurations: np.ndarray, tolerances: di
     out = {k: np.zeros(samples) for k in ("orientation", "position", "orientation_bound", "position_bound",
                                           "orientation_linear", "position_linear")}
     converged = np.zeros(samples, dtype=bool)
-    g_kind = np.array(["P" if p.unit == "mm" else "R" for p in mechanism.parameters])
     units = {p.name: p.unit for p in mechanism.parameters}
-    g_is_p = np.array([units[n] == "mm" for n in names]) if names else np.zeros(0, bool)
+    if directions is not None:
+        g_is_p = np.array([u == "mm" for u in directions[2]], dtype=bool)
+    else:
+        g_is_p = np.array([units[n] == "mm" for n in names]) if names else np.zeros(0, bool)
     f_is_p = np.array([mechanism.joints[i].type == "P" for i in act])
     var_rot = np.zeros(len(f_names) + len(names))
     var_pos = np.zeros(len(f_names) + len(names))
@@ -128,34 +154,44 @@ def monte_carlo(mechanism: Mechanism, configurations: np.ndarray, tolerances: di
         q[:, act] += df
         res = kin.assemble(q, xi)
         real = kin.evaluate(res.q, xi, jacobians=False)
-        r_err = np.swapaxes(nominal.output_pose[:, :3, :3], 1, 2) @ real.output_pose[:, :3, :3]
         sl = slice(s, s + m)
-        out["orientation"][sl] = np.linalg.norm(so3_log(r_err), axis=1)
-        out["position"][sl] = np.linalg.norm(real.output_pose[:, :3, 3] - nominal.output_pose[:, :3, 3], axis=1)
-        converged[sl] = res.converged
         k_xi, k_a = output_twist_maps(kin, nominal)
         k_g = k_xi @ matrix
+        if task is None:
+            r_err = np.swapaxes(nominal.output_pose[:, :3, :3], 1, 2) @ real.output_pose[:, :3, :3]
+            rot_err = so3_log(r_err)[:, :, None]
+            pos_err = (real.output_pose[:, :3, 3] - nominal.output_pose[:, :3, 3])[:, :, None]
+            rows_r, rows_p = slice(0, 3), slice(3, 6)
+        else:  # task components: rotation vector and position in the base frame, selected
+            sel = task_rows(tuple(task), nominal.output_pose)
+            w = so3_log(real.output_pose[:, :3, :3] @ np.swapaxes(nominal.output_pose[:, :3, :3], 1, 2))
+            e6 = np.concatenate([w, real.output_pose[:, :3, 3] - nominal.output_pose[:, :3, 3]], axis=1)
+            e = sel @ e6[:, :, None]
+            rot_err, pos_err = e[:, :n_rot], e[:, n_rot:]
+            k_g, k_a = sel @ k_g, sel @ k_a
+            rows_r, rows_p = slice(0, n_rot), slice(n_rot, sel.shape[1])
+        out["orientation"][sl] = np.linalg.norm(rot_err[:, :, 0], axis=1)
+        out["position"][sl] = np.linalg.norm(pos_err[:, :, 0], axis=1)
+        converged[sl] = res.converged
         lin = k_g @ dg[:, :, None] + k_a @ df[:, :, None]
-        out["orientation_linear"][sl] = np.linalg.norm(lin[:, :3, 0], axis=1)
-        out["position_linear"][sl] = np.linalg.norm(lin[:, 3:, 0], axis=1)
+        out["orientation_linear"][sl] = np.linalg.norm(lin[:, rows_r, 0], axis=1)
+        out["position_linear"][sl] = np.linalg.norm(lin[:, rows_p, 0], axis=1)
         bound_r = np.zeros(m)
         bound_p = np.zeros(m)
-        from hyperstat.solver.tolerances.accuracy import largest_singular_value
-
         for cols, src, dq in ((f_is_p, k_a, df), (~f_is_p, k_a, df), (g_is_p, k_g, dg), (~g_is_p, k_g, dg)):
             if not np.any(cols):
                 continue
             block = src[:, :, cols]
             norm = np.linalg.norm(dq[:, cols], axis=1)
-            bound_r += largest_singular_value(block[:, :3]) * norm
-            bound_p += largest_singular_value(block[:, 3:]) * norm
+            bound_r += _top_singular(block[:, rows_r]) * norm
+            bound_p += _top_singular(block[:, rows_p]) * norm
         out["orientation_bound"][sl] = bound_r
         out["position_bound"][sl] = bound_p
         both = np.concatenate([k_a, k_g], axis=2)
         t_all = np.r_[t_f, t_g]
         factor = 1.0 / 3.0 if distribution == "uniform" else 1.0 / 9.0  # variance of the draw per t^2
-        var_rot += np.sum(np.linalg.norm(both[:, :3], axis=1) ** 2, axis=0) * t_all**2 * factor
-        var_pos += np.sum(np.linalg.norm(both[:, 3:], axis=1) ** 2, axis=0) * t_all**2 * factor
+        var_rot += np.sum(np.linalg.norm(both[:, rows_r], axis=1) ** 2, axis=0) * t_all**2 * factor
+        var_pos += np.sum(np.linalg.norm(both[:, rows_p], axis=1) ** 2, axis=0) * t_all**2 * factor
     all_names = f_names + names
     contributors = []
     for j, n in enumerate(all_names):

@@ -78,3 +78,16 @@ def test_reference_model_reproduces_the_solver(exported):
     _, rigid_pose = model.forward(val.q, with_effects=False)
     back = model.inverse(rigid_pose, q_start=val.q + 0.3)
     assert np.abs(back - val.q).max() < 1e-9
+
+
+def test_the_file_carries_the_tolerance_classes(exported, tripteor, tripteor_analysis, tmp_path):
+    from hyperstat.solver.tolerances.classification import classify
+
+    path, res, _ = exported
+    cl = classify(tripteor, tripteor_analysis)
+    doc = controller_document(tripteor, res, tuple(res.model.effects), {"source": "tripteor_x7.py"},
+                              (path.parent / "d.csv",), cl.to_dict())
+    back = read_controller(write_controller(tmp_path / "m.json", doc))  # schema and hash accept it
+    assert back["tolerances"]["counts"] == cl.counts()
+    assert {n: e["class"] for n, e in back["tolerances"]["parameters"].items()} == \
+           {n: e["class"] for n, e in cl.to_dict()["parameters"].items()}

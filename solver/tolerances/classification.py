@@ -1,0 +1,591 @@
+"""One verdict per tolerance: the single place that classifies tolerances.
+
+Units: defects in mm (positions) and rad (orientations); task errors in mm and rad.
+
+A tolerance is a statement about a linear combination of defect parameters, not a label
+on one parameter (DESIGN.md, "Tolerances").  From the stationarity analysis (paper 1,
+eq. 3) this module builds
+
+* **assembly conditions** (class ``assembly``): each forced defect (``dI21 = 0``) and each
+  relation between coupled defects (``dK21 - dK23 = 0``), written with every physical
+  parameter: a redundant along-axis shift (a *gauge* of the analysis) is put back with
+  its equivalent, so the slider-crank's forced ``dc3`` reads ``dc2 + dc3 = 0``;
+* one **admissible-direction tolerance** per free or coupled parameter (the parameter
+  moving, the coupled ones following their relations), classed
+
+  - ``non-influent``: it moves nothing the task uses (the template's task components,
+    :mod:`hyperstat.solver.tolerances.declaration`);
+  - ``compensable``: influential, and a calibration from the declared measurements
+    plus the controller cancels it on the task components at every configuration: the
+    calibration estimate (least squares over the admissible coordinates and the
+    measurement nuisances: tracker frame, target offsets) leaves no part the task sees,
+    and the actuators cancel what was estimated (its task twist lies in the range of
+    the actuated joints' task twists, paper 2 eq. 13);
+  - ``accuracy-critical``: influential and not compensable.
+
+A coupled parameter has both: its relation (an assembly condition) and its
+admissible direction; ``parameters[name]["class"]`` is then ``assembly``.
+*Normalisation* components (along the nominal axis, no geometric meaning) are not
+tolerances: they go to :attr:`Classification.appendix`.  A redundant along-axis
+shift is merged with its equivalent (``dc2 ≡ dc3``) and shares its tolerance.
+
+Every output (``analyze``, ``report``, ``accuracy``, ``montecarlo``, the FreeCAD panel, the
+controller file) uses :func:`classify`, so their vocabularies and counts are equal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from hyperstat.solver.analysis.stationarity import StationarityResult, gauge_parameters
+from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.model import Joint, Mechanism
+from hyperstat.solver.tolerances.accuracy import output_twist_maps
+from hyperstat.solver.tolerances.declaration import Declaration, declaration_of, n_rotation_rows, task_rows
+
+__all__ = ["CLASSES", "CLASS_MEANING", "Tolerance", "Classification", "classify", "format_terms"]
+
+CLASSES = ("assembly", "accuracy-critical", "compensable", "non-influent")
+CLASS_MEANING = {
+    "assembly": "assembly condition: must hold for the machine to assemble and move without deforming "
+                "(value from the joint clearances)",
+    "accuracy-critical": "moves what the task uses; calibration and the controller cannot cancel it "
+                         "(value from allocation against the spec)",
+    "compensable": "moves what the task uses; calibration from the declared measurements and the controller "
+                   "cancel it (value: what keeps the spec without calibration; it can open)",
+    "non-influent": "moves nothing the task uses",
+}
+_COMPONENT_WORDS = {"I": "axis tilt, x component", "J": "axis tilt, y component", "K": "axis tilt, z component",
+                    "a": "origin shift along x", "b": "origin shift along y", "c": "origin shift along z",
+                    "G": "rotation about its own axis"}
+_REL = 1e-6  # relative threshold on task residuals (dimensionless, round-off is ~1e-12)
+
+
+@dataclass
+class Tolerance:
+    """One tolerance: a statement, its class, value and why.
+
+    Attributes
+    ----------
+    id : str
+        ``T1``, ``T2``... (assembly conditions first, then directions in parameter order).
+    cls : str
+        One of :data:`CLASSES`.
+    kind : str
+        ``forced``, ``relation`` or ``direction``.
+    statement : str
+        ``dc2 + dc3 = 0`` (assembly) or the parameter with its merged equivalents (``dc3 ≡ dc2``).
+    terms : dict
+        Parameter -> coefficient of the statement (per mm or per rad).
+    parameters : list of str
+        Every physical parameter the statement involves.
+    unit : str
+        ``mm`` or ``rad``: the unit of the statement's value.
+    feature : str
+        The joint or transform it belongs to (``joint 2 (revolute)``).
+    words : str
+        What it is in words.
+    why : str
+        Why this class, with the evidence.
+    value : float or None
+        Tolerance (± value in ``unit``), when computed.
+    value_source : str
+        How the value was obtained.
+    evidence : dict
+        Numbers behind the verdict.
+    assembly_ids : list of str
+        For a coupled parameter's direction: the relations it is bound by.
+    direction : ndarray
+        Defect vector (rad / mm) of one unit of the statement (violation for assembly).
+    """
+
+    id: str
+    cls: str
+    kind: str
+    statement: str
+    terms: dict
+    parameters: list
+    unit: str
+    feature: str
+    words: str
+    why: str
+    value: float | None = None
+    value_source: str = ""
+    evidence: dict = field(default_factory=dict)
+    assembly_ids: list = field(default_factory=list)
+    direction: np.ndarray | None = None
+    contribution: float | None = None
+    summary: str = ""
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (``class`` for ``cls``; the direction is left out)."""
+        return {"id": self.id, "class": self.cls, "kind": self.kind, "statement": self.statement,
+                "terms": dict(self.terms), "parameters": list(self.parameters), "value": self.value,
+                "unit": self.unit, "feature": self.feature, "words": self.words, "why": self.why,
+                "value_source": self.value_source, "assembly_ids": list(self.assembly_ids),
+                "contribution_percent": self.contribution, "summary": self.summary or self.why,
+                "evidence": dict(self.evidence)}
+
+
+@dataclass
+class Classification:
+    """Tolerances of a mechanism, one vocabulary for every output.
+
+    Attributes
+    ----------
+    items : list of Tolerance
+    parameters : dict
+        Parameter name -> {"class", "tolerance_id", ...}; normalisation components have
+        class ``normalisation`` and no tolerance id.
+    appendix : list of dict
+        Normalisation components (not tolerances) and why.
+    redundant : dict
+        Redundant parameter -> {"equivalent": name, "coefficients": {...}}.
+    declaration : Declaration
+    n_configurations : int
+    warnings : list of str
+    """
+
+    mechanism: str
+    items: list
+    parameters: dict
+    appendix: list
+    redundant: dict
+    declaration: Declaration
+    n_configurations: int
+    warnings: list = field(default_factory=list)
+    calibration: dict = field(default_factory=dict)
+    allocation: dict = field(default_factory=dict)
+
+    def counts(self) -> dict:
+        """Number of tolerances per class (every class present, in :data:`CLASSES` order)."""
+        return {c: sum(1 for t in self.items if t.cls == c) for c in CLASSES}
+
+    def by_class(self, cls: str) -> list:
+        """Tolerances of one class."""
+        return [t for t in self.items if t.cls == cls]
+
+    def item(self, tid: str) -> Tolerance:
+        """Tolerance by id."""
+        for t in self.items:
+            if t.id == tid:
+                return t
+        raise KeyError(tid)
+
+    def of_parameter(self, name: str) -> Tolerance | None:
+        """The tolerance a parameter's class comes from (None for a normalisation component)."""
+        tid = self.parameters[name]["tolerance_id"]
+        return None if tid is None else self.item(tid)
+
+    def to_dict(self) -> dict:
+        """The ``tolerances`` object of the analysis and report JSON (stable keys, units mm / rad)."""
+        d = self.declaration
+        return {"units": {"length": "mm", "angle": "rad"}, "classes": dict(CLASS_MEANING), "counts": self.counts(),
+                "items": [t.to_dict() for t in self.items], "parameters": {k: dict(v) for k, v in self.parameters.items()},
+                "appendix": {"normalisation": list(self.appendix)},
+                "redundant": {k: dict(v) for k, v in self.redundant.items()},
+                "task": list(d.task), "declaration": d.to_dict(), "configurations": self.n_configurations,
+                "calibration": dict(self.calibration), "allocation": dict(self.allocation),
+                "warnings": list(self.warnings)}
+
+
+def _clean(c: float) -> float:
+    if abs(c) < 1e-10:
+        return 0.0
+    frac = Fraction(c).limit_denominator(1000)
+    if abs(float(frac) - c) < 1e-9 * max(1.0, abs(c)):
+        return float(frac)
+    return float(f"{c:.10g}")
+
+
+def format_terms(terms: dict, rhs: str | None = "0") -> str:
+    """``{"dc2": 1, "dc3": 1}`` -> ``dc2 + dc3 = 0`` (coefficients per mm or per rad)."""
+    parts = []
+    for i, (n, c) in enumerate(terms.items()):
+        mag = abs(c)
+        coef = "" if mag == 1.0 else f"{mag:.6g}*"
+        if i == 0:
+            parts.append(f"-{coef}{n}" if c < 0 else f"{coef}{n}")
+        else:
+            parts.append(f" {'-' if c < 0 else '+'} {coef}{n}")
+    text = "".join(parts)
+    return text if rhs is None else f"{text} = {rhs}"
+
+
+def _elements(mechanism: Mechanism) -> dict:
+    """Parameter -> (element, kind words)."""
+    out = {}
+    for ch in mechanism.chains:
+        for el in ch.elements:
+            if isinstance(el, Joint):
+                kind = f"joint {el.name} ({el.type}, {el.role})"
+            else:
+                kind = f"fixed {el.name}"
+            for d in getattr(el, "defects", ()):
+                out[d.name] = (el.name, kind, d.component)
+    return out
+
+
+def _redundant(mechanism: Mechanism, names: list) -> tuple[dict, dict]:
+    """Normalisation components and redundant along-axis shifts with their linear equivalents."""
+    from hyperstat.solver.analysis.verify import gauge_equivalent
+
+    gauges = gauge_parameters(mechanism)
+    normal, redundant = {}, {}
+    comp = {p.name: p.component for p in mechanism.parameters}
+    for g, why in gauges.items():
+        if comp[g] in "IJK":
+            normal[g] = why
+            continue
+        vec = gauge_equivalent(mechanism, g, 1.0)  # exact and linear in the size for a shift
+        coeffs = {names[j]: _clean(float(vec[j])) for j in np.nonzero(np.abs(vec) > 1e-12)[0]}
+        coeffs = {k: v for k, v in coeffs.items() if v != 0.0}
+        # the equivalent is the next element's shift (the largest coefficient outside g's own element)
+        own = {p.name for p in mechanism.parameters if p.element == next(
+            q.element for q in mechanism.parameters if q.name == g)}
+        outside = {k: v for k, v in coeffs.items() if k not in own} or coeffs
+        eq = max(outside, key=lambda k: abs(outside[k]))
+        redundant[g] = {"equivalent": eq, "coefficients": coeffs, "why": why, "vector": vec}
+    # an equivalent may itself be redundant (dc5 ≡ dc4 ≡ dc6 along parallel axes): resolve to analysis parameters
+    for _ in range(len(redundant)):
+        changed = False
+        for g, r in redundant.items():
+            inner = [k for k in r["coefficients"] if k in redundant and k != g]
+            for k in inner:
+                c = r["coefficients"].pop(k)
+                for kk, vv in redundant[k]["coefficients"].items():
+                    r["coefficients"][kk] = _clean(r["coefficients"].get(kk, 0.0) + c * vv)
+                changed = True
+            r["coefficients"] = {k: v for k, v in r["coefficients"].items() if v != 0.0 and k not in normal}
+            if r["equivalent"] in redundant:
+                r["equivalent"] = redundant[r["equivalent"]]["equivalent"]
+                changed = True
+        if not changed:
+            break
+    return normal, redundant
+
+
+def _physical_terms(terms: dict, redundant: dict, order: list) -> dict:
+    """Terms over the analysis' parameters -> terms with every redundant parameter put back."""
+    out = dict(terms)
+    for g, r in redundant.items():
+        c = sum(terms.get(k, 0.0) * v for k, v in r["coefficients"].items())
+        c = _clean(c)
+        if c != 0.0:
+            out[g] = out.get(g, 0.0) + c
+    lead = next((out[n] for n in order if out.get(n)), 1.0)
+    out = {n: _clean(out[n] / lead) for n in order if out.get(n)}
+    return {n: c for n, c in out.items() if c != 0.0}
+
+
+def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kinematics | None = None,
+             declaration: Declaration | None = None, configurations: np.ndarray | None = None) -> Classification:
+    """Classify the tolerances of ``mechanism`` (see the module docstring).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    analysis : StationarityResult
+        Its stationarity analysis (paper 1, eq. 3).
+    kinematics : Kinematics, optional
+    declaration : Declaration, optional
+        Task, measurements, spec, clearances; default: what the mechanism carries.
+    configurations : ndarray, (K, n_q), optional
+        Assembled configurations for the task and calibration tests; default: the
+        analysis' configurations.
+
+    Returns
+    -------
+    Classification
+
+    Examples
+    --------
+    >>> from hyperstat.solver.kinematics.modelfile import load_model  # doctest: +SKIP
+    >>> c = classify(mech, analyze(mech))  # doctest: +SKIP
+    >>> c.counts()  # doctest: +SKIP
+    {'assembly': 6, 'accuracy-critical': 0, 'compensable': 3, 'non-influent': 1}
+    """
+    kin = kinematics or Kinematics(mechanism)
+    decl = declaration or declaration_of(mechanism)
+    m = mechanism
+    names = [p.name for p in m.parameters]
+    index = {n: i for i, n in enumerate(names)}
+    where = _elements(m)
+    unit = {p.name: p.unit for p in m.parameters}
+    normal, redundant = _redundant(m, names)
+    merged_into: dict = {}
+    for g, r in redundant.items():
+        merged_into.setdefault(r["equivalent"], []).append(g)
+    warns: list = []
+    verdict = {p.name: p for p in analysis.parameters}
+
+    # ---------------------------------------------------------------- assembly conditions
+    items: list[Tolerance] = []
+    forced = [p.name for p in analysis.parameters if p.verdict == "forced"]
+    if len(forced) + len(analysis.relations) != analysis.rank:
+        warns.append(f"{len(forced)} forced defects and {len(analysis.relations)} relations for a constraint rank of "
+                     f"{analysis.rank}: the assembly conditions may not describe the constraint exactly.")
+    relation_of: dict = {}
+
+    def feature_of(params: list) -> str:
+        feats = []
+        for n in params:
+            f = where[n][1]
+            if f not in feats:
+                feats.append(f)
+        if len(feats) > 1:
+            return "elements " + ", ".join(dict.fromkeys(where[n][0] for n in params))
+        return feats[0]
+
+    for f in forced:
+        terms = _physical_terms({f: 1.0}, redundant, names)
+        direction = np.zeros(len(names))
+        direction[index[f]] = 1.0 / terms[f]
+        el, kind, comp = where[f]
+        extra = [g for g in terms if g != f]
+        words = _COMPONENT_WORDS[comp]
+        if extra:
+            words += " (with the same shift " + ", ".join(extra) + ")"
+        items.append(Tolerance("", "assembly", "forced", format_terms(terms), terms, list(terms), unit[f],
+                               feature_of(list(terms)), words,
+                               "forced by the over-constraint: the passive joints cannot absorb it at every "
+                               "configuration (its admissible part is "
+                               f"{verdict[f].admissible:.1e})", direction=direction))
+    for r in analysis.relations:
+        terms = _physical_terms(dict(r.terms), redundant, names)
+        pivot = next(iter(r.terms))
+        direction = np.zeros(len(names))
+        direction[index[pivot]] = 1.0 / r.terms[pivot]
+        units = {unit[n] for n in terms}
+        items.append(Tolerance("", "assembly", "relation", format_terms(terms), terms, list(terms),
+                               unit[pivot] if len(units) == 1 else unit[pivot], feature_of(list(terms)),
+                               "relation between the defects of " + ", ".join(dict.fromkeys(where[n][0] for n in terms)),
+                               "coupled defects: admissible only in this combination; breaking it loads the structure",
+                               direction=direction))
+        for n in r.terms:
+            relation_of.setdefault(n, []).append(len(items) - 1)
+
+    # ---------------------------------------------------------------- admissible directions
+    q = analysis.configurations if configurations is None else np.atleast_2d(configurations)
+    st = kin.evaluate(q, None, jacobians=True)
+    try:  # undamped (round-off only) at the analysis' generic configurations; damped if one is singular
+        k_xi, k_a = output_twist_maps(kin, st, damping=1e-16)
+    except np.linalg.LinAlgError:
+        k_xi, k_a = output_twist_maps(kin, st)
+    ls = kin.length_scale
+    sel = task_rows(decl.task, st.output_pose)  # (K, r, 6)
+    n_rot = n_rotation_rows(decl.task)
+    row_scale = np.r_[np.ones(n_rot), np.full(sel.shape[1] - n_rot, 1.0 / ls)]  # dimensionless rows
+    pscale = kin.parameter_scale
+    task_xi = (sel @ k_xi) * row_scale[None, :, None] * pscale[None, None, :]  # per dimensionless defect
+    act = m.actuated
+    jscale = kin.joint_scale[act]
+    task_a = (sel @ k_a) * row_scale[None, :, None] * jscale[None, None, :]
+    basis = analysis.admissible_basis if analysis.admissible_basis is not None else np.zeros((len(names), 0))
+    meas_xi, nuisance = _measurement_maps(decl, st, k_xi, ls, pscale)
+    rows_m = meas_xi.shape[0] * meas_xi.shape[1]
+    j_m = np.concatenate([(meas_xi @ basis).reshape(rows_m, basis.shape[1]),
+                          nuisance.reshape(rows_m, nuisance.shape[2])], axis=1)
+    j_pinv = np.linalg.pinv(j_m, rcond=1e-10) if j_m.size else np.zeros((j_m.shape[1], j_m.shape[0]))
+    sv = np.linalg.svd(j_m, compute_uv=False) if j_m.size else np.zeros(0)
+    ka_pinv = np.linalg.pinv(task_a, rcond=1e-8)  # (K, n_a, r)
+    n_s = basis.shape[1]
+
+    def task_of(d: np.ndarray) -> np.ndarray:
+        return task_xi @ d  # (K, r)
+
+    directions = []
+    for p in analysis.parameters:
+        if p.verdict not in ("free", "coupled"):
+            continue
+        j = index[p.name]
+        proj = basis @ basis[j]  # dimensionless projection of e_j on the admissible subspace
+        if abs(proj[j]) < 1e-12:
+            continue
+        d = proj / proj[j]
+        directions.append((p, d))
+    influence = [float(np.max(np.linalg.norm(task_of(d), axis=1))) for _, d in directions]
+    top = max(influence, default=0.0)
+    for (p, d), infl in zip(directions, influence):
+        el, kind, comp = where[p.name]
+        eqs = merged_into.get(p.name, [])
+        statement = p.name + "".join(f" ≡ {g}" for g in eqs)
+        params = [p.name] + eqs
+        words = _COMPONENT_WORDS[comp]
+        if eqs:
+            words += " (" + ", ".join(f"{g}: the same shift on the previous joint" for g in eqs) + ")"
+        ev = {"task_influence": infl}
+        if p.verdict == "coupled":
+            words += ", coupled ones following"
+        if infl <= 1e-9 * max(top, 1e-300) or infl < 1e-12:
+            cls = "non-influent"
+            why = (f"its admissible motion moves no task component ({', '.join(decl.task)}): largest task "
+                   f"motion {infl:.1e} per unit defect over {len(q)} configurations")
+        else:
+            u_d = basis.T @ d
+            y = np.einsum("kij,j->ki", meas_xi, d).reshape(-1)
+            est = j_pinv @ y
+            u_hat = est[:n_s]
+            predicted = task_of(basis @ u_hat)  # what the calibrated model predicts on the task
+            unseen = task_of(basis @ (u_d - u_hat))
+            delta_a = np.einsum("kar,kr->ka", ka_pinv, predicted)
+            uncancelled = predicted - np.einsum("kra,ka->kr", task_a, delta_a)
+            total = unseen + uncancelled
+            ref = float(np.max(np.linalg.norm(task_of(d), axis=1)))
+            r_unseen = float(np.max(np.linalg.norm(unseen, axis=1))) / ref
+            r_unc = float(np.max(np.linalg.norm(uncancelled, axis=1))) / ref
+            r_total = float(np.max(np.linalg.norm(total, axis=1))) / ref
+            ev.update({"not_identified_share": r_unseen, "not_cancelled_share": r_unc, "residual_share": r_total})
+            if r_total < _REL:
+                cls = "compensable"
+                why = (f"a calibration from {decl.measurement_kind} identifies it (or the combination that absorbs "
+                       f"it) and the actuators cancel it on {', '.join(decl.task)}: task residual "
+                       f"{r_total:.1e} of its effect at the worst of {len(q)} configurations")
+            else:
+                cls = "accuracy-critical"
+                reasons = []
+                if r_unseen >= _REL:
+                    reasons.append(f"{100 * r_unseen:.0f} % of its task effect is invisible to a calibration from "
+                                   f"{decl.measurement_kind}")
+                if r_unc >= _REL:
+                    reasons.append(f"{100 * r_unc:.0f} % of its task effect is outside what the actuators can "
+                                   "cancel")
+                why = "; ".join(reasons) + f" (worst of {len(q)} configurations)"
+        t = Tolerance("", cls, "direction", statement, {p.name: 1.0}, params, unit[p.name], feature_of(params), words,
+                      why, evidence=ev, direction=d * pscale / pscale[index[p.name]])  # per unit of the parameter
+        if p.verdict == "coupled":
+            t.assembly_ids = [i for i in relation_of.get(p.name, [])]
+        items.append(t)
+
+    # ids, cross references, short reasons, parameter map
+    for i, t in enumerate(items):
+        t.id = f"T{i + 1}"
+        ev = t.evidence
+        if t.kind == "forced":
+            t.summary = "forced by the over-constraint"
+        elif t.kind == "relation":
+            t.summary = "coupled: only this combination is admissible"
+        elif t.cls == "non-influent":
+            t.summary = "moves no task component"
+        elif t.cls == "compensable":
+            t.summary = f"calibrated and cancelled (residual {ev['residual_share']:.0e})"
+        else:
+            parts = []
+            if ev["not_identified_share"] >= _REL:
+                parts.append(f"{100 * ev['not_identified_share']:.0f} % unseen by calibration")
+            if ev["not_cancelled_share"] >= _REL:
+                parts.append(f"{100 * ev['not_cancelled_share']:.0f} % not cancellable")
+            t.summary = "; ".join(parts)
+    for t in items:
+        if t.assembly_ids:
+            ids = [items[i].id for i in t.assembly_ids]
+            t.assembly_ids = ids
+            t.why += "; also bound by the assembly condition " + ", ".join(ids)
+            t.summary += "; relation " + ", ".join(ids)
+    params: dict = {}
+    for t in items:
+        if t.kind == "direction":
+            for n in t.parameters:
+                params[n] = {"class": t.cls, "tolerance_id": t.id, "tolerance_ids": [t.id]}
+    for t in items:
+        if t.kind != "direction":
+            for n in t.parameters:
+                entry = params.get(n)
+                if entry is None or entry["class"] != "assembly":
+                    params[n] = {"class": "assembly", "tolerance_id": t.id,
+                                 "tolerance_ids": [t.id] + ([] if entry is None else entry["tolerance_ids"])}
+                elif t.id not in entry["tolerance_ids"]:
+                    entry["tolerance_ids"].append(t.id)
+    for n in names:
+        if n in normal:
+            params[n] = {"class": "normalisation", "tolerance_id": None, "tolerance_ids": []}
+        elif n not in params:  # a redundant shift whose equivalent is not a tolerance of its own
+            eq = redundant.get(n, {}).get("equivalent")
+            src = params.get(eq)
+            params[n] = dict(src) if src else {"class": "non-influent", "tolerance_id": None, "tolerance_ids": []}
+        if n in redundant:
+            params[n]["equivalent"] = redundant[n]["equivalent"]
+        if n in verdict:
+            params[n]["verdict"] = verdict[n].verdict
+    params = {n: params[n] for n in names}
+    appendix = [{"name": n, "element": where[n][0], "why": why} for n, why in normal.items()]
+    red = {g: {"equivalent": r["equivalent"], "coefficients": r["coefficients"], "why": r["why"]}
+           for g, r in redundant.items()}
+    cal = _calibration_residual(decl, j_m, task_xi @ basis, n_s, n_rot, ls, len(q), decl.poses)
+    cal.update({"smallest_singular_value": float(sv[-1]) if sv.size else None, "measurements": decl.measurement_kind,
+                "unknowns": int(j_m.shape[1])})
+    return Classification(m.name, items, params, appendix, red, decl, int(len(q)), warns, cal)
+
+
+def _measurement_maps(decl: Declaration, st, k_xi: np.ndarray, ls: float, pscale: np.ndarray):
+    """Measured rows per dimensionless defect and the nuisance columns (tracker frame, target offsets).
+
+    Positions of every target ``t`` (output frame) move by ``v + omega x R t``; a tracker
+    frame error ``(omega0, v0)`` (when the declaration says the frame is ``unknown``) moves
+    a measured point ``p`` by ``omega0 x p + v0``; a target offset error ``dt`` (offsets
+    ``unknown``) by ``R dt``.  Rows are dimensionless (mm / length scale,
+    rad).
+    """
+    pose = st.output_pose
+    k = pose.shape[0]
+    rows, nuis = [], []
+    n_t = len(decl.targets_mm)
+    for ti, t in enumerate(decl.targets_mm):
+        arm = pose[:, :3, :3] @ np.asarray(t, float)  # (K, 3)
+        p = pose[:, :3, 3] + arm
+        moved = k_xi[:, 3:] - _skew(arm) @ k_xi[:, :3]  # v + omega x arm
+        rows.append(moved / ls * pscale[None, None, :])
+        cols = np.zeros((k, 3, 6 + 3 * n_t))
+        cols[:, :, :3] = -_skew(p / ls)
+        cols[:, :, 3:6] = np.eye(3)
+        cols[:, :, 6 + 3 * ti: 9 + 3 * ti] = pose[:, :3, :3]
+        nuis.append(cols)
+    if decl.measurement_kind == "poses":
+        rows.append(k_xi[:, :3] * pscale[None, None, :])
+        cols = np.zeros((k, 3, 6 + 3 * n_t))
+        cols[:, :, :3] = np.eye(3)
+        nuis.append(cols)
+    nuis = np.concatenate(nuis, axis=1)
+    keep = np.ones(nuis.shape[2], dtype=bool)
+    if decl.frame == "registered":  # the tracker frame is known
+        keep[:6] = False
+    if decl.offsets == "known":  # the targets sit at known offsets
+        keep[6:] = False
+    nuis = nuis[:, :, keep]
+    return np.concatenate(rows, axis=1), nuis
+
+
+def _calibration_residual(decl: Declaration, j_m: np.ndarray, task_u: np.ndarray, n_s: int, n_rot: int, ls: float,
+                          n_cfg: int, poses: int = 60) -> dict:
+    """Task error left by calibration noise: 3 sigma, worst configuration (mm, rad).
+
+    The identified admissible coordinates have covariance ``(J^T W J)^+`` (``W``: inverse
+    noise variances of the declared measurements, the design repeated to ``poses``
+    poses); the task error's covariance follows through the task rows.
+    """
+    if not j_m.size or not n_s:
+        return {"position_mm": 0.0, "orientation_rad": 0.0, "poses": poses, "noise_mm": decl.noise_mm}
+    per_pose = j_m.shape[0] // n_cfg
+    n_pos = 3 * len(decl.targets_mm)
+    sigma = np.r_[np.full(n_pos, decl.noise_mm / ls), np.full(per_pose - n_pos, decl.noise_rad)]
+    w = np.tile(1.0 / sigma**2, n_cfg) * (poses / n_cfg)
+    cov = np.linalg.pinv(j_m.T @ (j_m * w[:, None]), rcond=1e-10)[:n_s, :n_s]
+    tc = task_u @ cov @ np.swapaxes(task_u, 1, 2)  # (K, r, r)
+    out = {"poses": poses, "noise_mm": decl.noise_mm, "noise_rad": decl.noise_rad}
+    r = tc.shape[1]
+    pos = tc[:, n_rot:, n_rot:] * ls**2
+    rot = tc[:, :n_rot, :n_rot]
+    out["position_mm"] = float(3 * np.sqrt(max(float(np.max(np.linalg.eigvalsh(pos))), 0.0))) if r > n_rot else 0.0
+    out["orientation_rad"] = float(3 * np.sqrt(max(float(np.max(np.linalg.eigvalsh(rot))), 0.0))) if n_rot else 0.0
+    return out
+
+
+def _skew(p: np.ndarray) -> np.ndarray:
+    out = np.zeros(p.shape[:-1] + (3, 3))
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -z, y, -x
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = z, -y, x
+    return out

@@ -1,0 +1,258 @@
+"""What a template declares for tolerancing: task components, measurements, spec, joint clearances.
+
+Units: lengths in mm, angles in rad.
+
+A template (``TOLERANCING`` at module level, passed through by
+:func:`hyperstat.cad_plugin.templates.build_template`) or a model file (optional field
+``tolerancing``, see ``docs/model-format.md``) declares
+
+* ``task``: the pose components the machine's task uses, from :data:`TASK_COMPONENTS`
+  (e.g. ``["position", "tool-axis"]`` for a 5-axis machine tool: the rotation about the
+  spindle does not matter; ``["position"]`` for a translational manipulator;
+  ``["x"]`` for a slider whose task is its stroke);
+* ``measurements``: what a calibration measures, ``{"kind": "positions" | "poses",
+  "targets_mm": [[x, y, z], ...] (in the output frame), "noise_mm": sigma,
+  "noise_rad": sigma, "frame": "registered" | "unknown"}`` (``registered``, the default: the
+  tracker frame is measured on references of the base, as a calibration campaign does
+  before measuring poses; ``unknown``: it is identified with the defects) and
+  ``"offsets": "known" | "unknown"`` (``known``, the default: the targets sit in nests at
+  known offsets from the output frame; ``unknown``: their offsets are identified too) and
+  ``"poses"`` (number of calibration poses, default 60);
+* ``spec``: the required accuracy over the workspace, ``{"position_mm": ...,
+  "orientation_rad": ...}`` (``hyperstat accuracy --position-accuracy`` and
+  ``--orientation-accuracy`` override it);
+* ``clearances``: per joint kind (``"R"``, ``"P"``) and optionally per joint name
+  (``"joints": {"21": {...}}``), ``{"radial_mm", "axial_mm", "tilt_rad", "twist_rad",
+  "source"}``.
+
+Defaults (:data:`DEFAULT_CLEARANCES`) are plain-bearing fits: ISO 286-2 H7/g6 on a
+20 mm diameter (hole 0/+21 um, shaft -7/-20 um: diametral clearance 7 to 41 um, so a
+radial play of at most 20.5 um) and an engagement length of 20 mm (revolute) or 40 mm
+(prismatic guide) for the tilt the play allows (diametral clearance / length).
+Revolutes are taken as axially located by shoulders (no axial play) unless declared.
+
+>>> from hyperstat.solver.tolerances.declaration import parse_declaration
+>>> parse_declaration({"task": ["position"]}, "demo").task
+('position',)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hyperstat.solver.errors import ModelError
+
+__all__ = ["TASK_COMPONENTS", "DEFAULT_CLEARANCES", "DEFAULT_SPEC", "Declaration", "parse_declaration",
+           "declaration_of", "task_rows"]
+
+#: task component -> meaning
+TASK_COMPONENTS = {
+    "position": "position of the output point (3 components)",
+    "orientation": "orientation of the output frame (3 components)",
+    "tool-axis": "direction of the output frame's z axis (2 components: the rotation about it does not matter)",
+    "x": "position along the base x axis", "y": "position along the base y axis",
+    "z": "position along the base z axis",
+    "rx": "rotation about the base x axis", "ry": "rotation about the base y axis",
+    "rz": "rotation about the base z axis",
+}
+
+_ISO286 = ("ISO 286-2 fit H7/g6 on a 20 mm diameter: diametral clearance 7 to 41 um, radial play up to "
+           "20.5 um; tilt = 41 um / engagement length")
+DEFAULT_CLEARANCES = {
+    "R": {"radial_mm": 0.0205, "axial_mm": 0.0, "tilt_rad": 0.041 / 20.0, "twist_rad": 0.0,
+          "source": _ISO286 + " (20 mm); axially located by shoulders (no axial play)"},
+    "P": {"radial_mm": 0.0205, "axial_mm": 0.0, "tilt_rad": 0.041 / 40.0, "twist_rad": 0.041 / 40.0,
+          "source": _ISO286 + " (40 mm guide); the twist about the guide as its tilt"},
+}
+DEFAULT_SPEC = {"position_mm": 0.05, "orientation_rad": 5e-4}
+_CLEARANCE_KEYS = ("radial_mm", "axial_mm", "tilt_rad", "twist_rad")
+
+
+@dataclass(frozen=True)
+class Declaration:
+    """A mechanism's tolerancing declaration (see the module docstring); ``declared`` lists what was given."""
+
+    task: tuple = ("position", "orientation")
+    measurement_kind: str = "positions"
+    targets_mm: tuple = ((0.0, 0.0, 0.0),)
+    noise_mm: float = 0.005
+    noise_rad: float = 5e-6
+    frame: str = "registered"
+    offsets: str = "known"
+    poses: int = 60
+    position_mm: float | None = DEFAULT_SPEC["position_mm"]
+    orientation_rad: float | None = DEFAULT_SPEC["orientation_rad"]
+    clearances: dict = field(default_factory=dict)
+    declared: tuple = ()
+
+    def clearance(self, joint_name: str, joint_type: str) -> dict:
+        """Clearance of one joint: its own entry, else its kind's, else the default (with the source)."""
+        own = self.clearances.get("joints", {}).get(joint_name)
+        if own is not None:
+            base = dict(self.clearances.get(joint_type, DEFAULT_CLEARANCES[joint_type]))
+            base.update(own)
+            base.setdefault("source", f"declared for joint {joint_name}")
+            return base
+        if joint_type in self.clearances:
+            out = dict(DEFAULT_CLEARANCES[joint_type])
+            out.update(self.clearances[joint_type])
+            if "source" not in self.clearances[joint_type]:
+                out["source"] = f"declared by the template for {joint_type} joints"
+            return out
+        return dict(DEFAULT_CLEARANCES[joint_type])
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (the model file's ``tolerancing`` field)."""
+        return {"task": list(self.task),
+                "measurements": {"kind": self.measurement_kind, "targets_mm": [list(t) for t in self.targets_mm],
+                                 "noise_mm": self.noise_mm, "noise_rad": self.noise_rad, "frame": self.frame,
+                                 "offsets": self.offsets, "poses": self.poses},
+                "spec": {"position_mm": self.position_mm, "orientation_rad": self.orientation_rad},
+                "clearances": {"R": self.clearance("", "R") if "R" in self.clearances else DEFAULT_CLEARANCES["R"],
+                               "P": self.clearance("", "P") if "P" in self.clearances else DEFAULT_CLEARANCES["P"],
+                               "joints": dict(self.clearances.get("joints", {}))},
+                "declared": list(self.declared)}
+
+
+def _number(value, where: str, positive: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{where} must be a number, got {value!r}.") from None
+    if not np.isfinite(v) or v < 0 or (positive and v == 0):
+        raise ModelError(f"{where} must be a {'positive' if positive else 'non-negative'} number, got {value!r}.")
+    return v
+
+
+def parse_declaration(doc: dict | None, source: str = "model") -> Declaration:
+    """Check and complete a declaration; errors name ``source`` and the field.
+
+    Raises
+    ------
+    ModelError
+        On an unknown task component, measurement kind or clearance key, or a bad number.
+    """
+    doc = dict(doc or {})
+    declared = tuple(k for k in ("task", "measurements", "spec", "clearances") if k in doc)
+    unknown = [k for k in doc if k not in ("task", "measurements", "spec", "clearances", "declared")]
+    if unknown:
+        raise ModelError(f"{source}: tolerancing field '{unknown[0]}' is not part of the format "
+                         "(task, measurements, spec, clearances).")
+    kw: dict = {"declared": declared}
+    if "task" in doc:
+        task = doc["task"]
+        if isinstance(task, str) or not task:
+            raise ModelError(f"{source}: tolerancing.task must be a non-empty list of components "
+                             f"({', '.join(TASK_COMPONENTS)}).")
+        for t in task:
+            if t not in TASK_COMPONENTS:
+                raise ModelError(f"{source}: tolerancing.task component '{t}' is unknown; use "
+                                 f"{', '.join(TASK_COMPONENTS)}.")
+        kw["task"] = tuple(task)
+    meas = doc.get("measurements") or {}
+    if meas:
+        kind = meas.get("kind", "positions")
+        if kind not in ("positions", "poses"):
+            raise ModelError(f"{source}: tolerancing.measurements.kind must be 'positions' or 'poses', got {kind!r}.")
+        kw["measurement_kind"] = kind
+        if "targets_mm" in meas:
+            targets = np.asarray(meas["targets_mm"], dtype=float)
+            if targets.ndim != 2 or targets.shape[1] != 3 or not len(targets):
+                raise ModelError(f"{source}: tolerancing.measurements.targets_mm must be a list of [x, y, z] (mm).")
+            kw["targets_mm"] = tuple(tuple(float(v) for v in t) for t in targets)
+        frame = meas.get("frame", "registered")
+        if frame not in ("registered", "unknown"):
+            raise ModelError(f"{source}: tolerancing.measurements.frame must be 'registered' or 'unknown', got {frame!r}.")
+        kw["frame"] = frame
+        offsets = meas.get("offsets", "known")
+        if offsets not in ("known", "unknown"):
+            raise ModelError(f"{source}: tolerancing.measurements.offsets must be 'known' or 'unknown', got {offsets!r}.")
+        kw["offsets"] = offsets
+        if "poses" in meas:
+            poses = meas["poses"]
+            if not isinstance(poses, int) or isinstance(poses, bool) or poses < 1:
+                raise ModelError(f"{source}: tolerancing.measurements.poses must be a positive integer, got {poses!r}.")
+            kw["poses"] = poses
+        for key in ("noise_mm", "noise_rad"):
+            if key in meas:
+                kw[key] = _number(meas[key], f"{source}: tolerancing.measurements.{key}")
+    spec = doc.get("spec") or {}
+    for key in ("position_mm", "orientation_rad"):
+        if key in spec:
+            kw[key] = None if spec[key] is None else _number(spec[key], f"{source}: tolerancing.spec.{key}", True)
+    clear = doc.get("clearances") or {}
+    out_clear: dict = {}
+    for kind, entry in clear.items():
+        if kind == "joints":
+            out_clear["joints"] = {str(j): _clearance_entry(e, f"{source}: tolerancing.clearances.joints.{j}")
+                                   for j, e in dict(entry).items()}
+        elif kind in ("R", "P"):
+            out_clear[kind] = _clearance_entry(entry, f"{source}: tolerancing.clearances.{kind}")
+        else:
+            raise ModelError(f"{source}: tolerancing.clearances key '{kind}' must be 'R', 'P' or 'joints'.")
+    kw["clearances"] = out_clear
+    return Declaration(**kw)
+
+
+def _clearance_entry(entry, where: str) -> dict:
+    if not isinstance(entry, dict):
+        raise ModelError(f"{where} must be an object with {', '.join(_CLEARANCE_KEYS)} and source.")
+    out = {}
+    for k, v in entry.items():
+        if k == "source":
+            out[k] = str(v)
+        elif k in _CLEARANCE_KEYS:
+            out[k] = _number(v, f"{where}.{k}")
+        else:
+            raise ModelError(f"{where}: key '{k}' is unknown; use {', '.join(_CLEARANCE_KEYS)} and source.")
+    return out
+
+
+def declaration_of(mechanism) -> Declaration:
+    """The declaration a mechanism carries (``metadata["tolerancing"]``), defaults otherwise."""
+    return parse_declaration(mechanism.metadata.get("tolerancing"), mechanism.name)
+
+
+def task_rows(task: tuple, output_pose: np.ndarray) -> np.ndarray:
+    """Selection rows of the task components applied to output twists ``(omega, v)``.
+
+    Parameters
+    ----------
+    task : tuple of str
+        Components from :data:`TASK_COMPONENTS`.
+    output_pose : ndarray, (K, 4, 4)
+        Output frame per configuration (the tool axis is its z column).
+
+    Returns
+    -------
+    ndarray, (K, r, 6)
+        Rows selecting the task components; ``r`` counts them (``tool-axis`` gives the two
+        rotations perpendicular to the output z axis).  Rotation rows come first.
+    """
+    k = output_pose.shape[0]
+    rot, pos = [], []
+    eye = np.eye(3)
+    for t in task:
+        if t == "orientation":
+            rot += [np.broadcast_to(eye[i], (k, 3)) for i in range(3)]
+        elif t == "tool-axis":
+            rot += [output_pose[:, :3, 0], output_pose[:, :3, 1]]
+        elif t in ("rx", "ry", "rz"):
+            rot.append(np.broadcast_to(eye["xyz".index(t[1])], (k, 3)))
+        elif t == "position":
+            pos += [np.broadcast_to(eye[i], (k, 3)) for i in range(3)]
+        else:
+            pos.append(np.broadcast_to(eye["xyz".index(t)], (k, 3)))
+    rows = np.zeros((k, len(rot) + len(pos), 6))
+    for i, r in enumerate(rot):
+        rows[:, i, :3] = r
+    for i, r in enumerate(pos):
+        rows[:, len(rot) + i, 3:] = r
+    return rows
+
+
+def n_rotation_rows(task: tuple) -> int:
+    """Number of rotation rows :func:`task_rows` puts first."""
+    return sum(3 if t == "orientation" else 2 if t == "tool-axis" else 1 if t.startswith("r") else 0 for t in task)

@@ -1,0 +1,51 @@
+"""One vocabulary, equal counts: analyze, report and accuracy give every template the same tolerances.
+
+Units: mm and rad.  Each output is produced by its own command, as a user runs it, and read back
+from the files it writes.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from hyperstat.cad_plugin.cli import main
+from hyperstat.cad_plugin.templates import list_templates
+from hyperstat.solver.tolerances.classification import CLASSES
+
+TEMPLATES = list_templates()
+
+
+@pytest.mark.parametrize("template", TEMPLATES, ids=[t.stem for t in TEMPLATES])
+def test_counts_and_classes_are_equal_across_outputs(template, tmp_path):
+    a, b, rep = tmp_path / "a.json", tmp_path / "b.json", tmp_path / "rep"
+    assert main(["analyze", str(template), "--json", str(a), "--quiet"]) == 0
+    assert main(["accuracy", str(template), "--workspace-configurations", "60", "--json", str(b), "--quiet"]) == 0
+    assert main(["report", str(template), "--out", str(rep), "--quiet"]) == 0
+    analysis = json.loads(a.read_text())["tolerances"]
+    accuracy = json.loads(b.read_text())["tolerances"]
+    report = json.loads((rep / "report.json").read_text())
+    md = (rep / "report.md").read_text()
+    counts = analysis["counts"]
+    assert set(counts) == set(CLASSES)
+    assert accuracy["counts"] == counts
+    assert report["summary"]["tolerance_classes"] == counts == report["tolerances"]["counts"]
+    for cls, n in counts.items():
+        assert f"* {cls}: {n}" in md
+    assert sum(counts.values()) == len(analysis["items"]) > 0
+    # the same statement, class and parameters per tolerance id, and the same class per parameter
+    for out in (accuracy, report["tolerances"]):
+        assert [(t["id"], t["class"], t["statement"]) for t in out["items"]] == \
+               [(t["id"], t["class"], t["statement"]) for t in analysis["items"]]
+        assert {k: v["class"] for k, v in out["parameters"].items()} == \
+               {k: v["class"] for k, v in analysis["parameters"].items()}
+    # assembly values come from the same clearance programme on the same configurations
+    assert {t["id"]: t["value"] for t in accuracy["items"] if t["class"] == "assembly"} == \
+           {t["id"]: t["value"] for t in report["tolerances"]["items"] if t["class"] == "assembly"}
+    # the per-joint table of the report carries the same class for every parameter
+    assert {p["name"]: p["class"] for j in report["joints"] for p in j["parameters"]} == \
+           {k: v["class"] for k, v in analysis["parameters"].items()}
+    # no 'gauge' anywhere in the tolerance vocabulary
+    assert "gauge" not in {v["class"] for v in analysis["parameters"].values()}
+    assert "gauge" not in md.split("## Defects per joint")[0]
