@@ -17,15 +17,16 @@ from hyperstat.solver.errors import HyperstatError
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    from hyperstat.solver.diagnosis.diagnose import diagnose
-    from hyperstat.solver.diagnosis.effects import EFFECT_NAMES
+    from hyperstat.solver.diagnosis.diagnose import diagnose, format_outcome
+    from hyperstat.solver.diagnosis.effects import available_effects
     from hyperstat.solver.export.text import format_diagnosis
     from hyperstat.solver.calibration.measurements import read_measurements
 
-    candidates = tuple(args.effects.split(",")) if args.effects else EFFECT_NAMES
-    unknown = [c for c in candidates if c not in EFFECT_NAMES]
+    known = available_effects()
+    candidates = tuple(args.effects.split(",")) if args.effects else known
+    unknown = [c for c in candidates if c not in known]
     if unknown:
-        raise HyperstatError(f"--effects: unknown effect '{unknown[0]}'; effects are {', '.join(EFFECT_NAMES)}.")
+        raise HyperstatError(f"--effects: unknown effect '{unknown[0]}'; effects are {', '.join(known)}.")
     with stages(args, ["stationarity analysis", "diagnosis", "plots"]) as progress:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = analysis_of(args)
@@ -47,6 +48,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
         sys.stdout.write(format_diagnosis(diag))
+        sys.stdout.write(format_outcome(diag))
         for w in written + ([args.json] if args.json else []):
             sys.stdout.write(f"wrote {w}\n")
     return 0
