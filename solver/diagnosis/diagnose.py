@@ -70,7 +70,7 @@ PRIOR_ANGLE = 1e-3  # rad
 P_THRESHOLD = 1e-3
 OUTCOMES = ("no significant gap", "explained", "partly explained", "unexplained", "understated noise")
 DOMAIN_SIGMAS = 3.0  # an estimate this many std beyond a bound of its domain rejects the candidate
-BLACK_BOX_NOTHING = 0.10  # a black-box regression "explains nothing" below this share of the excess
+BLACK_BOX_NOTHING = 0.05  # a black-box regression "explains nothing" below this share of the residual variance
 
 
 @dataclass
@@ -500,13 +500,18 @@ def _where(mech: Mechanism, rigid: IdentificationResult, data: MeasurementSet, l
 
 
 def _black_box_ceiling(screen: _Screen, data: MeasurementSet) -> float:
-    """CV RMS of the rigid residuals after a ridge quadratic regression on joints and metadata (mm)."""
-    cols = [data.q[:, a] for a in range(data.q.shape[1])]
-    cols += [v for v in data.metadata.values() if np.ptp(v) > 0]
-    x = np.stack(cols, axis=1)
-    x = (x - x.mean(axis=0)) / x.std(axis=0).clip(min=1e-12)
+    """CV RMS of the rigid residuals after a ridge regression on joints (quadratic) and metadata (mm)."""
+    def scaled(v):
+        return (v - v.mean()) / max(float(v.std()), 1e-12)
+
+    x = np.stack([scaled(data.q[:, a]) for a in range(data.q.shape[1])], axis=1)
     feats = [np.ones(len(x))] + [x[:, i] for i in range(x.shape[1])]
     feats += [x[:, i] * x[:, j] for i in range(x.shape[1]) for j in range(i, x.shape[1])]
+    for v in data.metadata.values():  # metadata: linear, and quadratic when not two-valued
+        if np.ptp(v) > 0:
+            feats.append(scaled(v))
+            if len(set(v.tolist())) > 2:
+                feats.append(scaled(v) ** 2)
     f = np.stack(feats, axis=1)
     lams = (1e-1, 1.0, 10.0, 100.0)
     sq = np.zeros(len(lams))
@@ -800,8 +805,10 @@ def diagnose(
     if after_rms is not None and noise is not None and reference**2 > noise**2:
         share = float((reference**2 - after_rms**2) / (reference**2 - noise**2))
     bb = _black_box_ceiling(screen, data)
+    rms_resid = float(np.sqrt(np.mean(np.sum(rigid.residuals**2, axis=1))))
     ceiling = {"cv_rms_rigid": base_cv, "cv_rms_black_box": bb, "cv_rms_selected": current_cv,
-               "method": "ridge quadratic regression of the residuals on joint values and metadata, same folds"}
+               "method": "ridge quadratic regression of the residuals on joint values and metadata, same folds",
+               "black_box_share_of_residual": float(1.0 - bb**2 / rms_resid**2) if rms_resid > 0 else 0.0}
     if noise is not None and base_cv**2 > noise**2:
         ceiling["share_black_box"] = float((base_cv**2 - bb**2) / (base_cv**2 - noise**2))
         ceiling["share_selected"] = float((base_cv**2 - current_cv**2) / (base_cv**2 - noise**2))
@@ -872,7 +879,7 @@ def _verdict(mech, data, validation, significant, test, rigid, final, selected, 
         return "partly explained", verdict
     # nothing selected: structure or noise?
     factor = max(v["noise_factor"] for k, v in test.items() if isinstance(v, dict))
-    bb_share = ceiling.get("share_black_box", 0.0)
+    bb_share = ceiling["black_box_share_of_residual"]
     verdict = {"structure": {k: structure[k] for k in ("best", "structured", "isotropy", "isotropic", "threshold")},
                "black_box_share": bb_share}
     if not structure["structured"] and structure["isotropic"] and bb_share < BLACK_BOX_NOTHING:
@@ -880,8 +887,9 @@ def _verdict(mech, data, validation, significant, test, rigid, final, selected, 
         verdict["evidence"] = (f"the excess (noise factor {factor:.2f}) has no structure: no F-test of "
                                f"{structure['n_tests']} (joint trends, harmonics per revolution and per screw "
                                f"period, metadata) below {structure['threshold']:.1g}, equal variance in x, y, z "
-                               f"(Bartlett p = {structure['isotropy']['p_value']:.2g}), a black-box regression "
-                               f"explains {100 * bb_share:.0f} % of it under cross-validation. A noise of "
+                               f"(Bartlett p = {structure['isotropy']['p_value']:.2g}), a black-box regression on joints and "
+                               f"metadata explains {100 * max(bb_share, 0.0):.0f} % of the residual variance under "
+                               f"cross-validation. A noise of "
                                f"{verdict['noise_consistent']['text']} would make the data consistent.")
         return "understated noise", verdict
     if structure["structured"]:
@@ -894,7 +902,7 @@ def _verdict(mech, data, validation, significant, test, rigid, final, selected, 
                             + f", Bartlett p = {structure['isotropy']['p_value']:.2g})")
     else:
         verdict["where"] = (f"no single joint, frequency or direction; a black-box regression on joints and "
-                            f"metadata explains {100 * bb_share:.0f} % of the excess")
+                            f"metadata explains {100 * bb_share:.0f} % of the residual variance under cross-validation")
     verdict["evidence"] = ("no candidate effect fits (none lowers the cross-validated error by 5 % within its "
                            "physical domain); the residual follows " + verdict["where"])
     return "unexplained", verdict
