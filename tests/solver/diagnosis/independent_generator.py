@@ -307,9 +307,10 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         truth["noise_factor"] = 1.6
     elif case != "none":
         raise ValueError(f"unknown case {case}")
-    # tracker: 3 m away, turned about z
+    # tracker: twice the reach away, turned about a near-vertical axis
+    reach = max(np.linalg.norm(arm.body_frames(qq, nominal=True)[-1][:3, 3]) for qq in q[:20])
     trk_rot = _rot([0.1, 0.2, 1.0], rng.uniform(0, 2 * np.pi))
-    trk_org = np.array([2500.0, -1500.0, -300.0]) + rng.uniform(-100, 100, 3)
+    trk_org = 2.0 * reach * np.array([0.83, -0.5, -0.1]) + rng.uniform(-50, 50, 3)
     pos = np.zeros((n, 3))
     for k in range(n):
         frames = arm.body_frames(q_true[k], scale=scale[k], extra=extra_frames[k])
