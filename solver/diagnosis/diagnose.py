@@ -921,13 +921,15 @@ def _verdict(data, validation, significant, test, final, selected, structure, re
             verdict["noise_consistent"] = _noise_statement(data, factor)
         return "partly explained", verdict
     # nothing selected: structure or noise?
-    factor = max(test[k]["noise_factor"] for k in ("identification", "validation") if k in test)
+    factor = test["identification"]["noise_factor"]  # 3K - rank degrees of freedom: the sharper estimate
     bb_share = ceiling["black_box_share_of_residual"]
     verdict = {"structure": {k: structure[k] for k in ("best", "structured", "isotropy", "isotropic", "threshold",
                                                        "n_tests")},
                "black_box_share": bb_share}
     if not structure["structured"] and structure["isotropic"] and bb_share < BLACK_BOX_NOTHING:
         verdict["noise_consistent"] = _noise_statement(data, factor)
+        if "validation" in test:
+            verdict["noise_consistent"]["factor_validation"] = test["validation"]["noise_factor"]
         verdict["evidence"] = (f"the excess (noise factor {factor:.2f}) has no structure: no F-test of "
                                f"{structure['n_tests']} (joint errors following any joint or metadata column, "
                                f"harmonics per revolution and per screw period, base- and tool-frame trends) below {structure['threshold']:.1g}, equal variance in x, y, z "

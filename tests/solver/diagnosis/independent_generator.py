@@ -39,10 +39,13 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Arm", "IN_LIBRARY", "OUT_OF_LIBRARY", "NOISE_CASES", "campaign", "cases_for", "ARM_6R", "where_words"]
+__all__ = ["Arm", "IN_LIBRARY", "OUT_OF_LIBRARY", "NOISE_CASES", "campaign", "cases_for", "ARM_6R", "SCARA", "MODELS",
+           "where_words"]
 
 HERE = Path(__file__).resolve().parent
 ARM_6R = HERE / "data" / "arm_6r.skel.json"
+SCARA = HERE / "data" / "scara.skel.json"  # the SCARA template at its defaults, link masses declared
+MODELS = {"arm_6r": ARM_6R, "scara": SCARA}
 G = np.array([0.0, 0.0, -9.81])  # m/s^2, base -z
 IN_LIBRARY = ("angle-scale", "angle-harmonic-1", "angle-harmonic-2", "compliance", "backlash", "backlash-gravity",
               "thermal")
@@ -195,62 +198,41 @@ def where_words(arm_name: str, case: str, truth: dict) -> list[str]:
     return []
 
 
-def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30) -> tuple[str, str, dict]:
-    """Identification and validation measurement files (CSV text) of one simulated campaign.
+def _apply(case, arm, q, q_true, extra_frames, scale, tool_growth, temp, payload, dirs, target, rng, info):
+    """Add one effect to the true joint values / frames / scale / tool growth (in place); returns ``info``.
 
-    Returns
-    -------
-    id_text, val_text : str
-        Measurement files (``# noise: 0.005 mm + 0.005 mm/m`` stated).
-    truth : dict
-        The case, its parameters, the joint it acts on, the true noise factor.
+    The joint an effect acts on is the second revolute (the shoulder of the 6R, the elbow
+    of the SCARA), the most influential.
     """
-    rng = np.random.default_rng(7919 * seed + sum(map(ord, case)))
-    arm = Arm(model, rng)
-    n = n_id + n_val
-    q = arm.random_poses(n, rng)
-    nj = len(arm.joints)
+    n, nj = q.shape
     names = [e.name for e in arm.joints]
-    t = np.arange(n) * 60.0
-    temp = 18.0 + 8.0 * t / t[-1] + rng.normal(0, 0.3, n)
-    payload = rng.choice([0.0, 10.0, 25.0], n)
-    dirs = rng.choice([-1.0, 1.0], (n, nj))
-    session = np.where(np.arange(n) < n // 2, 1.0, 2.0)
-    target = np.array([12.0, -8.0, -25.0])
     revolute = [j for j, e in enumerate(arm.joints) if e.type == "R"]
     prismatic = [j for j, e in enumerate(arm.joints) if e.type == "P"]
-    # the joint an effect acts on: the most loaded / most influential revolute
     main = 1 if len(revolute) > 1 else revolute[0]
-    truth = {"case": case, "noise_factor": 1.0}
     sign = rng.choice([-1.0, 1.0])
     size = rng.uniform(0.7, 1.0)
-    compliance = None
-    q_true = q.copy()
-    extra_frames = [None] * n
-    tool_growth = np.zeros(n)
-    scale = np.ones(n)
     if case == "angle-scale":
         s = sign * 1e-4 * size
-        q_true[:, main] = (1.0 + s) * q[:, main]
-        truth.update(joint=names[main], value=s)
+        q_true[:, main] += s * q[:, main]
+        info.update(joint=names[main], value=s)
     elif case in ("angle-harmonic-1", "angle-harmonic-2", "angle-harmonic-3"):
         h = int(case[-1])
         amp, phase = 1e-4 * size, rng.uniform(0, 2 * np.pi)
-        q_true[:, main] = q[:, main] + amp * np.sin(h * q[:, main] + phase)
-        truth.update(joint=names[main], value=amp, cycles=h)
+        q_true[:, main] += amp * np.sin(h * q[:, main] + phase)
+        info.update(joint=names[main], value=amp, cycles=h)
     elif case in ("compliance", "backlash-gravity", "link-bending"):
         tau = np.array([arm.gravity_torques(q[k], payload[k], target) for k in range(n)])
         if case == "compliance":
             # stiffness per joint: 2e6 N m/rad on revolutes (5e-10 rad/(N mm)), 5 N/um on the quill
             compliance = np.array([5e-10 * size if e.type == "R" else 2e-4 * size for e in arm.joints])
-            q_true = q + tau * compliance
-            truth.update(value=compliance.tolist(), joint=names[int(np.argmax(np.abs(tau * compliance).max(0)))])
+            q_true += tau * compliance
+            info.update(value=compliance.tolist(), joint=names[int(np.argmax(np.abs(tau * compliance).max(0)))])
         elif case == "backlash-gravity":
             beta = np.array([3e-4 * size if e.type == "R" else 0.04 * size for e in arm.joints])
             scale_tau = np.abs(tau).max(axis=0, keepdims=True) + 1e-300
             side = np.where(np.abs(tau) > 1e-6 * scale_tau, np.sign(tau), 0.0)
-            q_true = q + 0.5 * beta * side
-            truth.update(value=beta.tolist(), joint=names[main])
+            q_true += 0.5 * beta * side
+            info.update(value=beta.tolist(), joint=names[main])
         else:
             # the link after joint ``main`` bends under the weight it carries (cantilever, isotropic
             # section): end slope = c M_perp (M the moment of the weights beyond its root, M_perp its
@@ -276,7 +258,7 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
                 bend[:3, :3] = _rot(th_l, float(np.linalg.norm(th_l)))
                 bend[:3, 3] = (2.0 / 3.0) * length * np.cross(th_l, u_l)
                 extra_frames[k] = {link: bend}
-            truth.update(joint=names[main], joints=[names[main], names[min(main + 1, nj - 1)]], value=c_bend)
+            info.update(joint=names[main], joints=[names[main], names[min(main + 1, nj - 1)]], value=c_bend)
     elif case == "backlash":
         beta = np.array([3e-4 * size if e.type == "R" else 0.04 * size for e in arm.joints])
         for k in range(n):
@@ -287,26 +269,58 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
                 load = motor + rng.uniform(-0.5, 0.5) * beta[j]
                 for m_pos in np.linspace(motor, q[k, j], 20):
                     load = min(max(load, m_pos - beta[j] / 2), m_pos + beta[j] / 2)
-                q_true[k, j] = load
-        truth.update(value=beta.tolist(), joint=names[main])
+                q_true[k, j] += load - q[k, j]
+        info.update(value=beta.tolist(), joint=names[main])
     elif case == "thermal":
         alpha = 1.2e-5 * size  # steel
-        scale = 1.0 + alpha * (temp - 20.0)
-        truth.update(value=alpha)
+        scale *= 1.0 + alpha * (temp - 20.0)
+        info.update(value=alpha)
     elif case == "coupling":
         if prismatic:  # SCARA: the ball-screw spline lifts the quill with the wrist turn
             src, dst, k_c = revolute[-1], prismatic[0], sign * 0.02 * size  # mm per rad
         else:  # 6R: the wrist's joint 5 follows joint 4
             src, dst, k_c = 3, 4, sign * 2e-4 * size  # rad per rad
-        q_true[:, dst] = q[:, dst] + k_c * q[:, src]
-        truth.update(joint=names[dst], source=names[src], value=k_c)
+        q_true[:, dst] += k_c * q[:, src]
+        info.update(joint=names[dst], source=names[src], value=k_c)
     elif case == "tool-thermal":
-        tool_growth = 6e-3 * size * (temp - 18.0)  # mm: 6 um/degC of the heated tool holder
-        truth.update(value=6e-3 * size)
+        tool_growth += 6e-3 * size * (temp - 18.0)  # mm: 6 um/degC of the heated tool holder
+        info.update(value=6e-3 * size)
     elif case == "understated-noise":
-        truth["noise_factor"] = 1.6
+        info["noise_factor"] = 1.6
     elif case != "none":
         raise ValueError(f"unknown case {case}")
+    return info
+
+
+def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30) -> tuple[str, str, dict]:
+    """Identification and validation measurement files (CSV text) of one simulated campaign.
+
+    Returns
+    -------
+    id_text, val_text : str
+        Measurement files (``# noise: 0.005 mm + 0.005 mm/m`` stated).
+    truth : dict
+        The case, its parameters, the joint it acts on, the true noise factor.
+    """
+    rng = np.random.default_rng(7919 * seed + sum(map(ord, case)))
+    arm = Arm(model, rng)
+    n = n_id + n_val
+    q = arm.random_poses(n, rng)
+    nj = len(arm.joints)
+    names = [e.name for e in arm.joints]
+    t = np.arange(n) * 60.0
+    temp = 18.0 + 8.0 * t / t[-1] + rng.normal(0, 0.3, n)
+    payload = rng.choice([0.0, 10.0, 25.0], n)
+    dirs = rng.choice([-1.0, 1.0], (n, nj))
+    session = np.where(np.arange(n) < n // 2, 1.0, 2.0)
+    target = np.array([12.0, -8.0, -25.0])
+    truth = {"case": case, "noise_factor": 1.0}
+    q_true = q.copy()
+    extra_frames = [None] * n
+    tool_growth = np.zeros(n)
+    scale = np.ones(n)
+    for part in case.split("+"):
+        _apply(part, arm, q, q_true, extra_frames, scale, tool_growth, temp, payload, dirs, target, rng, truth)
     # tracker: twice the reach away, turned about a near-vertical axis
     reach = max(np.linalg.norm(arm.body_frames(qq, nominal=True)[-1][:3, 3]) for qq in q[:20])
     trk_rot = _rot([0.1, 0.2, 1.0], rng.uniform(0, 2 * np.pi))
