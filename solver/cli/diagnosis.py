@@ -27,15 +27,16 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     unknown = [c for c in candidates if c not in known]
     if unknown:
         raise HyperstatError(f"--effects: unknown effect '{unknown[0]}'; effects are {', '.join(known)}.")
-    with stages(args, ["stationarity analysis", "diagnosis", "plots"]) as progress:
+    steps = ["rigid fit", "where", "candidates", "selection", "nonlinear fit", "verdict"]
+    with stages(args, ["stationarity analysis"] + steps + ["plots"]) as progress:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = analysis_of(args)
         data = read_measurements(args.data, mech)
         validation = read_measurements(args.validation, mech) if args.validation else None
-        progress.next("diagnosis")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            diag = diagnose(mech, result, data, validation, candidates=candidates, kinematics=kin)
+            diag = diagnose(mech, result, data, validation, candidates=candidates, kinematics=kin,
+                            progress=progress.next)
         progress.next("plots")
         written = []
         if args.plots:

@@ -897,6 +897,10 @@ def _verdict(data, validation, significant, test, final, selected, structure, re
                                                if k in after) + f" (threshold {after['threshold']:.1g}), and no "
                                    f"structure is left in the residuals (smallest of {rest['n_tests']} F-test "
                                    f"p-values {rest['best']['p_value']:.2g}, threshold {rest['threshold']:.1g})")
+            notes = [f"{e.name} stands for {e.also_explains}" for e in final.model.effects if e.also_explains]
+            if notes:
+                verdict["same_signature"] = notes
+                verdict["evidence"] += "; " + "; ".join(notes)
             return "explained", verdict
         remaining = None
         if val is not None and noise is not None:

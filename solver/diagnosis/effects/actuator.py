@@ -305,6 +305,8 @@ class Compliance(Effect):
     name = "compliance"
     requires = ()  # the 'payload[kg]' column adds to the moving mass when present
     domain_note = "a compliance is never negative, and 100x the realistic one is a broken joint"
+    also_explains = ("any elastic deformation under gravity whose load is the joints' gravity torque: the virtual "
+                     "joints lump link bending into joint stiffness")
 
     def __init__(self, mechanism, magnitude_mm: float = 1e-4, magnitude_rad: float = 2e-9) -> None:
         acts = _actuators(mechanism)

@@ -41,6 +41,8 @@ class Effect:
     requires: tuple = ()
     #: why the domain is what it is (printed when a candidate is rejected)
     domain_note = "no physical bound"
+    #: other physical causes with the same signature (printed with an "explained" answer)
+    also_explains = ""
 
     def __init__(self, names: list[str], units: list[str], magnitude: np.ndarray, lower=None, upper=None,
                  plausible=None) -> None:
