@@ -128,7 +128,9 @@ def run_case(mechanism, analysis, kin, case: tuple, seed: int, violated: str | N
     val = vm.measure(q[n_id:], seed=seed + 30, prefix="V", metadata={k: v[n_id:] for k, v in meta.items()})
     t0 = time.perf_counter()
     d = diagnose(mechanism, analysis, data, val, kinematics=kin)
-    first = d.ranking[0]["effect"] if d.ranking else None
+    # the effect the diagnosis names: the first selected, else the best candidate it did not refuse
+    fits = [e["effect"] for e in d.ranking if not e.get("note") and not e.get("rejected")]
+    first = d.selected[0] if d.selected else (fits[0] if fits else None)
     if not case:
         correct = not d.gap_significant
     elif len(case) == 1 and case[0] in ABSORBED:
