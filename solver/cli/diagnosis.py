@@ -85,9 +85,10 @@ def _cmd_validate_diagnosis(args: argparse.Namespace) -> int:
                                 f"{'+'.join(getattr(r, 'truth', ())) or getattr(r, 'case', 'none')}: "
                                 f"{r.outcome}", refresh=False)
 
-    command = "hyperstat validate-diagnosis " + " ".join(args.sources) + (
-        f" --seeds {args.seeds}" if args.sources else "") + (f" --independent {args.independent}"
-                                                             if args.independent else "")
+    words = ["hyperstat validate-diagnosis", *args.sources] + (["--seeds", str(args.seeds)] if args.sources else [])
+    words += ["--independent", str(args.independent)] if args.independent else []
+    words += ["--cases", args.cases] if args.cases else []
+    command = " ".join(words)
     doc = {"command": command}
     text = []
     with warnings.catch_warnings():

@@ -201,3 +201,27 @@ class ThreePerRev(Effect):
     assert "three-per-rev" in available_effects()
     d, _, _, _ = _diagnose(arm_model, gen.ARM_6R, "angle-harmonic-3")
     assert d.selected == ["three-per-rev"] and d.outcome == "explained"
+
+
+def test_validate_diagnosis_runs_the_independent_generator(tmp_path):
+    """``hyperstat validate-diagnosis --independent 1 --cases ...``: rates of the independent generator, apart."""
+    import json
+
+    from hyperstat.cad_plugin.cli import main
+
+    md, js = tmp_path / "rates.md", tmp_path / "rates.json"
+    assert main(["validate-diagnosis", "--independent", "1", "--cases", "none,understated-noise",
+                 "--markdown", str(md), "--json", str(js), "--quiet"]) == 0
+    doc = json.loads(js.read_text())
+    s = doc["independent_summary"]
+    assert s["cases"] == 4 and s["false_alarm_n"] == 2 and s["understated_noise_n"] == 2
+    assert [c["outcome"] for c in doc["independent_cases"] if c["case"] == "none"] == ["no significant gap"] * 2
+    assert "### The independent generator" in md.read_text()
+    assert "--independent 1" in doc["command"]
+
+
+def test_validate_diagnosis_needs_something_to_run(capsys):
+    from hyperstat.cad_plugin.cli import main
+
+    assert main(["validate-diagnosis"]) == 2
+    assert "--independent" in capsys.readouterr().err
