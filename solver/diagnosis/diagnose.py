@@ -319,7 +319,8 @@ def _effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effe
 
 
 def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w: np.ndarray, basis: np.ndarray,
-                    r_trk: np.ndarray, act_jac: np.ndarray, target_jac: np.ndarray | None = None) -> dict:
+                    r_trk: np.ndarray, act_jac: np.ndarray, target_jac: np.ndarray | None = None,
+                    candidates: dict | None = None) -> dict:
     """Does the residual field have structure?  F-tests of regressions the fit cannot absorb, and isotropy.
 
     Three families of regressors, each projected off the fitted columns (``basis``, an
@@ -334,7 +335,10 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
     * **base-frame trends**: a displacement along x, y, z of the base that follows a joint
       value or a metadata column (linear and quadratic);
     * **tool-frame trends**: a displacement along an axis of the output frame that follows
-      a joint value or a metadata column (a tool that grows with the temperature).
+      a joint value or a metadata column (a tool that grows with the temperature);
+    * **candidate signatures**: the columns of each candidate effect (``candidates``), so
+      that a residual an effect fits in sample but cannot predict in held-out blocks is
+      not taken for noise.
 
     Each regression has its F-test against the rest of the residual variance
     (scale-free: it holds whatever the true noise level); the family is judged at
@@ -359,6 +363,8 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
         ``d position / d q_a`` (tracker frame, unweighted).
     target_jac : ndarray, (K, 3, 3), optional
         ``d position / d target offset`` (the output frame's axes in the tracker frame).
+    candidates : dict, optional
+        Effect name -> its columns (K, 3, n_e) (tracker frame, unweighted).
 
     Returns
     -------
@@ -464,6 +470,10 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
             share, f, p, d = ftest(cols)
             tests.append({"family": f"{family} trend", "variable": name, "kind": "trend", "share": share, "F": f,
                           "p_value": p, "direction": d})
+    for name, cols in (candidates or {}).items():
+        share, f, p, d = ftest(cols)
+        tests.append({"family": "candidate signature", "variable": name, "kind": "effect", "share": share, "F": f,
+                      "p_value": p, "direction": d})
     threshold = P_THRESHOLD / max(len(tests), 1)
     n_tests = len(tests)
     tests.sort(key=lambda t: t["p_value"])
@@ -494,7 +504,10 @@ def describe_where(test: dict | None) -> str:
     direction = f"mostly along {axis} of the base frame ({', '.join(f'{v:+.2f}' for v in d)})"
     var = test["variable"]
     follows = f"joint {var[1:]}" if var.startswith("q") else f"the metadata column '{var}'"
-    if test["family"] == "joint error":
+    if test["family"] == "candidate signature":
+        what = (f"the signature of the candidate '{var}' in sample (it does not predict held-out blocks, or its "
+                f"fit is implausible)")
+    elif test["family"] == "joint error":
         if test["kind"] == "periodic" and "cycles_per_revolution" in test:
             c = test["cycles_per_revolution"]
             what = f"an error of joint {test['joint']} at {c:g} cycle{'s' if c != 1 else ''} per revolution of joint {test['joint']}"
@@ -713,17 +726,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     theta_u[: rigid.model.n] = rigid.theta
     act_jac = unit_model.predict(theta_u, data, jacobian=True, q_start=screen.q).jacobian[:, :, rigid.model.n:]
     target_jac = full.jacobian[:, :, rigid.model.sl_target]
-    structure = structure_tests(mechanism, data, rigid.residuals, w, screen.prepared()["qb"], r_trk, act_jac,
-                                target_jac)
-    where = _where(mechanism, rigid, data, schemes[0][1], structure)
     base_cv, base_bic, _, _ = _cv_rms(screen, None, None)
-    # the structure tests are a second, scale-free gap test: under a right model they hold at
-    # 1e-3 whatever the noise, so a structured residual is a gap even below the chi-square's power
-    test["structure"] = {"p_value": structure["best"]["p_value"] if structure["best"] else 1.0,
-                         "threshold": structure["threshold"], "tests": structure["n_tests"]}
-    if structure["structured"] and not significant:
-        significant = True
-        test["significant_by"] = "structure"
 
     step("candidates")
 
@@ -771,6 +774,19 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
             rejected.append({"effect": name, "stage": "screening", "reason": why})
         ranking.append(entry)
     ranking.sort(key=lambda e: (e.get("note") is not None, e["cv_rms"]))
+
+    signatures = {e["effect"]: columns[e["effect"]][0] for e in ranking if not e.get("note")}
+    structure = structure_tests(mechanism, data, rigid.residuals, w, screen.prepared()["qb"], r_trk, act_jac,
+                                target_jac, signatures)
+    where = _where(mechanism, rigid, data, schemes[0][1], structure)
+    # the structure tests are a second, scale-free gap test: under a right model they hold at
+    # 1e-3 whatever the noise, so a structured residual is a gap even below the chi-square's power
+    test["structure"] = {"p_value": structure["best"]["p_value"] if structure["best"] else 1.0,
+                         "threshold": structure["threshold"], "tests": structure["n_tests"]}
+    if structure["structured"] and not significant:
+        significant = True
+        test["significant_by"] = "structure"
+
 
     step("selection")
     selected: list[str] = []
@@ -886,7 +902,10 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         both = np.concatenate([pre["jw"], ew], axis=1)
         basis, _ = np.linalg.qr(both / np.linalg.norm(both, axis=0).clip(min=1e-300))
         r_f, _ = final.model.tracker_pose(final.theta)
-        after_structure = structure_tests(mechanism, data, final.residuals, w, basis, r_f, act_jac, target_jac)
+        others = {e["effect"]: columns[e["effect"]][0] for e in ranking
+                  if not e.get("note") and e["effect"] not in selected}
+        after_structure = structure_tests(mechanism, data, final.residuals, w, basis, r_f, act_jac, target_jac,
+                                          others)
     outcome, verdict = _verdict(data, validation, significant, test, final, selected, structure, after_structure,
                                 ceiling, noise, share)
     return Diagnosis(significant, test, where, ranking, selected, ambiguous, not_applicable, before,
