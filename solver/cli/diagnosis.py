@@ -113,7 +113,7 @@ def _cmd_validate_diagnosis(args: argparse.Namespace) -> int:
         write_text(args.markdown, "\n".join(text))
     if not args.quiet:
         for t in text:
-            sys.stdout.write(t.split("####")[0].split("### Every case")[0])
+            sys.stdout.write(t.split("####")[0])
     return 0
 
 

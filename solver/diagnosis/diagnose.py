@@ -729,10 +729,9 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     base_cv, base_bic, _, _ = _cv_rms(screen, None, None)
 
     step("candidates")
-
     violated = None
     not_applicable = {k: v for k, v in applicable_effects(mechanism, analysis, data).items() if k in candidates}
-    columns, effects_by_name = {}, {}
+    columns = {}
     ranking, rejected = [], []
     for name in candidates:
         if name in not_applicable:
@@ -753,7 +752,6 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         free = _absorbed(screen, jac_e)
         cv, bic, _, est, cov, chi = _cv_rms(screen, jac_e, prior_e, with_cov=True)
         columns[name] = (jac_e, prior_e)
-        effects_by_name[name] = effect
         dof = max(3 * len(data) - rigid.rank - len(prior_e), 1)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None) * max(1.0, chi / dof))
         entry = {"effect": name, "cv_rms": cv, "criterion": bic - base_bic, "criterion_name": "delta BIC",
@@ -786,7 +784,6 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     if structure["structured"] and not significant:
         significant = True
         test["significant_by"] = "structure"
-
 
     step("selection")
     selected: list[str] = []

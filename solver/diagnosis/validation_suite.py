@@ -245,12 +245,12 @@ def to_markdown(results: list[CaseResult], summary: dict, command: str) -> str:
     ]
     for mech, table in summary["confusion"].items():
         said = sorted({s for row in table.values() for s in row})
-        lines += [f"### {mech}: true case (rows) against the diagnosis (columns)", "",
+        lines += [f"#### {mech}: true case (rows) against the diagnosis (columns)", "",
                   "| true \\ diagnosed | " + " | ".join(said) + " |", "|---" * (len(said) + 1) + "|"]
         for true, row in table.items():
             lines.append(f"| {true} | " + " | ".join(str(row.get(s, "")) for s in said) + " |")
         lines.append("")
-    lines += ["### Every case", "",
+    lines += ["#### Every case", "",
               "| mechanism | seed | true | gap | first | selected | val. before (um) | after (um) | noise (um) | "
               "magnitude true / found | time (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
