@@ -20,13 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.diagnosis.diagnose import OUTCOMES as OUTCOMES_ORDER
 from hyperstat.solver.diagnosis.diagnose import diagnose
 from hyperstat.solver.diagnosis.effects import EFFECT_NAMES, applicable_effects, make_effect
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.calibration.virtual import VirtualMachine, workshop_metadata
 
-__all__ = ["CaseResult", "run_suite", "suite_cases", "summarize", "to_markdown", "VIOLATION_MAGNITUDE"]
+__all__ = ["CaseResult", "run_suite", "suite_cases", "summarize", "to_markdown", "VIOLATION_MAGNITUDE", "IndependentCase",
+           "load_independent_generator", "run_independent", "summarize_independent", "independent_markdown"]
 
 VIOLATION_MAGNITUDE = 1e-2  # rad or mm: a grossly violated forced defect (see docs/diagnosis.md)
 PAIRS = (("thermal", "backlash"), ("screw-periodic", "tracker-drift"))
@@ -54,6 +56,7 @@ class CaseResult:
     elapsed: float
     truth_defect: str | None = None
     violated_ambiguous_with: tuple = ()
+    outcome: str = ""
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (mm)."""
@@ -125,7 +128,9 @@ def run_case(mechanism, analysis, kin, case: tuple, seed: int, violated: str | N
     val = vm.measure(q[n_id:], seed=seed + 30, prefix="V", metadata={k: v[n_id:] for k, v in meta.items()})
     t0 = time.perf_counter()
     d = diagnose(mechanism, analysis, data, val, kinematics=kin)
-    first = d.ranking[0]["effect"] if d.ranking else None
+    # the effect the diagnosis names: the first selected, else the best candidate it did not refuse
+    fits = [e["effect"] for e in d.ranking if not e.get("note") and not e.get("rejected")]
+    first = d.selected[0] if d.selected else (fits[0] if fits else None)
     if not case:
         correct = not d.gap_significant
     elif len(case) == 1 and case[0] in ABSORBED:
@@ -146,7 +151,7 @@ def run_case(mechanism, analysis, kin, case: tuple, seed: int, violated: str | N
                       d.rigid.noise_rms, true_mag, found_mag,
                       None if d.violated_defect is None else d.violated_defect["defect"], time.perf_counter() - t0,
                       violated if "violated-constraint" in case else None,
-                      () if d.violated_defect is None else tuple(d.violated_defect["ambiguous_with"]))
+                      () if d.violated_defect is None else tuple(d.violated_defect["ambiguous_with"]), d.outcome)
 
 
 def run_suite(sources: list[tuple[Mechanism, StationarityResult]], seeds: int = 5, pairs: bool = True,
@@ -240,12 +245,12 @@ def to_markdown(results: list[CaseResult], summary: dict, command: str) -> str:
     ]
     for mech, table in summary["confusion"].items():
         said = sorted({s for row in table.values() for s in row})
-        lines += [f"### {mech}: true case (rows) against the diagnosis (columns)", "",
+        lines += [f"#### {mech}: true case (rows) against the diagnosis (columns)", "",
                   "| true \\ diagnosed | " + " | ".join(said) + " |", "|---" * (len(said) + 1) + "|"]
         for true, row in table.items():
             lines.append(f"| {true} | " + " | ".join(str(row.get(s, "")) for s in said) + " |")
         lines.append("")
-    lines += ["### Every case", "",
+    lines += ["#### Every case", "",
               "| mechanism | seed | true | gap | first | selected | val. before (um) | after (um) | noise (um) | "
               "magnitude true / found | time (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
@@ -259,3 +264,175 @@ def to_markdown(results: list[CaseResult], summary: dict, command: str) -> str:
                      f" | {r.ranked_first} | {'+'.join(r.selected) or '-'} | {1000 * r.validation_before:.1f} | {after} | "
                      f"{1000 * r.noise_rms:.1f} | {mag} | {r.elapsed:.1f} |")
     return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------- the independent generator
+@dataclass
+class IndependentCase:
+    """One campaign of the independent generator (``tests/solver/diagnosis/independent_generator.py``) and the answer."""
+
+    arm: str
+    case: str
+    kind: str  # "in-library", "out-of-library", "noise"
+    seed: int
+    outcome: str
+    named: str | None
+    selected: tuple
+    where: str | None
+    where_right: bool | None
+    validation_before: float
+    validation_after: float | None
+    noise_rms: float
+    noise_factor_true: float
+    noise_factor_found: float | None
+    elapsed: float
+
+    @property
+    def visible(self) -> bool:
+        """Whether the case leaves a gap to find (validation RMS before at least ``VISIBLE`` x the noise)."""
+        return self.validation_before >= VISIBLE * self.noise_rms
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (mm)."""
+        return dict(self.__dict__, selected=list(self.selected), visible=self.visible)
+
+
+def load_independent_generator(path: str | None = None):
+    """The independent generator module, loaded from the source tree's ``tests/`` (it is not installed).
+
+    Raises
+    ------
+    DataError
+        If the file is absent (an installed wheel has no tests).
+    """
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    from hyperstat.solver.errors import DataError
+
+    file = Path(path) if path else (Path(__file__).resolve().parents[2] / "tests" / "solver" / "diagnosis"
+                                    / "independent_generator.py")
+    if not file.is_file():
+        raise DataError(f"the independent generator {file} is not there: it lives in the source tree's tests/ "
+                        f"(run validate-diagnosis from a checkout of hyperstat).")
+    spec = importlib.util.spec_from_file_location("hyperstat_independent_generator", file)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def run_independent(generator, seeds: int = 3, arms: tuple | None = None, cases: tuple | None = None,
+                    progress=None) -> list[IndependentCase]:
+    """Diagnose every campaign of the independent generator (each arm, case, seed)."""
+    from hyperstat.solver.analysis.stationarity import analyze
+    from hyperstat.solver.calibration.measurements import parse_measurements
+    from hyperstat.solver.kinematics.modelfile import load_model
+
+    results = []
+    for arm, path in generator.MODELS.items():
+        if arms is not None and arm not in arms:
+            continue
+        mech = load_model(path)
+        analysis = analyze(mech, n_configurations=24, seed=0)
+        kin = Kinematics(mech)
+        for case in generator.cases_for(arm):
+            if cases is not None and case not in cases:
+                continue
+            kind = ("in-library" if case in generator.IN_LIBRARY else
+                    "out-of-library" if case in generator.OUT_OF_LIBRARY else "noise")
+            for seed in range(seeds):
+                id_text, val_text, truth = generator.campaign(path, case, seed)
+                data = parse_measurements(id_text, mech, f"{arm}-{case}-{seed}.csv")
+                val = parse_measurements(val_text, mech, f"{arm}-{case}-{seed}.validation.csv")
+                t0 = time.perf_counter()
+                d = diagnose(mech, analysis, data, val, kinematics=kin)
+                named = d.selected[0] if d.selected else None
+                where = d.verdict.get("where")
+                words = generator.where_words(arm, case, truth) if kind == "out-of-library" else []
+                where_right = (any(w in where for w in words) if where else False) if words else None
+                found = d.verdict.get("noise_consistent", {}).get("factor")
+                res = IndependentCase(arm, case, kind, seed, d.outcome, named, tuple(d.selected), where, where_right,
+                                      d.validation_before["rms"],
+                                      None if d.validation_after is None else d.validation_after["rms"],
+                                      d.rigid.noise_rms, truth["noise_factor"], found, time.perf_counter() - t0)
+                results.append(res)
+                if progress is not None:
+                    progress(res)
+    return results
+
+
+def _rate(flags: list) -> float | None:
+    return float(np.mean(flags)) if flags else None
+
+
+def summarize_independent(results: list[IndependentCase]) -> dict:
+    """Rates of the independent generator, per kind (see ``docs/diagnosis.md``)."""
+    inlib = [r for r in results if r.kind == "in-library" and r.visible]
+    outlib = [r for r in results if r.kind == "out-of-library" and r.visible]
+    under = [r for r in results if r.case == "understated-noise"]
+    null = [r for r in results if r.case == "none"]
+    hidden = [r for r in results if r.kind != "noise" and not r.visible]
+    return {
+        "cases": len(results),
+        "in_library_right_first": _rate([r.named == r.case for r in inlib]), "in_library_n": len(inlib),
+        "in_library_explained": _rate([r.named == r.case and r.outcome == "explained" for r in inlib]),
+        "out_of_library_honest": _rate([r.outcome in ("unexplained", "partly explained") for r in outlib]),
+        "out_of_library_misattributed": _rate([r.outcome in ("explained", "understated noise") for r in outlib]),
+        "out_of_library_no_gap": _rate([r.outcome == "no significant gap" for r in outlib]),
+        "out_of_library_where_right": _rate([bool(r.where_right) for r in outlib
+                                             if r.outcome in ("unexplained", "partly explained")]),
+        "out_of_library_n": len(outlib),
+        "understated_noise_flagged": _rate([r.outcome == "understated noise" for r in under]),
+        "understated_noise_n": len(under),
+        "false_alarm": _rate([r.outcome != "no significant gap" for r in null]), "false_alarm_n": len(null),
+        "hidden": [f"{r.arm} {r.case} seed {r.seed}: {r.outcome}" for r in hidden],
+    }
+
+
+def independent_markdown(results: list[IndependentCase], summary: dict, command: str) -> str:
+    """Rates, outcome matrix and every case of the independent generator, as Markdown."""
+    def pct(v):
+        return "-" if v is None else f"{100 * v:.0f} %"
+
+    s = summary
+    lines = [f"Produced by `{command}` ({s['cases']} campaigns of the independent generator).", "",
+             "| rate (independent generator) | value | cases |", "|---|---|---|",
+             f"| in-library: right effect named first (validation RMS before >= {VISIBLE}x noise) | "
+             f"{pct(s['in_library_right_first'])} | {s['in_library_n']} |",
+             f"| in-library: right effect and outcome 'explained' | {pct(s['in_library_explained'])} | "
+             f"{s['in_library_n']} |",
+             f"| out-of-library: honest ('unexplained' or 'partly explained') | {pct(s['out_of_library_honest'])} | "
+             f"{s['out_of_library_n']} |",
+             f"| out-of-library: confidently misattributed ('explained' or 'understated noise') | "
+             f"{pct(s['out_of_library_misattributed'])} | {s['out_of_library_n']} |",
+             f"| out-of-library: no significant gap found | {pct(s['out_of_library_no_gap'])} | "
+             f"{s['out_of_library_n']} |",
+             f"| out-of-library honest answers whose 'where' names the right joint or column | "
+             f"{pct(s['out_of_library_where_right'])} | - |",
+             f"| understated noise (1.6x the header) flagged 'understated noise' | "
+             f"{pct(s['understated_noise_flagged'])} | {s['understated_noise_n']} |",
+             f"| false alarm (noise-only campaigns not answered 'no significant gap') | {pct(s['false_alarm'])} | "
+             f"{s['false_alarm_n']} |", ""]
+    outcomes = list(OUTCOMES_ORDER)
+    for arm in sorted({r.arm for r in results}):
+        lines += [f"#### {arm}: true case (rows) against the outcome (columns)", "",
+                  "| true case | " + " | ".join(outcomes) + " | named effects |", "|---" * (len(outcomes) + 2) + "|"]
+        for case in dict.fromkeys(r.case for r in results if r.arm == arm):
+            rows = [r for r in results if r.arm == arm and r.case == case]
+            counts = [str(sum(r.outcome == o for r in rows) or "") for o in outcomes]
+            named = sorted({"+".join(r.selected) for r in rows if r.selected})
+            lines.append(f"| {case} | " + " | ".join(counts) + f" | {', '.join(named) or '-'} |")
+        lines.append("")
+    lines += ["#### Every campaign", "",
+              "| arm | case | seed | outcome | selected | where | val. before (um) | after (um) | noise (um) | "
+              "time (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        after = "-" if r.validation_after is None else f"{1000 * r.validation_after:.1f}"
+        where = (r.where or "-").split(":")[0].replace("|", "/")
+        lines.append(f"| {r.arm} | {r.case} | {r.seed} | {r.outcome} | {'+'.join(r.selected) or '-'} | {where} | "
+                     f"{1000 * r.validation_before:.1f} | {after} | {1000 * r.noise_rms:.1f} | {r.elapsed:.1f} |")
+    return "\n".join(lines) + "\n"
+
+

@@ -3,21 +3,60 @@
 Units: lengths in mm, angles in rad, temperatures in degC, masses in kg, forces in N.
 
 Names used in every output: ``compliance``, ``violated-constraint``, ``thermal``,
-``screw-pitch``, ``screw-periodic``, ``backlash``, ``tracker-scale``, ``tracker-drift``.
+``screw-pitch``, ``screw-periodic``, ``angle-scale``, ``angle-harmonic-1``,
+``angle-harmonic-2``, ``backlash``, ``backlash-gravity``, ``tracker-scale``,
+``tracker-drift``, and the names of user-defined effects registered in the entry-point
+group ``hyperstat.effects`` (see :func:`plugin_effects` and ``docs/diagnosis.md``).
 """
 
 from __future__ import annotations
 
 from hyperstat.solver.errors import DataError
-from hyperstat.solver.diagnosis.effects.actuator import Backlash, Compliance, ScrewPeriodic, ScrewPitch
+from hyperstat.solver.diagnosis.effects.actuator import (AngleHarmonic, AngleScale, Backlash, Compliance,
+                                                         GravityBacklash, ScrewPeriodic, ScrewPitch, gravity_loads)
 from hyperstat.solver.diagnosis.effects.base import Effect
 from hyperstat.solver.diagnosis.effects.other import Thermal, TrackerDrift, TrackerScale, ViolatedConstraint
 
-__all__ = ["Effect", "Backlash", "Compliance", "ScrewPeriodic", "ScrewPitch", "Thermal", "TrackerDrift",
-           "TrackerScale", "ViolatedConstraint", "EFFECT_NAMES", "make_effect", "applicable_effects"]
+__all__ = ["Effect", "AngleHarmonic", "AngleScale", "Backlash", "Compliance", "GravityBacklash", "ScrewPeriodic",
+           "ScrewPitch", "Thermal", "TrackerDrift", "TrackerScale", "ViolatedConstraint", "EFFECT_NAMES",
+           "ENTRY_POINT_GROUP", "available_effects", "make_effect", "applicable_effects", "plugin_effects",
+           "gravity_loads"]
 
-EFFECT_NAMES = ("compliance", "violated-constraint", "thermal", "screw-pitch", "screw-periodic", "backlash",
-                "tracker-scale", "tracker-drift")
+EFFECT_NAMES = ("compliance", "violated-constraint", "thermal", "screw-pitch", "screw-periodic", "angle-scale",
+                "angle-harmonic-1", "angle-harmonic-2", "backlash", "backlash-gravity", "tracker-scale",
+                "tracker-drift")
+ENTRY_POINT_GROUP = "hyperstat.effects"
+
+
+def plugin_effects() -> dict:
+    """User-defined effects: name -> factory, from the entry-point group ``hyperstat.effects``.
+
+    An entry point names a callable ``factory(mechanism, analysis, data, **options) -> Effect``
+    (an :class:`Effect` subclass is such a callable when its ``__init__`` takes those
+    arguments).  A name that shadows a library effect is refused.
+
+    Raises
+    ------
+    DataError
+        If a plug-in cannot be loaded or reuses a library name.
+    """
+    from importlib.metadata import entry_points
+
+    found = {}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        if ep.name in EFFECT_NAMES:
+            raise DataError(f"entry point '{ep.value}' in group {ENTRY_POINT_GROUP} reuses the library effect "
+                            f"name '{ep.name}'; give it another name.")
+        try:
+            found[ep.name] = ep.load()
+        except Exception as exc:  # a broken plug-in must say which one
+            raise DataError(f"the effect plug-in '{ep.name}' ({ep.value}) cannot be loaded: {exc}") from exc
+    return found
+
+
+def available_effects() -> tuple:
+    """Library effect names followed by the plug-in names (:func:`plugin_effects`)."""
+    return EFFECT_NAMES + tuple(sorted(plugin_effects()))
 
 
 def make_effect(name: str, mechanism, analysis=None, data=None, **options) -> Effect:
@@ -38,8 +77,14 @@ def make_effect(name: str, mechanism, analysis=None, data=None, **options) -> Ef
         return ScrewPitch(mechanism, **options)
     if name == "screw-periodic":
         return ScrewPeriodic(mechanism, **options)
+    if name == "angle-scale":
+        return AngleScale(mechanism, **options)
+    if name in ("angle-harmonic-1", "angle-harmonic-2"):
+        return AngleHarmonic(mechanism, cycles=int(name[-1]), **options)
     if name == "backlash":
         return Backlash(mechanism, **options)
+    if name == "backlash-gravity":
+        return GravityBacklash(mechanism, **options)
     if name == "tracker-scale":
         return TrackerScale(mechanism, **options)
     if name == "tracker-drift":
@@ -47,7 +92,14 @@ def make_effect(name: str, mechanism, analysis=None, data=None, **options) -> Ef
         if sessions is None and data is not None and "session" in data.metadata:
             sessions = sorted(set(data.metadata["session"].tolist()))
         return TrackerDrift(mechanism, sessions, **options)
-    raise DataError(f"unknown effect '{name}'; effects are {', '.join(EFFECT_NAMES)}.")
+    plugins = plugin_effects()
+    if name in plugins:
+        effect = plugins[name](mechanism, analysis, data, **options)
+        if not isinstance(effect, Effect):
+            raise DataError(f"the effect plug-in '{name}' returned {type(effect).__name__}, not an Effect.")
+        effect.name = name
+        return effect
+    raise DataError(f"unknown effect '{name}'; effects are {', '.join(EFFECT_NAMES + tuple(sorted(plugins)))}.")
 
 
 def applicable_effects(mechanism, analysis, data) -> dict:
@@ -55,6 +107,8 @@ def applicable_effects(mechanism, analysis, data) -> dict:
     reasons = {}
     if not any(mechanism.joints[i].type == "P" for i in mechanism.actuated):
         reasons["screw-pitch"] = reasons["screw-periodic"] = "no prismatic (screw-driven) actuator"
+    if not any(mechanism.joints[i].type == "R" for i in mechanism.actuated):
+        reasons["angle-scale"] = reasons["angle-harmonic-1"] = reasons["angle-harmonic-2"] = "no revolute actuator"
     if not any(p.verdict == "forced" for p in analysis.parameters):
         reasons["violated-constraint"] = "the mechanism has no forced defect (not over-constrained)"
     if "temperature" not in data.metadata or len(set(data.metadata["temperature"].tolist())) < 2:

@@ -39,12 +39,24 @@ class Effect:
 
     name = "effect"
     requires: tuple = ()
+    #: why the domain is what it is (printed when a candidate is rejected)
+    domain_note = "no physical bound"
+    #: other physical causes with the same signature (printed with an "explained" answer)
+    also_explains = ""
 
-    def __init__(self, names: list[str], units: list[str], magnitude: np.ndarray) -> None:
+    def __init__(self, names: list[str], units: list[str], magnitude: np.ndarray, lower=None, upper=None,
+                 plausible=None) -> None:
         self._names = list(names)
         self._units = list(units)
         self.magnitude = np.asarray(magnitude, dtype=float)
         self.truth = np.zeros(len(self._names))
+        n = len(self._names)
+        #: physical domain of each parameter (the bounded fit stays inside it)
+        self.lower = np.full(n, -np.inf) if lower is None else np.broadcast_to(np.asarray(lower, float), (n,)).copy()
+        self.upper = np.full(n, np.inf) if upper is None else np.broadcast_to(np.asarray(upper, float), (n,)).copy()
+        #: largest plausible absolute value of each parameter (default 50x the realistic magnitude)
+        self.plausible = (50.0 * self.magnitude if plausible is None
+                          else np.broadcast_to(np.asarray(plausible, float), (n,)).copy())
 
     # -------------------------------------------------------------- parameters
     def parameter_names(self, model) -> list[str]:
@@ -68,9 +80,16 @@ class Effect:
         return self
 
     def draw_truth(self, rng: np.random.Generator) -> "Effect":
-        """Draw realistic true parameters: magnitude times a random sign and a factor in [0.6, 1]."""
+        """Draw realistic true parameters: magnitude times a random sign and a factor in [0.6, 1].
+
+        The sign is flipped where the drawn value would leave the physical domain
+        (a compliance or a backlash is never negative).
+        """
         signs = rng.choice([-1.0, 1.0], size=self.magnitude.shape)
-        return self.with_truth(self.magnitude * signs * rng.uniform(0.6, 1.0, size=self.magnitude.shape))
+        values = self.magnitude * signs * rng.uniform(0.6, 1.0, size=self.magnitude.shape)
+        outside = (values < self.lower) | (values > self.upper)
+        values[outside] = -values[outside]
+        return self.with_truth(values)
 
     # -------------------------------------------------------------- hooks
     def actuator_correction(self, model, theta: np.ndarray, data):

@@ -23,9 +23,11 @@ class Thermal(Effect):
     name = "thermal"
     requires = ("temperature",)
     reference = 20.0
+    domain_note = ("a structural expansion coefficient lies between -2e-6 /degC (carbon fibre, Invar) and 3e-5 /degC "
+                   "(aluminium 2.3e-5, magnesium 2.6e-5)")
 
     def __init__(self, mechanism, magnitude: float = 1e-5) -> None:
-        super().__init__(["thermal_kappa"], ["1/degC"], [magnitude])
+        super().__init__(["thermal_kappa"], ["1/degC"], [magnitude], lower=-2e-6, upper=3e-5, plausible=3e-5)
 
     def output_correction(self, model, theta, data, q, state, world, jacobian):
         if "temperature" not in data.metadata:
@@ -40,8 +42,10 @@ class TrackerScale(Effect):
 
     name = "tracker-scale"
 
+    domain_note = "a laser tracker's scale error beyond 1e-4 (0.1 mm per metre) is a failed instrument"
+
     def __init__(self, mechanism, magnitude: float = 1e-5) -> None:
-        super().__init__(["tracker_scale"], ["1"], [magnitude])
+        super().__init__(["tracker_scale"], ["1"], [magnitude], plausible=1e-4)
 
     def measurement_correction(self, model, theta, data, position, jacobian):
         k = len(position)
@@ -61,7 +65,9 @@ class TrackerDrift(Effect):
         self.sessions = sorted(float(s) for s in (sessions or []))
         later = self.sessions[1:]
         names = [f"drift_s{int(s) if float(s).is_integer() else s}_{a}" for s in later for a in "xyz"]
-        super().__init__(names, ["mm"] * len(names), [magnitude] * len(names))
+        super().__init__(names, ["mm"] * len(names), [magnitude] * len(names), plausible=1.0)
+
+    domain_note = "a tracker moved by more than 1 mm between sessions was knocked, not drifting"
 
     def measurement_correction(self, model, theta, data, position, jacobian):
         if "session" not in data.metadata:
@@ -110,7 +116,10 @@ class ViolatedConstraint(Effect):
         self._index = [mechanism.parameter_index[n] for n in forced]
         self._cache: dict = {}
         super().__init__([f"violated_{n}" for n in forced], [units[n] for n in forced],
-                         [magnitude_rad if units[n] == "rad" else magnitude_mm for n in forced])
+                         [magnitude_rad if units[n] == "rad" else magnitude_mm for n in forced],
+                         plausible=[5e-2 if units[n] == "rad" else 2.5 for n in forced])
+
+    domain_note = "a forced defect violated by more than 50 mrad or 2.5 mm would not assemble"
 
     def deformation_twists(self, model, q: np.ndarray) -> np.ndarray:
         """Output twist per unit violated defect after minimum-energy deformation, (K, 6, n_e)."""
