@@ -696,6 +696,8 @@ def identify(
     base: list | None = None,
     nominal: bool = True,
     max_rounds: int = 5,
+    select_size: str = "none",
+    folds: int = 5,
 ) -> IdentificationResult:
     """Identify the base parameters from ``data`` (paper 1, eq. 10, Levenberg-Marquardt).
 
@@ -729,6 +731,13 @@ def identify(
         Also fit the measurement set-up alone on the nominal geometry (the "before" error).
     max_rounds : int
         Largest number of base-set decisions.
+    select_size : {"none", "cv", "bic", "auto"}
+        Model size for small data, among nested parameter sets (geometry columns in the
+        pivoting order of the QR at the solution, i.e. the best-determined first): ``"cv"``
+        by ``folds``-fold cross-validation over poses (the set that predicts held-out poses
+        best), ``"bic"`` by the Bayesian information criterion with the file's noise model;
+        ``"auto"`` uses BIC (CV without a noise model) when there are fewer than 5 equations
+        per base parameter; ``"none"`` keeps the full base set.
 
     Returns
     -------
@@ -802,11 +811,31 @@ def identify(
     else:
         warns.append(f"the identifiable set still changed after {max_rounds} rounds (ranks {rounds}): the rank "
                      f"decision is fragile at this solution; read the singular-value gap.")
+    selection = None
+    if imposed is None and (select_size in ("cv", "bic") or (select_size == "auto" and n_rows < 5 * len(chosen))):
+        how = "cv" if select_size == "cv" or (select_size == "auto" and data.noise is None) else "bic"
+        selection, keep_geo = _select_size(model, data, theta, theta_prior, chosen, js, w, scale, fitter.q, max_nfev,
+                                           folds, how)
+        if keep_geo is not None:
+            dropped = [j for j in chosen if model.kinds[j] == "geometry" and j not in keep_geo]
+            chosen = [j for j in chosen if j not in dropped]
+            theta[dropped] = theta_prior[dropped]
+            theta, ok = fitter.fit(theta, np.array(chosen, dtype=int), scale, max_nfev)
+            converged = converged and ok
+            _, _, jw_all = fitter.residual(theta)
+            js = jw_all * scale
+            warns.append(f"small data ({n_rows} equations): {selection['method']} kept {selection['chosen']} of "
+                         f"{selection['sizes'][-1]} geometry parameters; the others are held at their nominal value.")
     base_list = list(chosen)
     base_idx = np.array(base_list, dtype=int)
     if n_rows < 2 * len(base_list):
         warns.append(f"only {n_rows} equations for {len(base_list)} parameters: expect poor accuracy.")
     unident = _unidentifiable(model, js, base_list, visible, scale)
+    if selection is not None and selection["chosen"] < selection["sizes"][-1]:
+        left = set(selection["order"][selection["chosen"]:])
+        for u in unident:
+            if u["name"] in left:
+                u["reason"] = "left out by the model-size selection (cross-validation); " + u["reason"]
     final = model.predict(theta, data, jacobian=True, q_start=fitter.q)
     resid = final.position - data.position
     jw = (final.jacobian * w[:, None, None]).reshape(-1, model.n)[:, base_idx]
@@ -880,7 +909,85 @@ def identify(
         validation_table=val_table,
         base_rounds=rounds,
         converged=converged,
+        model_selection=selection,
     )
+
+
+def _select_size(model: MeasurementModel, data: MeasurementSet, theta: np.ndarray, theta_prior: np.ndarray,
+                 chosen: list, js: np.ndarray, w: np.ndarray, scale: np.ndarray, q: np.ndarray, max_nfev: int,
+                 folds: int, method: str = "cv") -> tuple[dict, list | None]:
+    """Nested model sizes compared by K-fold cross-validation over poses.
+
+    Geometry base columns are ordered by QR with column pivoting on what the measurement
+    set-up leaves unexplained (best-determined first); sizes 0 (the nominal geometry), a
+    quarter, half, three quarters and all of them are fitted on K-1 folds of poses and
+    predict the held-out fold.  The size with the smallest cross-validated RMS is kept
+    (the smallest one within 2 % of it, preferring fewer parameters).
+
+    Returns
+    -------
+    selection : dict
+        ``method, folds, sizes, cv_rms`` (mm) and ``chosen``.
+    keep : list of int or None
+        Geometry columns kept (None when all are).
+    """
+    import scipy.linalg
+
+    setup = [j for j in chosen if model.kinds[j] != "geometry"]
+    geo = [j for j in chosen if model.kinds[j] == "geometry"]
+    jn = js / np.linalg.norm(js, axis=0).clip(min=1e-300)
+    qs, _ = np.linalg.qr(jn[:, setup])
+    resid = jn[:, geo] - qs @ (qs.T @ jn[:, geo])
+    _, _, piv = scipy.linalg.qr(resid, mode="economic", pivoting=True)
+    order = [geo[p] for p in piv]
+    g = len(order)
+    sizes = sorted({0, g // 4, g // 2, (3 * g) // 4, g})
+    if method == "bic":
+        # Bayesian information criterion with the file's noise model: chi2 + p ln(n), every size
+        # fitted on all the data (no fold is too small to fit, as K-fold CV is with a few poses)
+        crit = []
+        n_eq = 3 * len(data)
+        for size in sizes:
+            base = sorted(setup + order[:size])
+            th = theta.copy()
+            others = [j for j in chosen if j not in base]
+            th[others] = theta_prior[others]
+            fit = _Fitter(model, data, w, q)
+            est, _ok = fit.fit(th, np.array(base, dtype=int), scale, max_nfev)
+            _, r, _ = fit.residual(est, jacobian=False)
+            crit.append(float(r @ r) + len(base) * float(np.log(n_eq)))
+        pick = int(np.argmin(crit))
+        selection = {"method": "Bayesian information criterion (chi2 + p ln n, the file's noise model)",
+                     "sizes": sizes, "criterion": crit, "cv_rms": None, "chosen": sizes[pick],
+                     "order": [model.names[j] for j in order]}
+        return selection, (None if sizes[pick] == g else order[:sizes[pick]])
+    poses = list(dict.fromkeys(data.pose_id))
+    k = min(folds, len(poses))
+    fold_of_pose = {p: i % k for i, p in enumerate(poses)}
+    fold = np.array([fold_of_pose[p] for p in data.pose_id])
+    cv = []
+    for size in sizes:
+        base = sorted(setup + order[:size])
+        sq, n = 0.0, 0
+        for f in range(k):
+            train, test = fold != f, fold == f
+            th = theta.copy()
+            others = [j for j in chosen if j not in base]
+            th[others] = theta_prior[others]
+            fit = _Fitter(model, data.subset(train), w[train], q[train])
+            try:
+                est, _ok = fit.fit(th, np.array(base, dtype=int), scale, max_nfev)
+            except np.linalg.LinAlgError:
+                est = th
+            pred = model.predict(est, data.subset(test))
+            sq += float(np.sum((pred.position - data.position[test]) ** 2))
+            n += int(test.sum())
+        cv.append(float(np.sqrt(sq / max(n, 1))))
+    best = min(cv)
+    pick = next(i for i, v in enumerate(cv) if v <= 1.02 * best)
+    selection = {"method": f"{k}-fold cross-validation over poses", "folds": k, "sizes": sizes, "cv_rms": cv,
+                 "chosen": sizes[pick], "order": [model.names[j] for j in order]}
+    return selection, (None if sizes[pick] == g else order[:sizes[pick]])
 
 
 def _nominal_error(model: MeasurementModel, data: MeasurementSet, validation: MeasurementSet | None,
@@ -919,7 +1026,7 @@ def _trust_warnings(data: MeasurementSet, validation, sigma: float, converged: b
                    f"or a moved tracker. Do not use this calibration.")
     n_out = sum(r["outlier"] for r in table)
     if n_out:
-        worst = sorted(table, key=lambda r: -r["robust_z"])[:3]
+        worst = sorted((r for r in table if r["outlier"]), key=lambda r: -r["robust_z"])[:5]
         out.append(f"{n_out} observation(s) flagged as outliers (robust z > {OUTLIER_Z}): "
                    + ", ".join(f"{r['pose']}{'/' + r['target'] if r['target'] else ''} (z = {r['robust_z']:.1f})"
                                for r in worst) + ".")

@@ -468,8 +468,8 @@ def _quaternion_to_rotvec(qv: np.ndarray) -> np.ndarray:
     return 2.0 * math.atan2(s, w) * v / s
 
 
-def read_measurements(path: str | Path, mechanism: Mechanism) -> MeasurementSet:
-    """Read and validate a measurement file (see module docstring)."""
+def read_measurements(path: str | Path, mechanism: Mechanism, joint_map: JointMap | None = None) -> MeasurementSet:
+    """Read and validate a measurement file (see module docstring); ``joint_map`` overrides the model's."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: no such measurement file.")
@@ -477,7 +477,7 @@ def read_measurements(path: str | Path, mechanism: Mechanism) -> MeasurementSet:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise DataError(f"{path}: not UTF-8 text.") from None
-    return parse_measurements(text, mechanism, str(path))
+    return parse_measurements(text, mechanism, str(path), joint_map=joint_map)
 
 
 def write_measurements(path: str | Path, data: MeasurementSet, mechanism: Mechanism, comment: str = "") -> Path:
