@@ -291,8 +291,8 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
 
     factors: dict[str, float] = {}
 
-    def need(name: str, kind: str, what: str) -> None:
-        default = "rad" if kind == "angle" else "mm"
+    def need(name: str, kind: str, what: str, default: str | None = None) -> None:
+        default = default or ("rad" if kind == "angle" else "mm")
         if name not in parsed:
             raise DataError(f"{source}: column '{name}[{default}]' ({what}) is missing.")
         unit = parsed[name][1]
@@ -303,7 +303,7 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
         factors[name] = table[unit]
 
     for name, kind, what in jcols:
-        need(name, kind, what)
+        need(name, kind, what, None if joint_map is None else joint_map.units[kind])
     for t in targets:
         for a in "xyz":
             need(col(a, t), "length", "measured position" + (f" of target {t}" if t else ""))
