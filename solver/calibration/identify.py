@@ -60,6 +60,10 @@ class Prediction:
         Whether the assembly closed.
     world : ndarray, (K, 3)
         Target positions in the base frame (mm).
+    rotation : ndarray, (K, 3, 3) or None
+        Predicted target-frame orientations in the tracker frame (6-D models only).
+    rotation_jacobian : ndarray, (K, 3, n_params) or None
+        Tracker-frame angular velocity per unit parameter (left perturbation, rad).
     """
 
     position: np.ndarray
@@ -67,6 +71,8 @@ class Prediction:
     q: np.ndarray
     converged: np.ndarray
     world: np.ndarray
+    rotation: np.ndarray | None = None
+    rotation_jacobian: np.ndarray | None = None
 
 
 class MeasurementModel:
@@ -88,10 +94,15 @@ class MeasurementModel:
     targets : list of str, optional
         Target names (several targets on one output frame: one offset each); one unnamed
         target by default.
+    orientation : bool
+        6-D measurements: each target also has a rotation offset (rotation vector, 3 unknowns
+        ``target_rx...``), and :meth:`predict` returns the target frame's orientation in the
+        tracker frame, ``R_trk^T R_out R_target``, with its Jacobian.
     """
 
     def __init__(self, mechanism: Mechanism, analysis: StationarityResult, kinematics: Kinematics | None = None,
-                 effects: tuple = (), geometry: str = "influential", targets: list | None = None) -> None:
+                 effects: tuple = (), geometry: str = "influential", targets: list | None = None,
+                 orientation: bool = False) -> None:
         self.mechanism = mechanism
         self.analysis = analysis
         self.kin = kinematics or Kinematics(mechanism)
@@ -109,6 +120,13 @@ class MeasurementModel:
         self.names = list(self.geometry_names) + TRACKER_NAMES + target_names
         self.units = [units[n] for n in self.geometry_names] + ["rad"] * 3 + ["mm"] * (3 + 3 * nt)
         self.kinds = ["geometry"] * len(self.geometry_names) + ["tracker"] * 6 + ["target"] * 3 * nt
+        self.orientation = bool(orientation)
+        if self.orientation:
+            rot_names = ["target_rx", "target_ry", "target_rz"] if self.targets == [""] else \
+                [f"target_{t}_r{a}" for t in self.targets for a in "xyz"]
+            self.names += rot_names
+            self.units += ["rad"] * len(rot_names)
+            self.kinds += ["target_rotation"] * len(rot_names)
         self._effect_slices = []
         for eff in self.effects:
             start = len(self.names)
@@ -126,6 +144,7 @@ class MeasurementModel:
         self.sl_geometry = slice(0, ng)
         self.sl_tracker = slice(ng, ng + 6)
         self.sl_target = slice(ng + 6, ng + 6 + 3 * nt)
+        self.sl_target_rotation = slice(ng + 6 + 3 * nt, ng + 6 + 6 * nt) if self.orientation else slice(0, 0)
 
     # ------------------------------------------------------------------ parameters
     def defects(self, theta: np.ndarray) -> np.ndarray:
@@ -232,8 +251,15 @@ class MeasurementModel:
             if corr is not None:
                 position, dm_dt, dm_dpos = corr
                 measured_by.append((sl, dm_dt, dm_dpos))
+        rot_pred = rot_jac = None
+        if self.orientation:
+            from hyperstat.solver.kinematics.frames import so3_exp as _exp
+
+            v = theta[self.sl_target_rotation].reshape(-1, 3)
+            r_tgt = _exp(v)[tidx]
+            rot_pred = np.einsum("ji,kjl,klm->kim", r_trk, rot_out, r_tgt)
         if not jacobian:
-            return Prediction(position, None, q, res.converged, world)
+            return Prediction(position, None, q, res.converged, world, rot_pred)
         # output twist with the passive joints following (implicit function theorem)
         k_xi, k_a = self.twist_maps(st)
         arm = world - org_out  # target relative to the output origin
@@ -260,7 +286,17 @@ class MeasurementModel:
             jac = np.einsum("kij,kjn->kin", dm_dpos, jac)
             jac[:, :, sl] += dm_dt
         self._last_k_a = k_a
-        return Prediction(position, jac, q, res.converged, world)
+        if self.orientation:
+            # left perturbation of R_trk^T R_out R_target, written in the tracker frame
+            rot_jac = np.zeros((k, 3, self.n))
+            rot_jac[:, :, self.sl_geometry] = np.einsum("ji,kjn->kin", r_trk, k_xi[:, :3, :] @ self.geometry_matrix)
+            rot_jac[:, :, self.sl_tracker.start:self.sl_tracker.start + 3] = -(r_trk.T @ jl)[None]
+            jt = so3_left_jacobian(theta[self.sl_target_rotation].reshape(-1, 3))
+            for t in range(len(self.targets)):
+                rows = tidx == t
+                c0 = self.sl_target_rotation.start + 3 * t
+                rot_jac[rows, :, c0:c0 + 3] = np.einsum("ji,kjl,lm->kim", r_trk, rot_out[rows], jt[t])
+        return Prediction(position, jac, q, res.converged, world, rot_pred, rot_jac)
 
     def _target_index(self, data: MeasurementSet) -> np.ndarray:
         """Target of each row of ``data`` as an index into :attr:`targets`."""
@@ -405,6 +441,7 @@ class IdentificationResult:
     base_rounds: list = field(default_factory=list)
     converged: bool = True
     model_selection: dict | None = None
+    orientation: dict | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (units: mm, rad)."""
@@ -427,6 +464,7 @@ class IdentificationResult:
             "nominal": self.nominal,
             "base_rounds": self.base_rounds,
             "model_selection": self.model_selection,
+            "orientation": self.orientation,
             "iterations": self.iterations,
             "warnings": self.warnings,
             "residuals": self.residual_table,
@@ -614,6 +652,11 @@ def residual_table(data: MeasurementSet, resid: np.ndarray, w: np.ndarray) -> li
              "outlier": bool(z[i] > OUTLIER_Z)} for i in range(len(e))]
 
 
+def orientation_residual(rotation: np.ndarray, data: MeasurementSet) -> np.ndarray:
+    """Orientation error ``log(R_pred R_meas^T)`` (rotation vectors in the tracker frame, rad), (K, 3)."""
+    return so3_log(rotation @ np.swapaxes(so3_exp(data.rotation), -1, -2))
+
+
 class _Fitter:
     """Weighted least squares over a subset of the parameters (Gauss-Newton, then MINPACK LM)."""
 
@@ -623,11 +666,18 @@ class _Fitter:
         self.evaluations = 0
 
     def residual(self, theta: np.ndarray, jacobian: bool = True):
+        """Prediction, weighted residual and weighted Jacobian (position rows, then orientation rows)."""
         p = self.model.predict(theta, self.data, jacobian=jacobian, q_start=self.q)
         if p.converged.all():
             self.q = p.q
         r = ((p.position - self.data.position) * self.w[:, None]).ravel()
         j = None if p.jacobian is None else (p.jacobian * self.w[:, None, None]).reshape(-1, self.model.n)
+        if p.rotation is not None:
+            wr = 1.0 / self.data.rotation_noise
+            rr = orientation_residual(p.rotation, self.data)
+            r = np.r_[r, (rr * wr).ravel()]
+            if j is not None:
+                j = np.vstack([j, (p.rotation_jacobian * wr).reshape(-1, self.model.n)])
         return p, r, j
 
     def fit(self, theta: np.ndarray, base_idx: np.ndarray, scale: np.ndarray, max_nfev: int) -> tuple[np.ndarray, bool]:
@@ -750,7 +800,10 @@ def identify(
     """
     t0 = time.perf_counter()
     imposed = base
-    model = model or MeasurementModel(mechanism, analysis, kinematics, effects, targets=list(data.target_names))
+    oriented = data.rotation is not None and not effects
+    model = model or MeasurementModel(mechanism, analysis, kinematics, effects, targets=list(data.target_names),
+                                      orientation=oriented)
+    oriented = model.orientation and data.rotation is not None
     warns: list[str] = []
     prior = data.target_priors if data.n_targets > 1 else data.target
     theta = model.initial(data.tracker, prior) if theta0 is None else np.array(theta0, dtype=float)
@@ -760,6 +813,17 @@ def identify(
         r, t = kabsch(data.position, nominal_pred.world)
         theta[model.sl_tracker] = np.r_[so3_log(r), t]
         q_start = nominal_pred.q
+        if oriented:  # target rotations from the first observation of each target
+            st = model.kin.evaluate(nominal_pred.q, model.defects(theta), jacobians=False)
+            r_out = st.output_pose[:, :3, :3]
+            meas = so3_exp(data.rotation)
+            rots = theta[model.sl_target_rotation].reshape(-1, 3)
+            for ti in range(len(model.targets)):
+                rows = np.nonzero(data.target_index == ti)[0]
+                if len(rows):
+                    i = rows[0]
+                    rots[ti] = so3_log(r_out[i].T @ r @ meas[i])
+            theta[model.sl_target_rotation] = rots.ravel()
     else:
         q_start = None
     pred = model.predict(theta, data, jacobian=True, q_start=q_start)
@@ -769,9 +833,10 @@ def identify(
     theta_prior = theta.copy()
     w = _weights(data)
     scale = _column_scale(model)
-    preferred = [j for j, kind in enumerate(model.kinds) if kind in ("tracker", "target")]
+    preferred = [j for j, kind in enumerate(model.kinds) if kind in ("tracker", "target", "target_rotation")]
     fitter = _Fitter(model, data, w, pred.q)
-    js = (pred.jacobian * w[:, None, None]).reshape(-1, model.n) * scale
+    _, _, j0 = fitter.residual(theta)
+    js = j0 * scale
     n_rows = js.shape[0]
     rounds: list[int] = []
     converged = True
@@ -836,10 +901,9 @@ def identify(
         for u in unident:
             if u["name"] in left:
                 u["reason"] = "left out by the model-size selection (cross-validation); " + u["reason"]
-    final = model.predict(theta, data, jacobian=True, q_start=fitter.q)
+    final, rw, jw_all = fitter.residual(theta)
     resid = final.position - data.position
-    jw = (final.jacobian * w[:, None, None]).reshape(-1, model.n)[:, base_idx]
-    rw = (resid * w[:, None]).ravel()
+    jw = jw_all[:, base_idx]
     dof = max(jw.shape[0] - len(base_list), 1)
     sigma2 = float(rw @ rw / dof)
     jtj = jw.T @ jw
@@ -875,6 +939,15 @@ def identify(
         val_table = residual_table(validation, val_res, _weights(validation))
     sigma = float(np.sqrt(sigma2))
     table = residual_table(data, resid, w)
+    orientation = None
+    if oriented:
+        ang = np.linalg.norm(orientation_residual(final.rotation, data), axis=1)
+        orientation = {"identification": _angle_stats(ang), "validation": None,
+                       "noise_rms": float(np.sqrt(3.0) * data.rotation_noise)}
+        if validation is not None and len(validation) and validation.rotation is not None:
+            vp = model.predict(theta, validation)
+            orientation["validation"] = _angle_stats(np.linalg.norm(orientation_residual(vp.rotation, validation),
+                                                                    axis=1))
     nominal_doc = None
     if nominal:
         nominal_doc = _nominal_error(model, data, validation, theta_prior, w, scale, preferred, fitter.q, rank_tol,
@@ -910,7 +983,14 @@ def identify(
         base_rounds=rounds,
         converged=converged,
         model_selection=selection,
+        orientation=orientation,
     )
+
+
+def _angle_stats(ang: np.ndarray) -> dict:
+    """Mean, max and RMS of orientation-error angles (rad)."""
+    return {"mean": float(np.mean(ang)), "max": float(np.max(ang)), "rms": float(np.sqrt(np.mean(ang**2))),
+            "n": int(ang.size)}
 
 
 def _select_size(model: MeasurementModel, data: MeasurementSet, theta: np.ndarray, theta_prior: np.ndarray,

@@ -119,6 +119,16 @@ def format_identification(result) -> str:
                   row("  identification", nominal["identification"]), row("  validation", nominal["validation"])]
     if result.noise_rms is not None:
         lines.append(f"{'noise floor':<15} RMS {1000 * result.noise_rms:8.2f} um (the data's noise model)")
+    ori = getattr(result, "orientation", None)
+    if ori:
+        def arow(label: str, a: dict | None) -> str:
+            if a is None:
+                return f"{label:<15} -"
+            return (f"{label:<15} mean {1e6 * a['mean']:8.1f} urad max {1e6 * a['max']:8.1f} urad "
+                    f"RMS {1e6 * a['rms']:8.1f} urad ({a['n']} orientations)")
+
+        lines += [arow("orientation id.", ori["identification"]), arow("orientation val.", ori["validation"]),
+                  f"{'orient. noise':<15} RMS {1e6 * ori['noise_rms']:8.1f} urad (the file's orientation noise)"]
     weighted = result.noise_rms is not None
     lines.append(f"sigma {result.sigma:.3g} " + ("(weighted residuals: 1 when the noise model holds)" if weighted
                                                  else "mm (no noise model in the file: residual std per axis)"))
