@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -157,3 +159,24 @@ def test_several_targets_one_row_per_observation(tmp_path, slider_crank):
     path.write_text(text.replace("P2,0.2,7,8,9,,,", "P2,0.2,7,8,9,1,,"))
     with pytest.raises(DataError, match=r"row 6, column 'y_B\[m\]'"):
         read_measurements(path, slider_crank)
+
+
+def test_orientation_as_quaternion_or_rotation_vector(tmp_path, slider_crank):
+    """A quaternion (w, x, y, z) and the rotation vector in deg read to the same rotation vector (rad)."""
+    axis = np.array([1.0, -2.0, 2.0]) / 3.0
+    angle = 0.7
+    quat = [math.cos(angle / 2), *(float(v) for v in math.sin(angle / 2) * axis)]
+    rv_deg = np.degrees(angle * axis)
+    head = "# hyperstat measurements, version 1\n# orientation noise: 0.1 mrad\n"
+    a, b = tmp_path / "q.csv", tmp_path / "r.csv"
+    a.write_text(head + "pose,q1[rad],x[mm],y[mm],z[mm],quat_w,quat_x,quat_y,quat_z\nP1,0.1,1,2,3,"
+                 + ",".join(repr(v) for v in quat) + "\n")
+    b.write_text(head + "pose,q1[rad],x[mm],y[mm],z[mm],rx[deg],ry[deg],rz[deg]\nP1,0.1,1,2,3,"
+                 + ",".join(repr(float(v)) for v in rv_deg) + "\n")
+    ra, rb = read_measurements(a, slider_crank), read_measurements(b, slider_crank)
+    np.testing.assert_allclose(ra.rotation[0], angle * axis, rtol=1e-12)
+    np.testing.assert_allclose(rb.rotation[0], angle * axis, rtol=1e-12)
+    assert ra.rotation_noise == pytest.approx(1e-4)
+    b.write_text(b.read_text().replace("# orientation noise: 0.1 mrad\n", ""))
+    with pytest.raises(DataError, match="orientation columns need a header line '# orientation noise"):
+        read_measurements(b, slider_crank)
