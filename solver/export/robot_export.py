@@ -24,7 +24,7 @@ Examples
 ...                     "units": {"length": "mm", "angle": "deg"},
 ...                     "joints": [{"type": "R", "a": 100, "alpha": 0, "d": 0, "theta": 0},
 ...                                {"type": "R", "a": 50, "alpha": 0, "d": 0, "theta": 0}]})
->>> "<robot name=\"r2\">" in urdf_text(dh_to_mechanism(t))
+>>> '<robot name="r2">' in urdf_text(dh_to_mechanism(t))
 True
 """
 
@@ -37,9 +37,9 @@ import numpy as np
 
 from hyperstat.solver.errors import ModelError
 from hyperstat.solver.kinematics.closure import Kinematics
-from hyperstat.solver.kinematics.model import ConfigurationFrame, Joint, Mechanism
+from hyperstat.solver.kinematics.model import Joint, Mechanism
 
-__all__ = ["urdf_text", "rpy_of", "serial_matrices", "corrected_dh", "dh_text", "DH_WARN_MM"]
+__all__ = ["urdf_text", "rpy_of", "serial_matrices", "corrected_dh", "dh_forward", "dh_text", "DH_WARN_MM"]
 
 DH_WARN_MM = 0.01  #: a corrected DH table further than this from the calibrated model is reported loudly
 
@@ -90,7 +90,7 @@ def urdf_text(mechanism: Mechanism, xi: np.ndarray | None = None, name: str | No
     are written as 0 (fill them in from the robot's data sheet).
     """
     joints, tool = serial_matrices(mechanism, xi)
-    lines = ['<?xml version="1.0"?>', f"<!-- {escape(comment)} -->" if comment else None,
+    lines = ['<?xml version="1.0"?>', f"<!-- {escape(comment).replace('--', '- -')} -->" if comment else None,
              f'<robot name="{escape(name or mechanism.name)}">', '  <link name="base_link"/>']
     parent = "base_link"
     for jname, jtype, d, (lo, hi) in joints:
@@ -258,8 +258,6 @@ def corrected_dh(mechanism: Mechanism, xi: np.ndarray, n_samples: int = 100, see
 
 def dh_text(mechanism: Mechanism, table: dict, comment: str = "") -> str:
     """The corrected table as a ``hyperstat-dh`` YAML file (mm, deg), with the nominal deltas as comments."""
-    from hyperstat.solver.kinematics.robot_import import rpy_matrix  # noqa: F401  (documents the rpy convention)
-
     def frame(t: np.ndarray) -> str:
         rpy = [math.degrees(v) for v in rpy_of(t[:3, :3])]
         return (f"{{origin: [{', '.join(repr(float(v)) for v in t[:3, 3])}], "

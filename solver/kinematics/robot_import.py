@@ -45,12 +45,12 @@ from pathlib import Path
 import numpy as np
 
 from hyperstat.solver.errors import DataError, ModelError
-from hyperstat.solver.kinematics.frames import axis_frame, make_transform, so3_exp
+from hyperstat.solver.kinematics.frames import axis_frame, make_transform
 from hyperstat.solver.kinematics.joint_map import JointMap, joint_map_from_dict, unit_factor
 from hyperstat.solver.kinematics.model import Chain, Defect, FixedTransform, Joint, Mechanism, Placement
 
 __all__ = ["DHJoint", "DHTable", "read_dh_table", "parse_dh_table", "dh_to_mechanism", "dh_link_matrices",
-           "read_urdf", "import_robot", "rpy_matrix", "CONVENTIONS"]
+           "dh_table_to_dict", "read_urdf", "import_robot", "rpy_matrix", "CONVENTIONS"]
 
 CONVENTIONS = ("dh", "modified-dh")
 _FORMAT = "hyperstat-dh"
@@ -381,14 +381,11 @@ def read_dh_table(path: str | Path) -> DHTable:
     text = path.read_text(encoding="utf-8")
     if path.suffix.lower() == ".csv":
         doc = _parse_csv(text, str(path))
-        map_file = None
     else:
         try:
             doc = yaml.safe_load(text)
         except yaml.YAMLError as exc:
             raise DataError(f"{path}: not valid YAML ({str(exc).splitlines()[0]}).") from None
-        map_file = None
-    del map_file
     return parse_dh_table(doc, str(path))
 
 
