@@ -485,10 +485,14 @@ def write_measurements(path: str | Path, data: MeasurementSet, mechanism: Mechan
     if data.n_targets != 1:
         raise DataError("write_measurements writes one-target files; this set has several targets.")
     joints = [mechanism.joints[i] for i in mechanism.actuated]
+    joint_map = mechanism_joint_map(mechanism)
     out = io.StringIO()
     out.write(_HEADER + "\n")
     out.write(f"# mechanism: {mechanism.name}\n")
-    out.write("# units: lengths mm, angles rad (also in every column header)\n")
+    if joint_map is None:
+        out.write("# units: lengths mm, angles rad (also in every column header)\n")
+    else:
+        out.write("# units: lengths mm; controller joints in the units of their column headers (joint map)\n")
     if data.noise is not None:
         out.write(f"# noise: {data.noise.text()}\n")
     if data.tracker is not None:
@@ -497,7 +501,15 @@ def write_measurements(path: str | Path, data: MeasurementSet, mechanism: Mechan
         out.write("# target: " + " ".join(f"{v:.12g}" for v in data.target) + "\n")
     for line in comment.splitlines():
         out.write(f"# {line}\n")
-    cols = ["pose"] + [f"q{j.name}[{'rad' if j.type == 'R' else 'mm'}]" for j in joints] + ["x[mm]", "y[mm]", "z[mm]"]
+    if joint_map is None:
+        jcols = [f"q{j.name}[{'rad' if j.type == 'R' else 'mm'}]" for j in joints]
+        jvals = data.q
+    else:  # the controller's columns, in the map's units (a model that carries a joint map reads those)
+        units = [joint_map.controller_unit(k) for k in range(len(joint_map.controller))]
+        jcols = [f"{c}[{u}]" for c, u in zip(joint_map.controller, units)]
+        factors = np.array([ANGLE_UNITS.get(u, LENGTH_UNITS.get(u, 1.0)) for u in units])
+        jvals = joint_map.inverse(data.q) / factors
+    cols = ["pose"] + jcols + ["x[mm]", "y[mm]", "z[mm]"]
     if data.rotation is not None:
         cols += ["rx[rad]", "ry[rad]", "rz[rad]"]
     meta_names = sorted(data.metadata)
@@ -505,7 +517,7 @@ def write_measurements(path: str | Path, data: MeasurementSet, mechanism: Mechan
     w = csv.writer(out, lineterminator="\n")
     w.writerow(cols)
     for i in range(len(data)):
-        row = [data.pose[i]] + [f"{v:.12g}" for v in data.q[i]] + [f"{v:.12g}" for v in data.position[i]]
+        row = [data.pose[i]] + [f"{v:.12g}" for v in jvals[i]] + [f"{v:.12g}" for v in data.position[i]]
         if data.rotation is not None:
             row += [f"{v:.12g}" for v in data.rotation[i]]
         row += [f"{data.metadata[n][i]:.12g}" for n in meta_names]
