@@ -165,7 +165,7 @@ CASES = [
     Case("data-duplicate", "measurement file", "duplicate pose",
          lambda t, g: _identify(_duplicate_row(g["data"], t / "d.csv"), t), "repeat the same pose"),
     Case("data-wrong-unit", "measurement file", "wrong unit",
-         lambda t, g: _identify(_edit(g["data"], t / "d.csv", "q1[rad]", "q1[deg]"), t), "q1[deg]"),
+         lambda t, g: _identify(_edit(g["data"], t / "d.csv", "q1[rad]", "q1[grad]"), t), "q1[grad]"),
     Case("data-too-few", "measurement file", "too few rows for identification",
          lambda t, g: _identify(_measurement_rows(g["data"], t / "d.csv", 2), t), "too few"),
     Case("data-out-of-range", "measurement file", "pose outside the joint range",

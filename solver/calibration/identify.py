@@ -60,6 +60,10 @@ class Prediction:
         Whether the assembly closed.
     world : ndarray, (K, 3)
         Target positions in the base frame (mm).
+    rotation : ndarray, (K, 3, 3) or None
+        Predicted target-frame orientations in the tracker frame (6-D models only).
+    rotation_jacobian : ndarray, (K, 3, n_params) or None
+        Tracker-frame angular velocity per unit parameter (left perturbation, rad).
     """
 
     position: np.ndarray
@@ -67,6 +71,8 @@ class Prediction:
     q: np.ndarray
     converged: np.ndarray
     world: np.ndarray
+    rotation: np.ndarray | None = None
+    rotation_jacobian: np.ndarray | None = None
 
 
 class MeasurementModel:
@@ -85,10 +91,18 @@ class MeasurementModel:
     geometry : {"influential", "full"}
         ``"influential"``: the independent admissible influential defects (identification
         unknowns); ``"full"``: every defect parameter of the model (a virtual machine's truth).
+    targets : list of str, optional
+        Target names (several targets on one output frame: one offset each); one unnamed
+        target by default.
+    orientation : bool
+        6-D measurements: each target also has a rotation offset (rotation vector, 3 unknowns
+        ``target_rx...``), and :meth:`predict` returns the target frame's orientation in the
+        tracker frame, ``R_trk^T R_out R_target``, with its Jacobian.
     """
 
     def __init__(self, mechanism: Mechanism, analysis: StationarityResult, kinematics: Kinematics | None = None,
-                 effects: tuple = (), geometry: str = "influential") -> None:
+                 effects: tuple = (), geometry: str = "influential", targets: list | None = None,
+                 orientation: bool = False) -> None:
         self.mechanism = mechanism
         self.analysis = analysis
         self.kin = kinematics or Kinematics(mechanism)
@@ -99,9 +113,20 @@ class MeasurementModel:
             self.geometry_names, self.geometry_matrix = analysis.parameterization(mechanism, influential_only=True)
         units = {p.name: p.unit for p in mechanism.parameters}
         self.effects = tuple(effects)
-        self.names = list(self.geometry_names) + TRACKER_NAMES + TARGET_NAMES
-        self.units = [units[n] for n in self.geometry_names] + ["rad"] * 3 + ["mm"] * 6
-        self.kinds = ["geometry"] * len(self.geometry_names) + ["tracker"] * 6 + ["target"] * 3
+        self.targets = list(targets) if targets else [""]
+        nt = len(self.targets)
+        target_names = TARGET_NAMES if self.targets == [""] else \
+            [f"target_{t}_{a}" for t in self.targets for a in "xyz"]
+        self.names = list(self.geometry_names) + TRACKER_NAMES + target_names
+        self.units = [units[n] for n in self.geometry_names] + ["rad"] * 3 + ["mm"] * (3 + 3 * nt)
+        self.kinds = ["geometry"] * len(self.geometry_names) + ["tracker"] * 6 + ["target"] * 3 * nt
+        self.orientation = bool(orientation)
+        if self.orientation:
+            rot_names = ["target_rx", "target_ry", "target_rz"] if self.targets == [""] else \
+                [f"target_{t}_r{a}" for t in self.targets for a in "xyz"]
+            self.names += rot_names
+            self.units += ["rad"] * len(rot_names)
+            self.kinds += ["target_rotation"] * len(rot_names)
         self._effect_slices = []
         for eff in self.effects:
             start = len(self.names)
@@ -118,7 +143,8 @@ class MeasurementModel:
         ng = len(self.geometry_names)
         self.sl_geometry = slice(0, ng)
         self.sl_tracker = slice(ng, ng + 6)
-        self.sl_target = slice(ng + 6, ng + 9)
+        self.sl_target = slice(ng + 6, ng + 6 + 3 * nt)
+        self.sl_target_rotation = slice(ng + 6 + 3 * nt, ng + 6 + 6 * nt) if self.orientation else slice(0, 0)
 
     # ------------------------------------------------------------------ parameters
     def defects(self, theta: np.ndarray) -> np.ndarray:
@@ -129,13 +155,22 @@ class MeasurementModel:
             xi = xi + directions @ theta[sl]
         return xi
 
-    def initial(self, tracker: np.ndarray | None = None, target: np.ndarray | None = None) -> np.ndarray:
-        """Parameter vector with zero defects and the given tracker pose and target offset."""
+    def initial(self, tracker: np.ndarray | None = None, target: np.ndarray | dict | None = None) -> np.ndarray:
+        """Parameter vector with zero defects and the given tracker pose and target offset(s).
+
+        ``target`` is one offset (3,) or, for several targets, a dict name -> offset (mm).
+        """
         theta = np.zeros(self.n)
         if tracker is not None:
             theta[self.sl_tracker] = tracker[[3, 4, 5, 0, 1, 2]]  # file order x y z rx ry rz -> rx ry rz x y z
-        if target is not None:
-            theta[self.sl_target] = target
+        if isinstance(target, dict):
+            offsets = theta[self.sl_target].reshape(-1, 3)
+            for t, v in target.items():
+                if t in self.targets:
+                    offsets[self.targets.index(t)] = v
+            theta[self.sl_target] = offsets.ravel()
+        elif target is not None:
+            theta[self.sl_target] = np.tile(np.asarray(target, float), len(self.targets))
         for eff, sl in zip(self.effects, self._effect_slices):
             theta[sl] = eff.initial(self)
         return theta
@@ -196,8 +231,9 @@ class MeasurementModel:
         st = kin.evaluate(q, xi, jacobians=jacobian)
         rot_out = st.output_pose[:, :3, :3]
         org_out = st.output_pose[:, :3, 3]
-        p_t = theta[self.sl_target]
-        world = org_out + np.einsum("kij,j->ki", rot_out, p_t)
+        tidx = self._target_index(data)
+        p_t = theta[self.sl_target].reshape(-1, 3)[tidx]
+        world = org_out + np.einsum("kij,kj->ki", rot_out, p_t)
         dworld = np.zeros((k, 3, self.n)) if jacobian else None
         for eff, sl in zip(self.effects, self._effect_slices):
             corr = eff.output_correction(self, theta[sl], data, q, st, world, jacobian)
@@ -215,8 +251,15 @@ class MeasurementModel:
             if corr is not None:
                 position, dm_dt, dm_dpos = corr
                 measured_by.append((sl, dm_dt, dm_dpos))
+        rot_pred = rot_jac = None
+        if self.orientation:
+            from hyperstat.solver.kinematics.frames import so3_exp as _exp
+
+            v = theta[self.sl_target_rotation].reshape(-1, 3)
+            r_tgt = _exp(v)[tidx]
+            rot_pred = np.einsum("ji,kjl,klm->kim", r_trk, rot_out, r_tgt)
         if not jacobian:
-            return Prediction(position, None, q, res.converged, world)
+            return Prediction(position, None, q, res.converged, world, rot_pred)
         # output twist with the passive joints following (implicit function theorem)
         k_xi, k_a = self.twist_maps(st)
         arm = world - org_out  # target relative to the output origin
@@ -227,7 +270,10 @@ class MeasurementModel:
         dworld[:, :, self.sl_geometry] += point(k_xi) @ self.geometry_matrix
         for sl, directions in self._effect_defects:
             dworld[:, :, sl] += point(k_xi) @ directions
-        dworld[:, :, self.sl_target] += rot_out
+        for t in range(len(self.targets)):
+            rows = tidx == t
+            c0 = self.sl_target.start + 3 * t
+            dworld[rows, :, c0:c0 + 3] += rot_out[rows]
         if self.effects:
             dworld += np.einsum("kan,knj->kaj", point(k_a), dqa_dtheta)
         jac = np.einsum("ij,kia->kja", r_trk, dworld)  # R^T d(world)
@@ -240,7 +286,29 @@ class MeasurementModel:
             jac = np.einsum("kij,kjn->kin", dm_dpos, jac)
             jac[:, :, sl] += dm_dt
         self._last_k_a = k_a
-        return Prediction(position, jac, q, res.converged, world)
+        if self.orientation:
+            # left perturbation of R_trk^T R_out R_target, written in the tracker frame
+            rot_jac = np.zeros((k, 3, self.n))
+            rot_jac[:, :, self.sl_geometry] = np.einsum("ji,kjn->kin", r_trk, k_xi[:, :3, :] @ self.geometry_matrix)
+            rot_jac[:, :, self.sl_tracker.start:self.sl_tracker.start + 3] = -(r_trk.T @ jl)[None]
+            jt = so3_left_jacobian(theta[self.sl_target_rotation].reshape(-1, 3))
+            for t in range(len(self.targets)):
+                rows = tidx == t
+                c0 = self.sl_target_rotation.start + 3 * t
+                rot_jac[rows, :, c0:c0 + 3] = np.einsum("ji,kjl,lm->kim", r_trk, rot_out[rows], jt[t])
+        return Prediction(position, jac, q, res.converged, world, rot_pred, rot_jac)
+
+    def _target_index(self, data: MeasurementSet) -> np.ndarray:
+        """Target of each row of ``data`` as an index into :attr:`targets`."""
+        idx = getattr(data, "target_index", None)
+        k = len(data)
+        if idx is None or len(self.targets) == 1:
+            return np.zeros(k, dtype=int)
+        names = getattr(data, "target_names", None)
+        if names is not None and list(names) != self.targets:
+            raise DataError(f"{data.source}: targets {', '.join(names)} differ from the model's "
+                            f"{', '.join(self.targets)}.")
+        return np.asarray(idx, dtype=int)
 
     def twist_maps(self, st) -> tuple[np.ndarray, np.ndarray]:
         """Output twist per unit defect and per unit actuated value (see :func:`hyperstat.solver.tolerances.accuracy.output_twist_maps`)."""
@@ -331,6 +399,17 @@ class IdentificationResult:
         Covariance of the base parameters (``base`` order).
     configurations : ndarray
         Assembled configurations (all joints) at the identification poses.
+    nominal : dict or None
+        The nominal model's error ("before"): only the measurement set-up (tracker frame,
+        target offsets) fitted, geometry at its nominal value; ``identification`` and
+        ``validation`` stats (mm) and ``sigma``.
+    residual_table : list of dict
+        Per observation (pose, target): residual components and norm (mm), weighted norm,
+        robust z-score (median / MAD of the weighted norms) and ``outlier`` flag.
+    base_rounds : list of int
+        Rank found at each round of the base-set decision (the last at the solution).
+    converged : bool
+        Whether the fit converged (cost not increased, iteration limit not hit).
     """
 
     rank: int
@@ -356,6 +435,13 @@ class IdentificationResult:
     residuals: np.ndarray | None = field(default=None, repr=False)
     validation_residuals: np.ndarray | None = field(default=None, repr=False)
     warnings: list = field(default_factory=list)
+    nominal: dict | None = None
+    residual_table: list = field(default_factory=list)
+    validation_table: list = field(default_factory=list)
+    base_rounds: list = field(default_factory=list)
+    converged: bool = True
+    model_selection: dict | None = None
+    orientation: dict | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (units: mm, rad)."""
@@ -374,9 +460,25 @@ class IdentificationResult:
             "validation": self.validation,
             "noise_rms": self.noise_rms,
             "sigma": self.sigma,
+            "converged": self.converged,
+            "nominal": self.nominal,
+            "base_rounds": self.base_rounds,
+            "model_selection": self.model_selection,
+            "orientation": self.orientation,
             "iterations": self.iterations,
             "warnings": self.warnings,
+            "residuals": self.residual_table,
+            "validation_residuals": self.validation_table,
         }
+
+    def residuals_csv(self) -> str:
+        """Per-observation residuals as CSV text (mm), identification then validation rows."""
+        out = ["set,pose,target,dx[mm],dy[mm],dz[mm],norm[mm],weighted_norm,robust_z,outlier"]
+        for label, table in (("identification", self.residual_table), ("validation", self.validation_table)):
+            for r in table:
+                out.append(f"{label},{r['pose']},{r['target']},{r['dx']:.9g},{r['dy']:.9g},{r['dz']:.9g},"
+                           f"{r['norm']:.9g},{r['weighted_norm']:.6g},{r['robust_z']:.4g},{int(r['outlier'])}")
+        return "\n".join(out) + "\n"
 
     def estimates(self) -> dict:
         """Parameter name -> estimate."""
@@ -404,13 +506,16 @@ def _column_scale(model: MeasurementModel) -> np.ndarray:
     return np.array([lc if u == "rad" else 1.0 for u in model.units])
 
 
-def base_parameters(jacobian: np.ndarray, preferred: list, rank_tol: float = 1e-8) -> tuple[list, int, float, np.ndarray]:
+def base_parameters(jacobian: np.ndarray, preferred: list, rank_tol: float = 1e-8,
+                    keep: list | None = None) -> tuple[list, int, float, np.ndarray]:
     """Identifiable (base) parameter columns by QR with column pivoting, preferred columns first.
 
     The preferred columns (the measurement set-up: tracker frame, target offset) are
-    pivoted first; the remaining columns are pivoted on what the chosen preferred
-    columns leave unexplained.  A machine defect that only duplicates the tracker frame
-    is so reported as seen in combination with the tracker, not the other way round.
+    pivoted first; then the ``keep`` columns (a base set chosen earlier, so that a re-check
+    at the solution does not swap equivalent representatives); the remaining columns are
+    pivoted on what the chosen columns leave unexplained.  A machine defect that only
+    duplicates the tracker frame is so reported as seen in combination with the tracker,
+    not the other way round.
 
     Parameters
     ----------
@@ -420,6 +525,8 @@ def base_parameters(jacobian: np.ndarray, preferred: list, rank_tol: float = 1e-
         Columns to keep in the base set when they are independent.
     rank_tol : float
         Relative threshold on the normalised singular values and R diagonal.
+    keep : list of int, optional
+        Second tier of preferred columns.
 
     Returns
     -------
@@ -441,21 +548,30 @@ def base_parameters(jacobian: np.ndarray, preferred: list, rank_tol: float = 1e-
     sv = np.linalg.svd(jn[:, visible], compute_uv=False)
     rank = int(np.sum(sv > rank_tol * sv[0]))
     gap = float(sv[rank - 1] / sv[rank]) if rank < len(sv) and sv[rank] > 0 else float("inf")
-    first = [j for j in preferred if visible[j]]
+    # A column joins the base set when what it adds is above the middle of the singular-value
+    # gap (geometric mean of s[rank-1] and s[rank]): the same cut as the rank decision, so that a
+    # weak but real direction (1e-8) is not dropped in one round and taken in the next.
+    cut = float(np.sqrt(sv[rank - 1] * max(sv[rank], 1e-300 * sv[0])) / sv[0]) if rank < len(sv) else \
+        0.5 * float(sv[-1] / sv[0])
+    cut = min(cut, rank_tol) if rank < len(sv) else cut
     chosen: list[int] = []
-    if first:
-        _, rr, piv = scipy.linalg.qr(jn[:, first], mode="economic", pivoting=True)
-        d = np.abs(np.diag(rr))
-        chosen = [first[p] for p in piv[: int(np.sum(d > rank_tol * max(d[0], 1e-300)))]]
-    rest = [j for j in range(jacobian.shape[1]) if visible[j] and j not in first]
-    if rest and len(chosen) < rank:
+    used: set[int] = set()
+    tiers = [list(preferred), [j for j in (keep or []) if j not in preferred]]
+    tiers.append([j for j in range(jacobian.shape[1]) if j not in tiers[0] and j not in tiers[1]])
+    for tier in tiers:
+        cols = [j for j in tier if visible[j] and j not in used]
+        used.update(tier)
+        if not cols or len(chosen) >= rank:
+            continue
         if chosen:
             qc, _ = np.linalg.qr(jn[:, chosen])
-            resid = jn[:, rest] - qc @ (qc.T @ jn[:, rest])
+            resid = jn[:, cols] - qc @ (qc.T @ jn[:, cols])
         else:
-            resid = jn[:, rest]
-        _, _, piv = scipy.linalg.qr(resid, mode="economic", pivoting=True)
-        chosen += [rest[p] for p in piv[: rank - len(chosen)]]
+            resid = jn[:, cols]
+        _, rr, piv = scipy.linalg.qr(resid, mode="economic", pivoting=True)
+        d = np.abs(np.diag(rr))
+        take = min(int(np.sum(d > cut)), rank - len(chosen))
+        chosen += [cols[p] for p in piv[:take]]
     return sorted(chosen), rank, gap, visible
 
 
@@ -510,6 +626,112 @@ def gauss_newton(evaluate, x0: np.ndarray, column_scale: np.ndarray, max_iter: i
     return x
 
 
+OUTLIER_Z = 3.5  #: robust z-score above which an observation is flagged (Iglewicz and Hoaglin)
+SIGMA_WARN = 3.0  #: weighted-residual standard deviation above which the fit is called absurd
+
+
+def residual_table(data: MeasurementSet, resid: np.ndarray, w: np.ndarray) -> list:
+    """Per-observation residuals with robust outlier flags (mm).
+
+    The weighted residual norm ``|r| / sigma`` of each observation is compared with the
+    median of all of them through the median absolute deviation (MAD, scaled by 1.4826 so
+    that it estimates a standard deviation): ``z = (e - median) / (1.4826 MAD)``, flagged
+    above :data:`OUTLIER_Z` (Iglewicz and Hoaglin's modified z-score).  A robust statistic:
+    a few gross errors do not hide themselves by inflating the scale, as they would with
+    the mean and standard deviation.
+    """
+    e = np.linalg.norm(resid, axis=1)
+    ew = e * w
+    med = float(np.median(ew)) if len(ew) else 0.0
+    mad = float(np.median(np.abs(ew - med))) * 1.4826 if len(ew) else 0.0
+    z = (ew - med) / max(mad, 1e-12 * max(med, 1e-300))
+    names = data.target_names
+    idx = data.target_index
+    return [{"pose": data.pose_id[i], "target": names[int(idx[i])], "dx": float(resid[i, 0]), "dy": float(resid[i, 1]),
+             "dz": float(resid[i, 2]), "norm": float(e[i]), "weighted_norm": float(ew[i]), "robust_z": float(z[i]),
+             "outlier": bool(z[i] > OUTLIER_Z)} for i in range(len(e))]
+
+
+def orientation_residual(rotation: np.ndarray, data: MeasurementSet) -> np.ndarray:
+    """Orientation error ``log(R_pred R_meas^T)`` (rotation vectors in the tracker frame, rad), (K, 3)."""
+    return so3_log(rotation @ np.swapaxes(so3_exp(data.rotation), -1, -2))
+
+
+class _Fitter:
+    """Weighted least squares over a subset of the parameters (Gauss-Newton, then MINPACK LM)."""
+
+    def __init__(self, model: MeasurementModel, data: MeasurementSet, w: np.ndarray, q: np.ndarray) -> None:
+        self.model, self.data, self.w = model, data, w
+        self.q = q
+        self.evaluations = 0
+
+    def residual(self, theta: np.ndarray, jacobian: bool = True):
+        """Prediction, weighted residual and weighted Jacobian (position rows, then orientation rows)."""
+        p = self.model.predict(theta, self.data, jacobian=jacobian, q_start=self.q)
+        if p.converged.all():
+            self.q = p.q
+        r = ((p.position - self.data.position) * self.w[:, None]).ravel()
+        j = None if p.jacobian is None else (p.jacobian * self.w[:, None, None]).reshape(-1, self.model.n)
+        if p.rotation is not None:
+            wr = 1.0 / self.data.rotation_noise
+            rr = orientation_residual(p.rotation, self.data)
+            r = np.r_[r, (rr * wr).ravel()]
+            if j is not None:
+                j = np.vstack([j, (p.rotation_jacobian * wr).reshape(-1, self.model.n)])
+        return p, r, j
+
+    def fit(self, theta: np.ndarray, base_idx: np.ndarray, scale: np.ndarray, max_nfev: int) -> tuple[np.ndarray, bool]:
+        """Fit the ``base_idx`` parameters from ``theta``; returns the estimate and whether it converged."""
+        from scipy.optimize import least_squares  # imported here: import hyperstat.solver stays fast
+
+        cache: dict = {}
+
+        def unpack(x: np.ndarray) -> np.ndarray:
+            full = theta.copy()
+            full[base_idx] = x
+            return full
+
+        def evaluate(x: np.ndarray):
+            key = x.tobytes()
+            if key not in cache:
+                cache.clear()
+                self.evaluations += 1
+                _, r, j = self.residual(unpack(x))
+                cache[key] = (r, j[:, base_idx])
+            return cache[key]
+
+        r0 = evaluate(theta[base_idx])[0]
+        cost0 = float(r0 @ r0)
+        x0 = gauss_newton(evaluate, theta[base_idx], scale[base_idx])
+        n_rows = len(r0)
+        # Stopping rule: a relative decrease below 0.01 / n_rows changes the weighted sum of
+        # squares (about n_rows at the optimum) by less than 0.01 of a chi-square unit.
+        fit = least_squares(lambda x: evaluate(x)[0], x0, jac=lambda x: evaluate(x)[1], method="lm",
+                            x_scale=1.0 / scale[base_idx], max_nfev=max_nfev * (len(x0) + 1), xtol=1e-10,
+                            ftol=0.01 / n_rows)
+        cost = float(fit.fun @ fit.fun)
+        ok = bool(fit.status > 0 and np.isfinite(cost) and cost <= cost0 * (1 + 1e-9))
+        return unpack(fit.x), ok
+
+
+def _unidentifiable(model: MeasurementModel, js: np.ndarray, base: list, visible: np.ndarray,
+                    scale: np.ndarray) -> list:
+    out = []
+    jb = js[:, base]
+    for j in range(model.n):
+        if j in base:
+            continue
+        if not visible[j]:
+            out.append({"name": model.names[j], "reason": "no effect on the measured positions", "combination": {}})
+            continue
+        coef, *_ = np.linalg.lstsq(jb, js[:, j], rcond=None)
+        coef = coef * scale[base] / scale[j]  # physical units
+        comb = {model.names[b]: float(c) for b, c in zip(base, coef) if abs(c) > 1e-6}
+        out.append({"name": model.names[j], "reason": "seen only in combination with base parameters",
+                    "combination": comb})
+    return out
+
+
 def identify(
     mechanism: Mechanism,
     analysis: StationarityResult,
@@ -522,15 +744,26 @@ def identify(
     model: MeasurementModel | None = None,
     theta0: np.ndarray | None = None,
     base: list | None = None,
+    nominal: bool = True,
+    max_rounds: int = 5,
+    select_size: str = "none",
+    folds: int = 5,
 ) -> IdentificationResult:
     """Identify the base parameters from ``data`` (paper 1, eq. 10, Levenberg-Marquardt).
+
+    The identifiable (base) set is decided **at the solution**: chosen at the start,
+    fitted, chosen again with the Jacobian at the estimate, and refitted (parameters
+    left out reset to their prior) until the set no longer changes (at most
+    ``max_rounds``).  A set chosen at the starting guess depends on the prior: a target
+    prior of zero puts the target on the wrist axis, where rotations about that axis are
+    invisible, and the rank drops.
 
     Parameters
     ----------
     mechanism, analysis : Mechanism, StationarityResult
         Nominal model and its stationarity analysis.
     data : MeasurementSet
-        Identification measurements.
+        Identification measurements (one or several targets).
     validation : MeasurementSet, optional
         Points never used to fit.
     effects : tuple
@@ -544,6 +777,17 @@ def identify(
     base : list of str, optional
         Impose the base parameter names (e.g. to compare two fits); chosen by QR with
         column pivoting otherwise.
+    nominal : bool
+        Also fit the measurement set-up alone on the nominal geometry (the "before" error).
+    max_rounds : int
+        Largest number of base-set decisions.
+    select_size : {"none", "cv", "bic", "auto"}
+        Model size for small data, among nested parameter sets (geometry columns in the
+        pivoting order of the QR at the solution, i.e. the best-determined first): ``"cv"``
+        by ``folds``-fold cross-validation over poses (the set that predicts held-out poses
+        best), ``"bic"`` by the Bayesian information criterion with the file's noise model;
+        ``"auto"`` uses BIC (CV without a noise model) when there are fewer than 5 equations
+        per base parameter; ``"none"`` keeps the full base set.
 
     Returns
     -------
@@ -556,90 +800,111 @@ def identify(
     """
     t0 = time.perf_counter()
     imposed = base
-    model = model or MeasurementModel(mechanism, analysis, kinematics, effects)
+    oriented = data.rotation is not None and not effects
+    model = model or MeasurementModel(mechanism, analysis, kinematics, effects, targets=list(data.target_names),
+                                      orientation=oriented)
+    oriented = model.orientation and data.rotation is not None
     warns: list[str] = []
-    theta = model.initial(data.tracker, data.target) if theta0 is None else np.array(theta0, dtype=float)
+    prior = data.target_priors if data.n_targets > 1 else data.target
+    theta = model.initial(data.tracker, prior) if theta0 is None else np.array(theta0, dtype=float)
     if theta0 is None:
         # rigid registration of the tracker frame on the nominal model (Kabsch), then refine
-        nominal = model.predict(theta, data)
-        r, t = kabsch(data.position, nominal.world)
+        nominal_pred = model.predict(theta, data)
+        r, t = kabsch(data.position, nominal_pred.world)
         theta[model.sl_tracker] = np.r_[so3_log(r), t]
-        pred = model.predict(theta, data, jacobian=True, q_start=nominal.q)
+        q_start = nominal_pred.q
+        if oriented:  # target rotations from the first observation of each target
+            st = model.kin.evaluate(nominal_pred.q, model.defects(theta), jacobians=False)
+            r_out = st.output_pose[:, :3, :3]
+            meas = so3_exp(data.rotation)
+            rots = theta[model.sl_target_rotation].reshape(-1, 3)
+            for ti in range(len(model.targets)):
+                rows = np.nonzero(data.target_index == ti)[0]
+                if len(rows):
+                    i = rows[0]
+                    rots[ti] = so3_log(r_out[i].T @ r @ meas[i])
+            theta[model.sl_target_rotation] = rots.ravel()
     else:
-        pred = model.predict(theta, data, jacobian=True)
+        q_start = None
+    pred = model.predict(theta, data, jacobian=True, q_start=q_start)
     if not pred.converged.all():
         bad = [data.pose[i] for i in np.nonzero(~pred.converged)[0][:3]]
         raise DataError(f"{data.source}: the nominal model does not assemble at pose(s) {', '.join(bad)}.")
+    theta_prior = theta.copy()
     w = _weights(data)
     scale = _column_scale(model)
-    js = (pred.jacobian * w[:, None, None]).reshape(-1, model.n) * scale
-    preferred = [j for j, kind in enumerate(model.kinds) if kind in ("tracker", "target")]
-    base, rank, gap, visible = base_parameters(js, preferred, rank_tol)
-    if base is not None and imposed is not None:
-        unknown = [b for b in imposed if b not in model.names]
-        if unknown:
-            raise DataError(f"base parameter(s) {', '.join(unknown)} are not unknowns of '{mechanism.name}'.")
-        base = sorted(model.names.index(b) for b in imposed)
+    preferred = [j for j, kind in enumerate(model.kinds) if kind in ("tracker", "target", "target_rotation")]
+    fitter = _Fitter(model, data, w, pred.q)
+    _, _, j0 = fitter.residual(theta)
+    js = j0 * scale
     n_rows = js.shape[0]
-    n_visible = int(visible.sum())
-    if n_rows <= n_visible:
-        need = n_visible // 3 + 1
-        raise DataError(f"{data.source} has {len(data)} poses ({n_rows} equations), too few for the {n_visible} "
-                        f"unknowns of '{mechanism.name}': give at least {need} poses (in practice 3x more).")
-    if n_rows < 2 * len(base):
-        warns.append(f"only {n_rows} equations for {len(base)} parameters: expect poor accuracy.")
-    # parameters that cannot be seen, with the combination they are seen in
-    unident = []
-    jb = js[:, base]
-    for j in range(model.n):
-        if j in base:
-            continue
-        if not visible[j]:
-            unident.append({"name": model.names[j], "reason": "no effect on the measured positions", "combination": {}})
-            continue
-        coef, *_ = np.linalg.lstsq(jb, js[:, j], rcond=None)
-        coef = coef * scale[base] / scale[j]  # physical units
-        comb = {model.names[b]: float(c) for b, c in zip(base, coef) if abs(c) > 1e-6}
-        unident.append({"name": model.names[j], "reason": "seen only in combination with base parameters",
-                         "combination": comb})
-
-    state = {"q": pred.q}
-    base_idx = np.array(base, dtype=int)
-
-    def unpack(x: np.ndarray) -> np.ndarray:
-        full = theta.copy()
-        full[base_idx] = x
-        return full
-
-    cache: dict = {}
-    n_evaluations = [0]
-
-    def evaluate(x: np.ndarray):
-        key = x.tobytes()
-        if key not in cache:
-            cache.clear()
-            n_evaluations[0] += 1
-            p = model.predict(unpack(x), data, jacobian=True, q_start=state["q"])
-            state["q"] = p.q
-            r = ((p.position - data.position) * w[:, None]).ravel()
-            cache[key] = (r, (p.jacobian * w[:, None, None]).reshape(-1, model.n)[:, base_idx])
-        return cache[key]
-
-    x0 = gauss_newton(evaluate, theta[base_idx], scale[base_idx])
-    # Stopping rule: the weighted sum of squares is about the number of equations at the
-    # optimum; a relative decrease below 0.01 / n_rows changes it by less than 0.01 (a
-    # chi-square unit), i.e. moves the estimates by well under a tenth of their std.
-    ftol = 0.01 / n_rows
-    from scipy.optimize import least_squares  # imported here: import hyperstat.solver stays fast
-
-    fit = least_squares(lambda x: evaluate(x)[0], x0, jac=lambda x: evaluate(x)[1], method="lm",
-                        x_scale=1.0 / scale[base_idx], max_nfev=max_nfev * (len(x0) + 1), xtol=1e-10, ftol=ftol)
-    theta = unpack(fit.x)
-    final = model.predict(theta, data, jacobian=True, q_start=state["q"])
+    rounds: list[int] = []
+    converged = True
+    chosen: list | None = None
+    for _round in range(max_rounds):
+        # re-check at the solution: the set fitted so far first (it stays when it is still a base
+        # set there), then the measurement set-up, then the rest
+        base_idx, rank, gap, visible = base_parameters(js, chosen or preferred, rank_tol,
+                                                       keep=preferred if chosen else None)
+        if imposed is not None:
+            unknown = [b for b in imposed if b not in model.names]
+            if unknown:
+                raise DataError(f"base parameter(s) {', '.join(unknown)} are not unknowns of '{mechanism.name}'.")
+            base_idx = sorted(model.names.index(b) for b in imposed)
+        n_visible = int(visible.sum())
+        if n_rows <= n_visible:
+            per_pose = max(n_rows // max(data.n_poses, 1), 1)
+            need = n_visible // per_pose + 1
+            raise DataError(f"{data.source} has {data.n_poses} poses ({n_rows} equations), too few for the "
+                            f"{n_visible} unknowns of '{mechanism.name}': give at least {need} poses (in practice "
+                            f"3x more).")
+        rounds.append(rank)
+        if chosen is not None and base_idx == chosen:
+            break  # the set decided at the solution is the one fitted
+        if chosen is not None:
+            # parameters that left the base set go back to their prior; the refit absorbs them
+            left = [j for j in chosen if j not in base_idx]
+            theta[left] = theta_prior[left]
+        chosen = base_idx
+        theta, ok = fitter.fit(theta, np.array(base_idx, dtype=int), scale, max_nfev)
+        converged = converged and ok
+        final, _, jw_all = fitter.residual(theta)
+        js = jw_all * scale
+        if imposed is not None:
+            rounds.append(rank)
+            break
+    else:
+        warns.append(f"the identifiable set still changed after {max_rounds} rounds (ranks {rounds}): the rank "
+                     f"decision is fragile at this solution; read the singular-value gap.")
+    selection = None
+    if imposed is None and (select_size in ("cv", "bic") or (select_size == "auto" and n_rows < 5 * len(chosen))):
+        how = "cv" if select_size == "cv" or (select_size == "auto" and data.noise is None) else "bic"
+        selection, keep_geo = _select_size(model, data, theta, theta_prior, chosen, js, w, scale, fitter.q, max_nfev,
+                                           folds, how)
+        if keep_geo is not None:
+            dropped = [j for j in chosen if model.kinds[j] == "geometry" and j not in keep_geo]
+            chosen = [j for j in chosen if j not in dropped]
+            theta[dropped] = theta_prior[dropped]
+            theta, ok = fitter.fit(theta, np.array(chosen, dtype=int), scale, max_nfev)
+            converged = converged and ok
+            _, _, jw_all = fitter.residual(theta)
+            js = jw_all * scale
+            warns.append(f"small data ({n_rows} equations): {selection['method']} kept {selection['chosen']} of "
+                         f"{selection['sizes'][-1]} geometry parameters; the others are held at their nominal value.")
+    base_list = list(chosen)
+    base_idx = np.array(base_list, dtype=int)
+    if n_rows < 2 * len(base_list):
+        warns.append(f"only {n_rows} equations for {len(base_list)} parameters: expect poor accuracy.")
+    unident = _unidentifiable(model, js, base_list, visible, scale)
+    if selection is not None and selection["chosen"] < selection["sizes"][-1]:
+        left = set(selection["order"][selection["chosen"]:])
+        for u in unident:
+            if u["name"] in left:
+                u["reason"] = "left out by the model-size selection (cross-validation); " + u["reason"]
+    final, rw, jw_all = fitter.residual(theta)
     resid = final.position - data.position
-    jw = (final.jacobian * w[:, None, None]).reshape(-1, model.n)[:, base_idx]
-    rw = (resid * w[:, None]).ravel()
-    dof = max(jw.shape[0] - len(base), 1)
+    jw = jw_all[:, base_idx]
+    dof = max(jw.shape[0] - len(base_list), 1)
     sigma2 = float(rw @ rw / dof)
     jtj = jw.T @ jw
     try:
@@ -649,26 +914,45 @@ def identify(
     std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     corr = cov / np.outer(std, std).clip(min=1e-300)
     correlations = []
-    for a in range(len(base)):
-        for b in range(a + 1, len(base)):
+    for a in range(len(base_list)):
+        for b in range(a + 1, len(base_list)):
             if abs(corr[a, b]) > 0.9:
-                correlations.append({"a": model.names[base[a]], "b": model.names[base[b]], "rho": float(corr[a, b])})
+                correlations.append({"a": model.names[base_list[a]], "b": model.names[base_list[b]],
+                                     "rho": float(corr[a, b])})
     js_final = jw * scale[base_idx]
     sv_b = np.linalg.svd(js_final / np.linalg.norm(js_final, axis=0), compute_uv=False)
     sv_raw = np.linalg.svd(jw, compute_uv=False)
     params = []
-    std_of = dict(zip(base, std))
+    std_of = dict(zip(base_list, std))
     for j, name in enumerate(model.names):
         params.append({"name": name, "kind": model.kinds[j], "unit": model.units[j], "estimate": float(theta[j]),
                        "std": float(std_of[j]) if j in std_of else None, "identifiable": j in std_of})
     val_stats = None
     val_res = None
+    val_table: list = []
     if validation is not None and len(validation):
         vp = model.predict(theta, validation)
         if not vp.converged.all():
             warns.append("some validation poses did not assemble with the identified model.")
         val_res = vp.position - validation.position
         val_stats = error_stats(val_res)
+        val_table = residual_table(validation, val_res, _weights(validation))
+    sigma = float(np.sqrt(sigma2))
+    table = residual_table(data, resid, w)
+    orientation = None
+    if oriented:
+        ang = np.linalg.norm(orientation_residual(final.rotation, data), axis=1)
+        orientation = {"identification": _angle_stats(ang), "validation": None,
+                       "noise_rms": float(np.sqrt(3.0) * data.rotation_noise)}
+        if validation is not None and len(validation) and validation.rotation is not None:
+            vp = model.predict(theta, validation)
+            orientation["validation"] = _angle_stats(np.linalg.norm(orientation_residual(vp.rotation, validation),
+                                                                    axis=1))
+    nominal_doc = None
+    if nominal:
+        nominal_doc = _nominal_error(model, data, validation, theta_prior, w, scale, preferred, fitter.q, rank_tol,
+                                     max_nfev)
+    warns += _trust_warnings(data, validation, sigma, converged, table, val_stats, nominal_doc, resid)
     return IdentificationResult(
         rank=rank,
         n_unknowns=model.n,
@@ -682,16 +966,155 @@ def identify(
         identification=error_stats(resid),
         validation=val_stats,
         noise_rms=noise_rms(data),
-        sigma=float(np.sqrt(sigma2)),
-        iterations=n_evaluations[0],
+        sigma=sigma,
+        iterations=fitter.evaluations,
         covariance=cov,
         configurations=final.q,
         elapsed=time.perf_counter() - t0,
         theta=theta,
-        base=[model.names[b] for b in base],
+        base=[model.names[b] for b in base_list],
         model=model,
         residuals=resid,
         validation_residuals=val_res,
         warnings=warns,
+        nominal=nominal_doc,
+        residual_table=table,
+        validation_table=val_table,
+        base_rounds=rounds,
+        converged=converged,
+        model_selection=selection,
+        orientation=orientation,
     )
 
+
+def _angle_stats(ang: np.ndarray) -> dict:
+    """Mean, max and RMS of orientation-error angles (rad)."""
+    return {"mean": float(np.mean(ang)), "max": float(np.max(ang)), "rms": float(np.sqrt(np.mean(ang**2))),
+            "n": int(ang.size)}
+
+
+def _select_size(model: MeasurementModel, data: MeasurementSet, theta: np.ndarray, theta_prior: np.ndarray,
+                 chosen: list, js: np.ndarray, w: np.ndarray, scale: np.ndarray, q: np.ndarray, max_nfev: int,
+                 folds: int, method: str = "cv") -> tuple[dict, list | None]:
+    """Nested model sizes compared by K-fold cross-validation over poses.
+
+    Geometry base columns are ordered by QR with column pivoting on what the measurement
+    set-up leaves unexplained (best-determined first); sizes 0 (the nominal geometry), a
+    quarter, half, three quarters and all of them are fitted on K-1 folds of poses and
+    predict the held-out fold.  The size with the smallest cross-validated RMS is kept
+    (the smallest one within 2 % of it, preferring fewer parameters).
+
+    Returns
+    -------
+    selection : dict
+        ``method, folds, sizes, cv_rms`` (mm) and ``chosen``.
+    keep : list of int or None
+        Geometry columns kept (None when all are).
+    """
+    import scipy.linalg
+
+    setup = [j for j in chosen if model.kinds[j] != "geometry"]
+    geo = [j for j in chosen if model.kinds[j] == "geometry"]
+    jn = js / np.linalg.norm(js, axis=0).clip(min=1e-300)
+    qs, _ = np.linalg.qr(jn[:, setup])
+    resid = jn[:, geo] - qs @ (qs.T @ jn[:, geo])
+    _, _, piv = scipy.linalg.qr(resid, mode="economic", pivoting=True)
+    order = [geo[p] for p in piv]
+    g = len(order)
+    sizes = sorted({0, g // 4, g // 2, (3 * g) // 4, g})
+    if method == "bic":
+        # Bayesian information criterion with the file's noise model: chi2 + p ln(n), every size
+        # fitted on all the data (no fold is too small to fit, as K-fold CV is with a few poses)
+        crit = []
+        n_eq = 3 * len(data)
+        for size in sizes:
+            base = sorted(setup + order[:size])
+            th = theta.copy()
+            others = [j for j in chosen if j not in base]
+            th[others] = theta_prior[others]
+            fit = _Fitter(model, data, w, q)
+            est, _ok = fit.fit(th, np.array(base, dtype=int), scale, max_nfev)
+            _, r, _ = fit.residual(est, jacobian=False)
+            crit.append(float(r @ r) + len(base) * float(np.log(n_eq)))
+        pick = int(np.argmin(crit))
+        selection = {"method": "Bayesian information criterion (chi2 + p ln n, the file's noise model)",
+                     "sizes": sizes, "criterion": crit, "cv_rms": None, "chosen": sizes[pick],
+                     "order": [model.names[j] for j in order]}
+        return selection, (None if sizes[pick] == g else order[:sizes[pick]])
+    poses = list(dict.fromkeys(data.pose_id))
+    k = min(folds, len(poses))
+    fold_of_pose = {p: i % k for i, p in enumerate(poses)}
+    fold = np.array([fold_of_pose[p] for p in data.pose_id])
+    cv = []
+    for size in sizes:
+        base = sorted(setup + order[:size])
+        sq, n = 0.0, 0
+        for f in range(k):
+            train, test = fold != f, fold == f
+            th = theta.copy()
+            others = [j for j in chosen if j not in base]
+            th[others] = theta_prior[others]
+            fit = _Fitter(model, data.subset(train), w[train], q[train])
+            try:
+                est, _ok = fit.fit(th, np.array(base, dtype=int), scale, max_nfev)
+            except np.linalg.LinAlgError:
+                est = th
+            pred = model.predict(est, data.subset(test))
+            sq += float(np.sum((pred.position - data.position[test]) ** 2))
+            n += int(test.sum())
+        cv.append(float(np.sqrt(sq / max(n, 1))))
+    best = min(cv)
+    pick = next(i for i, v in enumerate(cv) if v <= 1.02 * best)
+    selection = {"method": f"{k}-fold cross-validation over poses", "folds": k, "sizes": sizes, "cv_rms": cv,
+                 "chosen": sizes[pick], "order": [model.names[j] for j in order]}
+    return selection, (None if sizes[pick] == g else order[:sizes[pick]])
+
+
+def _nominal_error(model: MeasurementModel, data: MeasurementSet, validation: MeasurementSet | None,
+                   theta: np.ndarray, w: np.ndarray, scale: np.ndarray, preferred: list, q: np.ndarray,
+                   rank_tol: float, max_nfev: int) -> dict:
+    """The nominal model's error: tracker frame and target offsets fitted, geometry nominal."""
+    fitter = _Fitter(model, data, w, q)
+    _, _, j = fitter.residual(theta)
+    js = j[:, preferred] * scale[preferred]
+    sub, _, _, _ = base_parameters(js, list(range(len(preferred))), rank_tol)
+    idx = np.array([preferred[i] for i in sub], dtype=int)
+    est, _ok = fitter.fit(theta.copy(), idx, scale, max_nfev)
+    p, r, _ = fitter.residual(est, jacobian=False)
+    resid = p.position - data.position
+    dof = max(len(r) - len(idx), 1)
+    out = {"identification": error_stats(resid), "validation": None, "sigma": float(np.sqrt(float(r @ r) / dof)),
+           "fitted": [model.names[i] for i in idx]}
+    if validation is not None and len(validation):
+        vp = model.predict(est, validation)
+        out["validation"] = error_stats(vp.position - validation.position)
+    return out
+
+
+def _trust_warnings(data: MeasurementSet, validation, sigma: float, converged: bool, table: list,
+                    val_stats: dict | None, nominal: dict | None, resid: np.ndarray) -> list:
+    """Loud warnings: absurd sigma, divergence, outliers, a calibration worse than the nominal model."""
+    out = []
+    if not converged:
+        out.append("THE FIT DID NOT CONVERGE (the cost rose or the iteration limit was hit): the estimates are not "
+                   "a least-squares solution; check the joint map, the units and the targets.")
+    if data.noise is not None and sigma > SIGMA_WARN:
+        rms = error_stats(resid)["rms"]
+        out.append(f"ABSURD FIT: sigma = {sigma:.3g} (the residuals are {sigma:.3g} times the stated noise; RMS "
+                   f"{rms:.4g} mm). The model does not describe these data: a wrong joint map (sign, offset, "
+                   f"coupling such as FANUC's q3 = J3 + J2), wrong units, several targets stacked in one column, "
+                   f"or a moved tracker. Do not use this calibration.")
+    n_out = sum(r["outlier"] for r in table)
+    if n_out:
+        worst = sorted((r for r in table if r["outlier"]), key=lambda r: -r["robust_z"])[:5]
+        out.append(f"{n_out} observation(s) flagged as outliers (robust z > {OUTLIER_Z}): "
+                   + ", ".join(f"{r['pose']}{'/' + r['target'] if r['target'] else ''} (z = {r['robust_z']:.1f})"
+                               for r in worst) + ".")
+    if nominal is not None and val_stats is not None and nominal.get("validation") is not None:
+        before, after = nominal["validation"]["rms"], val_stats["rms"]
+        if after > before:
+            out.append(f"CALIBRATION MAKES HELD-OUT POSES WORSE: validation RMS {after:.4g} mm calibrated against "
+                       f"{before:.4g} mm with the nominal model (only the tracker frame and targets fitted). "
+                       f"Too few poses for the parameters (over-fitting), or data the model does not describe: "
+                       f"keep the nominal model, add poses, or identify fewer parameters (--select-size).")
+    return out

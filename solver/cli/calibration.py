@@ -1,4 +1,4 @@
-"""Commands of the calibration stage: ``simulate``, ``identify``.
+"""Commands of the calibration stage: ``simulate``, ``identify``, ``import-robot``, ``export-urdf``, ``export-dh``.
 
 Units: lengths in mm, angles in rad.
 """
@@ -96,29 +96,141 @@ def _simulated_effects(args: argparse.Namespace, mech, result) -> tuple:
     return tuple(effects)
 
 
-def _cmd_identify(args: argparse.Namespace) -> int:
-    from hyperstat.solver.export.text import format_identification
-    from hyperstat.solver.calibration.identify import identify
+def _read_data(args: argparse.Namespace, mech):
+    """Identification and validation sets of ``args``, through ``--joint-map`` when given."""
     from hyperstat.solver.calibration.measurements import read_measurements
 
-    with stages(args, ["stationarity analysis", "identification"]) as progress:
+    joint_map = None
+    if getattr(args, "joint_map", None):
+        joint_map = _load_joint_map(args.joint_map, mech)
+    data = read_measurements(args.data, mech, joint_map=joint_map)
+    validation = read_measurements(args.validation, mech, joint_map=joint_map) if args.validation else None
+    return data, validation
+
+
+def _load_joint_map(path: str, mech):
+    import yaml
+
+    from hyperstat.solver.errors import DataError
+    from hyperstat.solver.kinematics.joint_map import joint_map_from_dict
+
+    p = Path(path)
+    if not p.is_file():
+        raise DataError(f"{p}: no such joint-map file.")
+    try:
+        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        raise DataError(f"{p}: not valid YAML ({str(exc).splitlines()[0]}).") from None
+    if isinstance(doc, dict) and "joint_map" in doc:
+        doc = doc["joint_map"]
+    joints = [mech.joints[i] for i in mech.actuated]
+    return joint_map_from_dict(doc, {j.name: j.type for j in joints}, str(p))
+
+
+def _run_identification(args: argparse.Namespace, extra_stages: list[str] | None = None):
+    from hyperstat.solver.calibration.identify import identify
+
+    with stages(args, ["stationarity analysis", "identification"] + list(extra_stages or [])) as progress:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = analysis_of(args)
-        data = read_measurements(args.data, mech)
-        validation = read_measurements(args.validation, mech) if args.validation else None
+        data, validation = _read_data(args, mech)
         progress.next("identification")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = identify(mech, result, data, validation, kinematics=kin)
+            res = identify(mech, result, data, validation, kinematics=kin,
+                           select_size=getattr(args, "select_size", "none"))
+        for name in extra_stages or []:
+            progress.next(name)
+    return mech, provenance, res
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from hyperstat.solver.atomic import write_text
+    from hyperstat.solver.export.text import format_identification
+
+    mech, provenance, res = _run_identification(args)
+    wrote = []
     if args.json:
         doc = {"mechanism": mech.name, "source": provenance, "data": str(args.data),
                "validation_data": None if args.validation is None else str(args.validation), **res.to_dict()}
-        write_json(args.json, jsonable(doc))
+        wrote.append(write_json(args.json, jsonable(doc)))
+    if args.residuals:
+        wrote.append(write_text(args.residuals, res.residuals_csv()))
     if not args.quiet:
         sys.stdout.write(format_identification(res))
-        if args.json:
-            sys.stdout.write(f"wrote {args.json}\n")
+        for w in wrote:
+            sys.stdout.write(f"wrote {w}\n")
     return 0
+
+
+def _cmd_import_robot(args: argparse.Namespace) -> int:
+    from hyperstat.solver.kinematics.modelfile import save_model
+    from hyperstat.solver.kinematics.robot_import import import_robot
+
+    mech = import_robot(args.robot, tip=args.tip)
+    path = save_model(mech, args.out)
+    if not args.quiet:
+        c = mech.count()
+        jm = "with" if "joint_map" in mech.metadata else "without"
+        sys.stdout.write(f"{mech.name}: {c['R']} revolute, {c['P']} prismatic joints, {c['parameters']} defect "
+                         f"parameters, {jm} a joint map\nwrote {path}\n")
+    return 0
+
+
+def _calibrated(args: argparse.Namespace):
+    mech, provenance, res = _run_identification(args, ["export"])
+    return mech, res, res.model.defects(res.theta)
+
+
+def _comment(args: argparse.Namespace, res) -> str:
+    v = res.validation
+    val = f", validation RMS {v['rms']:.4g} mm over {v['n']} points" if v else ""
+    return (f"calibrated by hyperstat from {args.data}: identification RMS {res.identification['rms']:.4g} mm, "
+            f"sigma {res.sigma:.3g}{val}; units: metres and radians (URDF)")
+
+
+def _cmd_export_urdf(args: argparse.Namespace) -> int:
+    from hyperstat.solver.atomic import write_text
+    from hyperstat.solver.export.robot_export import urdf_text
+
+    mech, res, xi = _calibrated(args)
+    path = write_text(args.out, urdf_text(mech, xi, comment=_comment(args, res)))
+    if not args.quiet:
+        for w in res.warnings:
+            sys.stdout.write(f"warning: {w}\n")
+        sys.stdout.write(f"wrote {path}\n")
+    return 0
+
+
+def _cmd_export_dh(args: argparse.Namespace) -> int:
+    from hyperstat.solver.atomic import write_text
+    from hyperstat.solver.export.robot_export import DH_WARN_MM, corrected_dh, dh_text
+
+    mech, res, xi = _calibrated(args)
+    table = corrected_dh(mech, xi)
+    text = dh_text(mech, table, comment=_comment(args, res).replace("metres and radians (URDF)", "mm and deg"))
+    path = write_text(args.out, text)
+    if not args.quiet:
+        for w in res.warnings:
+            sys.stdout.write(f"warning: {w}\n")
+        dev = table["max_deviation_mm"]
+        if dev > DH_WARN_MM:
+            sys.stdout.write(f"warning: the corrected DH table differs from the calibrated model by up to {dev:.3g} mm "
+                             f"(DH cannot hold every calibrated axis tilt, e.g. out of the plane of a parallel pair); "
+                             f"the URDF export holds it exactly.\n")
+        sys.stdout.write(f"DH table reproduces the calibrated model to {dev:.3g} mm (max over "
+                         f"{table['samples']} configurations)\nwrote {path}\n")
+    return 0
+
+
+def _identify_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
+    p.add_argument("--joint-map", metavar="MAP.yaml",
+                   help="controller joint convention (overrides the model's own): sign, offset, ratio, couplings")
+    p.add_argument("--select-size", choices=["none", "cv", "bic", "auto"], default="auto",
+                   help="choose the number of geometry parameters: by cross-validation (cv), by the information "
+                        "criterion (bic), either when data are few (auto, default: fewer than 5 equations per base "
+                        "parameter; bic with a noise model), or never (none)")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
@@ -146,6 +258,22 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("identify", help="identify the free defects, tracker frame and target from measurements")
     p.add_argument("source", help="template, model file or STEP file")
     p.add_argument("data", help="identification measurements (CSV, see docs/identification.md)")
-    p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
+    _identify_options(p)
+    p.add_argument("--residuals", metavar="RES.csv", help="write per-observation residuals with outlier flags (CSV)")
     common_options(p)
     p.set_defaults(func=_cmd_identify)
+    p = sub.add_parser("import-robot", help="turn a DH / modified-DH table (YAML, CSV) or a URDF into a model file")
+    p.add_argument("robot", help="DH table (.yaml, .yml, .csv) or URDF (.urdf)")
+    p.add_argument("--out", required=True, metavar="MODEL.skel.json", help="model file to write")
+    p.add_argument("--tip", help="URDF: the tip link of the chain (default: the only deepest leaf)")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_import_robot)
+    for name, func, what, suffix in (("export-urdf", _cmd_export_urdf, "URDF (metres)", "ROBOT.urdf"),
+                                     ("export-dh", _cmd_export_dh, "corrected DH table (mm, deg)", "ROBOT.dh.yaml")):
+        p = sub.add_parser(name, help=f"identify, then write the calibrated serial robot as a {what}")
+        p.add_argument("source", help="model file of a serial robot (hyperstat import-robot)")
+        p.add_argument("data", help="identification measurements (CSV)")
+        p.add_argument("--out", required=True, metavar=suffix, help="file to write")
+        _identify_options(p)
+        common_options(p)
+        p.set_defaults(func=func)

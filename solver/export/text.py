@@ -183,8 +183,37 @@ def format_identification(result) -> str:
                 f"RMS {1000 * s['rms']:8.2f} um  ({s['n']} points)")
 
     lines += ["", row("identification", result.identification), row("validation", result.validation)]
+    nominal = getattr(result, "nominal", None)
+    if nominal:
+        lines += ["nominal model (tracker frame and targets fitted, geometry nominal):",
+                  row("  identification", nominal["identification"]), row("  validation", nominal["validation"])]
     if result.noise_rms is not None:
         lines.append(f"{'noise floor':<15} RMS {1000 * result.noise_rms:8.2f} um (the data's noise model)")
+    ori = getattr(result, "orientation", None)
+    if ori:
+        def arow(label: str, a: dict | None) -> str:
+            if a is None:
+                return f"{label:<15} -"
+            return (f"{label:<15} mean {1e6 * a['mean']:8.1f} urad max {1e6 * a['max']:8.1f} urad "
+                    f"RMS {1e6 * a['rms']:8.1f} urad ({a['n']} orientations)")
+
+        lines += [arow("orientation id.", ori["identification"]), arow("orientation val.", ori["validation"]),
+                  f"{'orient. noise':<15} RMS {1e6 * ori['noise_rms']:8.1f} urad (the file's orientation noise)"]
+    weighted = result.noise_rms is not None
+    lines.append(f"sigma {result.sigma:.3g} " + ("(weighted residuals: 1 when the noise model holds)" if weighted
+                                                 else "mm (no noise model in the file: residual std per axis)"))
+    rounds = getattr(result, "base_rounds", [])
+    if len(rounds) > 1:
+        lines.append(f"identifiable set decided at the solution: rank by round {rounds}")
+    sel = getattr(result, "model_selection", None)
+    if sel:
+        values = (" -> CV RMS (um) " + " ".join(f"{1000 * v:.1f}" for v in sel["cv_rms"])) if sel.get("cv_rms") \
+            else (" -> criterion " + " ".join(f"{v:.1f}" for v in sel["criterion"]))
+        lines.append(f"model size by {sel['method']}: geometry sizes {sel['sizes']}{values}; kept {sel['chosen']}")
+    table = getattr(result, "residual_table", [])
+    flagged = [r for r in table if r["outlier"]]
+    if table:
+        lines.append(f"outliers (robust z > 3.5 on weighted residual norms): {len(flagged)} of {len(table)}")
     lines += [f"warning: {w}" for w in result.warnings]
     return "\n".join(lines) + "\n"
 

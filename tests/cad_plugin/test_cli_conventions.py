@@ -19,6 +19,7 @@ HYPERSTAT = str(Path(sys.executable).parent / "hyperstat")
 SC = str(TEMPLATES / "slider_crank.py")
 TX = str(TEMPLATES / "tripteor_x7.py")
 HEX = str(TEMPLATES / "hexapod.py")
+ROBOT = str(TEMPLATES.parent / "docs" / "examples" / "fanuc_like.dh.yaml")
 
 
 def _run(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -33,6 +34,11 @@ def campaign(tmp_path_factory) -> Path:
     run = _run("simulate", SC, "--poses", "24", "--validation", "10", "--out", "d.csv", "--quiet", cwd=d)
     assert run.returncode == 0 and run.stdout == run.stderr == "", run
     assert (d / "d.csv").is_file() and (d / "d.validation.csv").is_file()
+    # a serial robot from its DH table and joint map, for the robot import and export commands
+    run = _run("import-robot", ROBOT, "--out", "r.skel.json", "--quiet", cwd=d)
+    assert run.returncode == 0 and run.stdout == run.stderr == "", run
+    run = _run("simulate", "r.skel.json", "--poses", "40", "--validation", "0", "--out", "r.csv", "--quiet", cwd=d)
+    assert run.returncode == 0 and run.stdout == run.stderr == "", run
     return d
 
 
@@ -55,6 +61,9 @@ COMMANDS = {
     "report": (["report", SC, "--out", "rep"], "rep/report.html"),
     "parameters": (["parameters", SC, "--json", "p.json"], "p.json"),
     "sweep": (["sweep", SC, "--grid", "L1=40:60:2", "--out", "s.csv"], "s.csv"),
+    "import-robot": (["import-robot", ROBOT, "--out", "robot.skel.json"], "robot.skel.json"),
+    "export-urdf": (["export-urdf", "{d}/r.skel.json", "{d}/r.csv", "--out", "r.urdf"], "r.urdf"),
+    "export-dh": (["export-dh", "{d}/r.skel.json", "{d}/r.csv", "--out", "r.dh.yaml"], "r.dh.yaml"),
 }
 
 

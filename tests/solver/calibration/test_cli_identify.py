@@ -63,11 +63,11 @@ def test_d_optimal_simulation_reports_its_gain(tmp_path, capsys):
 def test_bad_measurement_file_exits_2_without_output(tmp_path, capsys):
     src = str(TEMPLATES / "slider_crank.py")
     bad = tmp_path / "bad.csv"
-    bad.write_text("# hyperstat measurements, version 1\npose,q1[deg],x[mm],y[mm],z[mm]\nP1,1,2,3,4\n")
+    bad.write_text("# hyperstat measurements, version 1\npose,q1[grad],x[mm],y[mm],z[mm]\nP1,1,2,3,4\n")
     out = tmp_path / "id.json"
     assert main(["identify", src, str(bad), "--json", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "bad.csv" in err and "q1[deg]" in err and err.count("\n") == 1
+    assert "bad.csv" in err and "q1[grad]" in err and err.count("\n") == 1
     assert not out.exists()
     assert main(["simulate", src, "--noise", "5 um", "--out", str(tmp_path / "x.csv")]) == 2
     assert "--noise" in capsys.readouterr().err

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -48,8 +50,8 @@ def data_line(path, row):
 
 @pytest.mark.parametrize("mutation, message", [
     (lambda p: edit(p, "x[mm],", ""), r"column 'x\[mm\]' \(measured position\) is missing"),
-    (lambda p: edit(p, "q1[rad]", "q1[deg]"), r"column 'q1\[deg\]' must be in rad"),
-    (lambda p: edit(p, "z[mm]", "z[m]"), r"column 'z\[m\]' must be in mm"),
+    (lambda p: edit(p, "q1[rad]", "q1[grad]"), r"column 'q1\[grad\]' must be in rad or deg"),
+    (lambda p: edit(p, "z[mm]", "z[cm]"), r"column 'z\[cm\]' must be in mm or m"),
     (lambda p: edit(p, "temperature[degC]", "temperature[K]"), r"'temperature\[K\]' must be in degC"),
     (lambda p: edit(p, "# hyperstat measurements, version 1", "pose,x"), r"first line must be"),
     (lambda p: edit(p, "pose,", "id,"), r"'id' is not part of the format|column 'pose' is missing"),
@@ -118,3 +120,63 @@ def test_noise_model_text_round_trip():
     n = NoiseModel(0.007, 0.003)
     assert parse_noise(n.text()) == n
     assert n.sigma(np.array([2000.0]))[0] == pytest.approx(0.007 + 0.003 * 2)
+
+
+def test_units_deg_and_m_are_converted_explicitly(good, slider_crank):
+    """The same file in deg and m reads to the same rad and mm values (factors pi/180 and 1000)."""
+    path, data = good
+    lines = path.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("pose,"))
+    cols = lines[header].split(",")
+    cols = [c.replace("q1[rad]", "q1[deg]").replace("[mm]", "[m]") for c in cols]
+    out = lines[:header] + [",".join(cols)]
+    for line in lines[header + 1:]:
+        vals = line.split(",")
+        for i, c in enumerate(cols):
+            if c == "q1[deg]":
+                vals[i] = repr(float(vals[i]) * 180.0 / np.pi)
+            elif c.endswith("[m]"):
+                vals[i] = repr(float(vals[i]) / 1000.0)
+        out.append(",".join(vals))
+    path.write_text("\n".join(out) + "\n")
+    back = read_measurements(path, slider_crank)
+    np.testing.assert_allclose(back.q, data.q, rtol=1e-11)
+    np.testing.assert_allclose(back.position, data.position, rtol=1e-11)
+
+
+def test_several_targets_one_row_per_observation(tmp_path, slider_crank):
+    """Columns x_<T> per target: one row per seen (pose, target); an empty group is an unseen target."""
+    text = ("# hyperstat measurements, version 1\n# target A: 1 2 3\n# target B: 4 5 6 m\n"
+            "pose,q1[rad],x_A[mm],y_A[mm],z_A[mm],x_B[m],y_B[m],z_B[m]\n"
+            "P1,0.1,1,2,3,0.004,0.005,0.006\nP2,0.2,7,8,9,,,\n")
+    path = tmp_path / "t.csv"
+    path.write_text(text)
+    d = read_measurements(path, slider_crank)
+    assert d.target_names == ["A", "B"] and d.pose == ["P1/A", "P1/B", "P2/A"] and d.pose_id == ["P1", "P1", "P2"]
+    np.testing.assert_array_equal(d.target_index, [0, 1, 0])
+    np.testing.assert_allclose(d.position, [[1, 2, 3], [4, 5, 6], [7, 8, 9]], rtol=1e-12)
+    np.testing.assert_allclose(d.target_priors["B"], [4000, 5000, 6000])
+    path.write_text(text.replace("P2,0.2,7,8,9,,,", "P2,0.2,7,8,9,1,,"))
+    with pytest.raises(DataError, match=r"row 6, column 'y_B\[m\]'"):
+        read_measurements(path, slider_crank)
+
+
+def test_orientation_as_quaternion_or_rotation_vector(tmp_path, slider_crank):
+    """A quaternion (w, x, y, z) and the rotation vector in deg read to the same rotation vector (rad)."""
+    axis = np.array([1.0, -2.0, 2.0]) / 3.0
+    angle = 0.7
+    quat = [math.cos(angle / 2), *(float(v) for v in math.sin(angle / 2) * axis)]
+    rv_deg = np.degrees(angle * axis)
+    head = "# hyperstat measurements, version 1\n# orientation noise: 0.1 mrad\n"
+    a, b = tmp_path / "q.csv", tmp_path / "r.csv"
+    a.write_text(head + "pose,q1[rad],x[mm],y[mm],z[mm],quat_w,quat_x,quat_y,quat_z\nP1,0.1,1,2,3,"
+                 + ",".join(repr(v) for v in quat) + "\n")
+    b.write_text(head + "pose,q1[rad],x[mm],y[mm],z[mm],rx[deg],ry[deg],rz[deg]\nP1,0.1,1,2,3,"
+                 + ",".join(repr(float(v)) for v in rv_deg) + "\n")
+    ra, rb = read_measurements(a, slider_crank), read_measurements(b, slider_crank)
+    np.testing.assert_allclose(ra.rotation[0], angle * axis, rtol=1e-12)
+    np.testing.assert_allclose(rb.rotation[0], angle * axis, rtol=1e-12)
+    assert ra.rotation_noise == pytest.approx(1e-4)
+    b.write_text(b.read_text().replace("# orientation noise: 0.1 mrad\n", ""))
+    with pytest.raises(DataError, match="orientation columns need a header line '# orientation noise"):
+        read_measurements(b, slider_crank)

@@ -1,0 +1,87 @@
+"""The FANUC-like workflow in commands (docs/identification.md): DH table -> model file ->
+measurements with 3 targets and a joint map -> identify -> URDF and DH export; bad robot files
+exit 2 with one sentence and write nothing (units: mm, rad; files in deg and m where stated)."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from hyperstat.cad_plugin.cli import main
+from tests.solver.calibration.test_robot_calibration import DH_YAML, Campaign
+
+
+@pytest.fixture(scope="module")
+def workflow(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("wf")
+    (tmp / "fanuc_like.dh.yaml").write_text(DH_YAML)
+    c = Campaign(21)
+    (tmp / "meas.csv").write_text(c.csv(c.poses(50), "P"))
+    (tmp / "meas.validation.csv").write_text(c.csv(c.poses(20), "V"))
+    return tmp
+
+
+def test_workflow_in_commands(workflow, capsys):
+    t = workflow
+    model = t / "fanuc_like.skel.json"
+    assert main(["import-robot", str(t / "fanuc_like.dh.yaml"), "--out", str(model)]) == 0
+    assert "with a joint map" in capsys.readouterr().out
+    assert json.loads(model.read_text())["metadata"]["joint_map"]["joints"]["3"] == {"J3": 1, "J2": 1}
+    out, res = t / "id.json", t / "residuals.csv"
+    assert main(["identify", str(model), str(t / "meas.csv"), "--validation", str(t / "meas.validation.csv"),
+                 "--json", str(out), "--residuals", str(res)]) == 0
+    text = capsys.readouterr().out
+    assert "sigma" in text and "nominal model" in text and "outliers" in text
+    doc = json.loads(out.read_text())
+    assert doc["validation"]["rms"] <= 1.2 * doc["noise_rms"] * 1.05
+    assert doc["nominal"]["validation"]["rms"] > 5 * doc["validation"]["rms"]
+    rows = list(csv.DictReader(res.open()))
+    assert len(rows) == 3 * 50 + 3 * 20 and {r["target"] for r in rows} == {"SMR1", "SMR2", "SMR3"}
+    assert all(r["outlier"] in ("0", "1") for r in rows)
+    assert abs(float(rows[0]["norm[mm]"]) - np.linalg.norm([float(rows[0][k]) for k in ("dx[mm]", "dy[mm]", "dz[mm]")])) < 1e-8
+    urdf, dh = t / "fanuc_like.urdf", t / "fanuc_like.corrected.dh.yaml"
+    assert main(["export-urdf", str(model), str(t / "meas.csv"), "--out", str(urdf), "--quiet"]) == 0
+    assert main(["export-dh", str(model), str(t / "meas.csv"), "--out", str(dh)]) == 0
+    assert "DH table reproduces the calibrated model" in capsys.readouterr().out
+    assert "<robot" in urdf.read_text() and "convention: dh" in dh.read_text()
+    # the corrected table is itself a robot file
+    assert main(["import-robot", str(dh), "--out", str(t / "again.skel.json"), "--quiet"]) == 0
+    assert main(["import-robot", str(urdf), "--out", str(t / "from_urdf.skel.json"), "--quiet"]) == 0
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("units: {length: mm, angle: deg}", "units: {length: mm}"), "field 'units' must state both"),
+    (("units: {length: mm, angle: deg}", "units: {length: in, angle: deg}"), "unit 'in' is not a length unit"),
+    (("convention: dh", "convention: craig"), "field 'convention' must be 'dh' or 'modified-dh'"),
+    (("a: 1075", "a: ten"), r"joints\[1\].a must be a number"),
+    (('"3": {J3: 1, J2: 1}', '"3": {J3: 1, J2: 1, J9: .nan}'), r"joint_map.joints.3.J9 must be a finite number"),
+    (('"3": {J3: 1, J2: 1}', '"3": {J2: -1}'), "the joint map is singular"),
+    (('"6": {J6: 1, offset: 0.5}', '"7": {J6: 1}'), "no entry for model joint '6'"),
+])
+def test_bad_robot_file_exits_2_without_output(tmp_path, capsys, edit, message):
+    bad = tmp_path / "bad.dh.yaml"
+    assert edit[0] in DH_YAML
+    bad.write_text(DH_YAML.replace(edit[0], edit[1]))
+    out = tmp_path / "m.skel.json"
+    assert main(["import-robot", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.dh.yaml" in err and err.count("\n") == 1
+    import re
+
+    assert re.search(message, err), err
+    assert not out.exists()
+
+
+def test_measurements_without_the_controller_columns_are_refused(workflow, tmp_path, capsys):
+    t = workflow
+    model = tmp_path / "m.skel.json"
+    assert main(["import-robot", str(t / "fanuc_like.dh.yaml"), "--out", str(model), "--quiet"]) == 0
+    bad = tmp_path / "bad.csv"
+    bad.write_text((t / "meas.csv").read_text().replace("J3[deg]", "q3[rad]"))
+    assert main(["identify", str(model), str(bad), "--json", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err
+    assert "column 'J3[deg]' (controller joint J3) is missing" in err
+    assert not (tmp_path / "o.json").exists()
