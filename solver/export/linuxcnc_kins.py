@@ -103,8 +103,11 @@ def world_of(q: np.ndarray, pose: np.ndarray, layout: dict) -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> world_of(np.zeros((1, 6)), np.eye(4)[None], {"mode": "pose", "wrist": []}).round(12).tolist()
-    [[0.0, 0.0, 0.0, 0.0, 0.0, 0.0]]
+    >>> rz = np.eye(4)[None].copy()
+    >>> rz[0, :2, :2] = [[0.0, -1.0], [1.0, 0.0]]  # 90 degrees about z
+    >>> rz[0, :3, 3] = [1.0, 2.0, 3.0]
+    >>> world_of(np.zeros((1, 6)), rz, {"mode": "pose", "wrist": []}).round(9) + 0.0
+    array([[ 1.,  2.,  3.,  0.,  0., 90.]])
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     pose = np.asarray(pose, dtype=float).reshape(-1, 4, 4)
@@ -261,8 +264,10 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
         f"static const int ACT_ROT[NACT] = {_c_array(act_rot, '{:d}')};",
         f"static const int JOINT_ROT[NQ] = {_c_array([1 if j.type == 'R' else 0 for j in m.joints], '{:d}')};",
         f"#define NW {len(layout['wrist'])}",
+        "#if MODE == 1",
         f"static const int WRIST[{len(wrist)}] = {_c_array([w[0] for w in wrist], '{:d}')};",
         f"static const int WRIST_FIELD[{len(wrist)}] = {_c_array(['ABC'.index(w[1]) for w in wrist], '{:d}')};",
+        "#endif",
         f"static double q_prev[NQ] = {_c_array(m.home)};",
         _C_BODY,
     ]
@@ -394,7 +399,8 @@ static void closure_rows(const struct walk *w, double r[][1], double jac[][NQ], 
 /* solve (J^T J + damping) dx = -J^T r over the unknown joints (mask), Gaussian elimination */
 static int gn_step(double r[][1], double jac[][NQ], int nrow, const int *mask, double *dx)
 {
-    double a[NQ][NQ + 1], big = 0.0;
+    static double a[NQ][NQ + 1];  /* static: kept off the realtime thread's stack */
+    double big = 0.0;
     int idx[NQ], n = 0, i, j, k;
     for (j = 0; j < NQ; j++) if (mask[j]) idx[n++] = j;
     for (i = 0; i < n; i++) {
@@ -501,7 +507,8 @@ int kinematicsForward(const double *joints, EmcPose *pos, const KINEMATICS_FORWA
                       KINEMATICS_INVERSE_FLAGS *iflags)
 {
     static struct walk w;
-    double q[NQ], dx[NQ], r[6 * NCL + 1][1], jac[6 * NCL + 1][NQ];
+    static double r[6 * NCL + 1][1], jac[6 * NCL + 1][NQ];
+    double q[NQ], dx[NQ];
     int mask[NQ], i, it = 0;
     (void)fflags; (void)iflags;
     for (i = 0; i < NQ; i++) { q[i] = q_prev[i]; mask[i] = 1; }
@@ -529,7 +536,8 @@ int kinematicsInverse(const EmcPose *pos, double *joints, const KINEMATICS_INVER
                       KINEMATICS_FORWARD_FLAGS *fflags)
 {
     static struct walk w;
-    double q[NQ], dx[NQ], r[NROW][1], jac[NROW][NQ], tp[3], tr[16];
+    static double r[NROW][1], jac[NROW][NQ];
+    double q[NQ], dx[NQ], tp[3], tr[16];
     int mask[NQ], i, it;
     (void)iflags; (void)fflags;
     tp[0] = pos->tran.x; tp[1] = pos->tran.y; tp[2] = pos->tran.z;
