@@ -1,4 +1,4 @@
-"""Commands of the export stage: ``export-controller``, ``check-controller``, ``export-linuxcnc``, ``export-linuxcnc-kins``.
+"""Export commands: ``export-controller``, ``check-controller``, ``export-linuxcnc``, ``export-linuxcnc-kins``.
 
 Units: lengths in mm, angles in rad.
 """

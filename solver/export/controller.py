@@ -146,7 +146,8 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
     lin = np.array([model.mechanism.joints[i].type == "P" for i in model.mechanism.actuated])
     e_inv = np.abs(back - qa)
     tol_inv = np.where(lin, tol_mm, tol_rad)
-    for name, err, tol, unit in (("forward position", e_pos, tol_mm, "mm"), ("forward rotation", e_rot, tol_rad, "rad")):
+    for name, err, tol, unit in (("forward position", e_pos, tol_mm, "mm"),
+                                  ("forward rotation", e_rot, tol_rad, "rad")):
         k = int(np.argmax(err))
         if not err[k] <= tol:
             raise DataError(f"controller file: test vector {k}: the reference model's {name} is {err[k]:.3g} {unit} "

@@ -114,10 +114,10 @@ def refuse_unrepresentable(params: dict, threshold_mm: float, mechanism_name: st
     if diff > threshold_mm:
         after = params.get("max_strut_difference_after_offset_mm")
         extra = f" ({after:.3g} mm after a constant offset per strut)" if after is not None else ""
-        raise DataError(f"genhexkins cannot represent the identified geometry of '{mechanism_name}': its strut lengths "
-                        f"differ from the model by up to {diff:.3g} mm{extra}, above the threshold {threshold_mm:.3g} mm "
-                        f"({origin}); use the generated kinematics module (export-linuxcnc-kins) or raise "
-                        f"--max-strut-error.")
+        raise DataError(f"genhexkins cannot represent the identified geometry of '{mechanism_name}': its strut "
+                        f"lengths differ from the model by up to {diff:.3g} mm{extra}, above the threshold "
+                        f"{threshold_mm:.3g} mm ({origin}); use the generated kinematics module "
+                        f"(export-linuxcnc-kins) or raise --max-strut-error.")
 
 
 def strut_lengths(base: np.ndarray, platform: np.ndarray, poses: np.ndarray) -> np.ndarray:

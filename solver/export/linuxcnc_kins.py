@@ -149,7 +149,7 @@ def _c_array(values, fmt: str = "{:.17g}") -> str:
 
 
 def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = None,
-                   tolerance: float = 1e-12, max_iterations: int = 50) -> str:
+                   tolerance: float = 1e-12, max_iterations: int = 50, home: np.ndarray | None = None) -> str:
     """Source of a ``halcompile`` component (``.comp``) with the geometry ``xi`` baked in.
 
     Parameters
@@ -165,6 +165,10 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
         (mm; rad times the length scale).
     max_iterations : int
         Newton iterations before the component reports failure to LinuxCNC.
+    home : ndarray, (n_q,), optional
+        Assembled configuration (every joint) where the machine homes and Newton first
+        starts (default: the model's home).  A home on a singularity (a SCARA with its arm
+        stretched) leaves Newton nowhere to go: choose one away from it.
 
     Returns
     -------
@@ -173,6 +177,7 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
     """
     layout = world_layout(mechanism)
     name = name or component_name(mechanism.name)
+    q_home = mechanism.home if home is None else np.asarray(home, dtype=float).reshape(-1)
     kin = Kinematics(mechanism)
     mats = kin.element_matrices(xi)
     m = mechanism
@@ -268,7 +273,8 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
         f"static const int WRIST[{len(wrist)}] = {_c_array([w[0] for w in wrist], '{:d}')};",
         f"static const int WRIST_FIELD[{len(wrist)}] = {_c_array(['ABC'.index(w[1]) for w in wrist], '{:d}')};",
         "#endif",
-        f"static double q_prev[NQ] = {_c_array(m.home)};",
+        f"static const double Q_HOME[NQ] = {_c_array(q_home)};",
+        f"static double q_prev[NQ] = {_c_array(q_home)};",
         _C_BODY,
     ]
     return "\n".join(lines) + "\n"
@@ -495,6 +501,18 @@ static void pose_to_world(const double *f, const double *q, EmcPose *pos)
     pos->a = ang[0]; pos->b = ang[1]; pos->c = ang[2];
 }
 
+/* limit a Newton step to 0.5 rad per revolute joint and LSCALE / 4 per prismatic joint */
+static void cap_step(double *dx)
+{
+    double s = 1.0;
+    int j;
+    for (j = 0; j < NQ; j++) {
+        double lim = JOINT_ROT[j] ? 0.5 : 0.25 * LSCALE;
+        if (fabs(dx[j]) * s > lim) s = lim / fabs(dx[j]);
+    }
+    if (s < 1.0) for (j = 0; j < NQ; j++) dx[j] *= s;
+}
+
 static double max_abs(const double *v, int n)
 {
     double m = 0.0;
@@ -509,8 +527,11 @@ int kinematicsForward(const double *joints, EmcPose *pos, const KINEMATICS_FORWA
     static struct walk w;
     static double r[6 * NCL + 1][1], jac[6 * NCL + 1][NQ];
     double q[NQ], dx[NQ];
-    int mask[NQ], i, it = 0;
-    (void)fflags; (void)iflags;
+    int mask[NQ], i;
+#if NCL > 0
+    int it;
+#endif
+    (void)fflags; (void)iflags; (void)r; (void)jac; (void)dx; (void)mask;
     for (i = 0; i < NQ; i++) { q[i] = q_prev[i]; mask[i] = 1; }
     for (i = 0; i < NACT; i++) {
         q[ACT[i]] = ACT_ROT[i] ? joints[i] * DEG : joints[i];
@@ -521,6 +542,7 @@ int kinematicsForward(const double *joints, EmcPose *pos, const KINEMATICS_FORWA
     for (it = 1; it <= MAXIT; it++) {
         closure_rows(&w, r, jac, 0);
         if (gn_step(r, jac, 6 * NCL, mask, dx)) return -1;
+        cap_step(dx);
         for (i = 0; i < NQ; i++) q[i] += dx[i];
         walk(q, &w);
         if (max_abs(dx, NQ) < TOL) break;
@@ -532,17 +554,16 @@ int kinematicsForward(const double *joints, EmcPose *pos, const KINEMATICS_FORWA
     return 0;
 }
 
-int kinematicsInverse(const EmcPose *pos, double *joints, const KINEMATICS_INVERSE_FLAGS *iflags,
-                      KINEMATICS_FORWARD_FLAGS *fflags)
+/* Newton on all joints from q (updated); 0 when converged */
+static int inverse_from(double *q, const EmcPose *pos)
 {
     static struct walk w;
     static double r[NROW][1], jac[NROW][NQ];
-    double q[NQ], dx[NQ], tp[3], tr[16];
+    double dx[NQ], tp[3], tr[16];
     int mask[NQ], i, it;
-    (void)iflags; (void)fflags;
     tp[0] = pos->tran.x; tp[1] = pos->tran.y; tp[2] = pos->tran.z;
     world_rotation(pos, tr);
-    for (i = 0; i < NQ; i++) { q[i] = q_prev[i]; mask[i] = 1; }
+    for (i = 0; i < NQ; i++) mask[i] = 1;
 #if MODE == 1
     {   /* the wrist joints are world coordinates (rotary axes commanded directly) */
         double ang[3] = {pos->a, pos->b, pos->c};
@@ -554,11 +575,25 @@ int kinematicsInverse(const EmcPose *pos, double *joints, const KINEMATICS_INVER
         closure_rows(&w, r, jac, 0);
         output_rows(&w, tp, tr, r, jac, 6 * NCL);
         if (gn_step(r, jac, NROW, mask, dx)) return -1;
+        cap_step(dx);
         for (i = 0; i < NQ; i++) q[i] += dx[i];
         walk(q, &w);
-        if (max_abs(dx, NQ) < TOL) break;
+        if (max_abs(dx, NQ) < TOL) return 0;
     }
-    if (it > MAXIT) return -1;
+    return -1;
+}
+
+int kinematicsInverse(const EmcPose *pos, double *joints, const KINEMATICS_INVERSE_FLAGS *iflags,
+                      KINEMATICS_FORWARD_FLAGS *fflags)
+{
+    double q[NQ];
+    int i;
+    (void)iflags; (void)fflags;
+    for (i = 0; i < NQ; i++) q[i] = q_prev[i];
+    if (inverse_from(q, pos)) {  /* from the previous solution, else from home */
+        for (i = 0; i < NQ; i++) q[i] = Q_HOME[i];
+        if (inverse_from(q, pos)) return -1;
+    }
     for (i = 0; i < NQ; i++) q_prev[i] = q[i];
     for (i = 0; i < NACT; i++) joints[i] = ACT_ROT[i] ? q[ACT[i]] / DEG : q[ACT[i]];
     return 0;

@@ -5,7 +5,8 @@ Units: mm and degrees on LinuxCNC's side (``LINEAR_UNITS = mm``, ``ANGULAR_UNITS
 The configuration is a machine with no hardware: every joint's commanded position is fed
 back as its measured position, homing takes the current position as the home
 (``HOME_SEARCH_VEL = 0``), the joints home at the model's home configuration and their
-limits are the model's joint ranges.  ``[DISPLAY] DISPLAY`` is the headless driver
+limits are the model's joint ranges (widened by 1e-6 mm or degree, so that a home on a
+limit is not refused for round-off).  ``[DISPLAY] DISPLAY`` is the headless driver
 (:mod:`hyperstat.solver.export.linuxcnc_driver`) which moves the machine by MDI; an
 integrator swaps it for ``axis`` to drive the machine by hand.
 
@@ -40,7 +41,7 @@ def _fmt(v: float) -> str:
 
 
 def sim_files(mechanism, component: str, layout: dict, workspace: np.ndarray | None = None,
-              display: str = "axis") -> tuple[str, str]:
+              display: str = "axis", home: np.ndarray | None = None) -> tuple[str, str]:
     """INI and HAL text of a simulated machine with the kinematics ``component``.
 
     Parameters
@@ -56,6 +57,9 @@ def sim_files(mechanism, component: str, layout: dict, workspace: np.ndarray | N
         with a 50 % margin (default: +-10000 mm, +-3600 degrees).
     display : str
         ``[DISPLAY] DISPLAY`` program.
+    home : ndarray, (n_q,), optional
+        Home configuration (every joint; the component's, see
+        :func:`hyperstat.solver.export.linuxcnc_kins.kins_component`); default the model's.
 
     Returns
     -------
@@ -83,9 +87,11 @@ def sim_files(mechanism, component: str, layout: dict, workspace: np.ndarray | N
         rot = joint.type == "R"
         conv = math.degrees if rot else float
         lo, hi = (conv(v) for v in joint.range)
-        home = conv(joint.home)
+        lo, hi = lo - 1e-6, hi + 1e-6  # a home on a limit is not refused for round-off
+        home_value = conv(joint.home if home is None else float(np.asarray(home).reshape(-1)[j]))
         ini += [f"[JOINT_{k}]", f"# model joint '{joint.name}' ({'revolute, degrees' if rot else 'prismatic, mm'})",
-                f"TYPE = {'ANGULAR' if rot else 'LINEAR'}", f"HOME = {_fmt(home)}", f"HOME_OFFSET = {_fmt(home)}",
+                f"TYPE = {'ANGULAR' if rot else 'LINEAR'}",
+                f"HOME = {_fmt(home_value)}", f"HOME_OFFSET = {_fmt(home_value)}",
                 "HOME_SEARCH_VEL = 0", "HOME_LATCH_VEL = 0", "HOME_SEQUENCE = 0",
                 f"MIN_LIMIT = {_fmt(lo)}", f"MAX_LIMIT = {_fmt(hi)}",
                 "MAX_VELOCITY = 100000", "MAX_ACCELERATION = 1000000", ""]
@@ -111,11 +117,11 @@ def sim_files(mechanism, component: str, layout: dict, workspace: np.ndarray | N
 
 
 def write_sim(directory: str | os.PathLike, mechanism, component: str, layout: dict,
-              workspace: np.ndarray | None = None, display: str = "axis") -> Path:
-    """Write ``machine.ini`` and ``machine.hal`` into ``directory``; return the INI path."""
+              workspace: np.ndarray | None = None, display: str = "axis", home: np.ndarray | None = None) -> Path:
+    """Write ``machine.ini`` and ``machine.hal`` into ``directory`` (see :func:`sim_files`); return the INI path."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    ini, hal = sim_files(mechanism, component, layout, workspace, display)
+    ini, hal = sim_files(mechanism, component, layout, workspace, display, home)
     write_text(directory / "machine.hal", hal)
     return write_text(directory / "machine.ini", ini)
 
