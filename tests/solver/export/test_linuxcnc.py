@@ -127,3 +127,26 @@ def test_nominal_hexapod_export_passes(tmp_path):
     hal = tmp_path / "hex.hal"
     assert main(["export-linuxcnc", str(TEMPLATES / "hexapod.py"), "--hal", str(hal), "--quiet"]) == 0
     assert hal.is_file() and "setp genhexkins.base.0.x" in hal.read_text()
+
+
+def test_kins_export_refuses_a_mechanism_without_world_coordinates(tmp_path, capsys):
+    """The slider-crank has one actuated joint: no LinuxCNC world-coordinate convention; nothing written."""
+    from hyperstat.cad_plugin.cli import main
+
+    out = tmp_path / "kins"
+    assert main(["export-linuxcnc-kins", str(TEMPLATES / "slider_crank.py"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "1 actuated joints" in err
+    assert not out.exists()
+
+
+def test_kins_component_of_the_nominal_tripteor(tmp_path):
+    """The command's files: a component naming its geometry, an INI whose [KINS] and joints match the model."""
+    from hyperstat.cad_plugin.cli import main
+
+    assert main(["export-linuxcnc-kins", str(TEMPLATES / "tripteor_x7.py"), "--out", str(tmp_path), "--quiet"]) == 0
+    comp = (tmp_path / "hs_tripteor_x7_kins.comp").read_text()
+    assert comp.startswith("component hs_tripteor_x7_kins ") and "#define NACT 5" in comp
+    ini = (tmp_path / "machine.ini").read_text()
+    assert "KINEMATICS = hs_tripteor_x7_kins" in ini and "JOINTS = 5" in ini and "COORDINATES = X Y Z B C" in ini
+    assert ini.count("TYPE = LINEAR") == 3 and ini.count("TYPE = ANGULAR") == 2
