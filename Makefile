@@ -9,9 +9,10 @@ STAMP  := $(VENV)/.installed
 .PHONY: setup system-deps demo test images bench clean freecad-deps freecad-install freecad-screenshot
 
 # Debian packages the tests drive for real: headless Chromium (report screenshots and PDF),
-# poppler-utils (pdftoppm / pdftotext: the printed report's pages), LinuxCNC (genhexkins).
-# Installed only when missing; sudo when not root.
-DEB_PACKAGES := chromium poppler-utils linuxcnc-uspace
+# poppler-utils (pdftoppm / pdftotext: the printed report's pages), LinuxCNC (genhexkins, and halcompile +
+# kinematics.h from linuxcnc-uspace-dev for the generated kinematics module). Installed only when missing;
+# sudo when not root.
+DEB_PACKAGES := chromium poppler-utils linuxcnc-uspace linuxcnc-uspace-dev
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 TEMPLATE_NAMES := slider_crank tripteor_x7 triflex_ii scara hexapod five_bar
@@ -30,7 +31,8 @@ $(STAMP): pyproject.toml
 setup: $(STAMP)
 
 system-deps:
-	@if ! command -v chromium >/dev/null || ! command -v pdftoppm >/dev/null || ! command -v halrun >/dev/null; then \
+	@if ! command -v chromium >/dev/null || ! command -v pdftoppm >/dev/null || ! command -v halrun >/dev/null \
+	    || ! command -v halcompile >/dev/null; then \
 	  echo "installing Debian packages: $(DEB_PACKAGES)"; \
 	  $(SUDO) apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(DEB_PACKAGES); \

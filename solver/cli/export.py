@@ -1,4 +1,4 @@
-"""Commands of the export stage: ``export-controller``, ``export-linuxcnc``.
+"""Export commands: ``export-controller``, ``check-controller``, ``export-linuxcnc``, ``export-linuxcnc-kins``.
 
 Units: lengths in mm, angles in rad.
 """
@@ -64,29 +64,87 @@ def _cmd_export_controller(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_export_linuxcnc(args: argparse.Namespace) -> int:
+def _geometry(args: argparse.Namespace, what: str):
+    """(mechanism, defects, controller document or None) from SOURCE or --controller."""
     import numpy as np
 
-    from hyperstat.solver.atomic import write_text
     from hyperstat.solver.export.controller import ControllerModel, read_controller
-    from hyperstat.solver.export.linuxcnc import genhexkins_parameters, hal_lines, ini_section
 
-    if not args.controller and not args.source:
-        raise HyperstatError("export-linuxcnc needs a hexapod SOURCE or --controller MACHINE.json.")
+    if bool(args.controller) == bool(args.source):
+        raise HyperstatError(f"{what} needs a SOURCE (nominal geometry) or --controller MACHINE.json, not both.")
     if args.controller:
         doc = read_controller(args.controller)
         model = ControllerModel(doc)
-        mech, xi = model.mechanism, model.xi
+        return model.mechanism, model.xi, doc
+    mech, _ = load_source(args.source, args.param)
+    return mech, np.zeros(len(mech.parameters)), None
+
+
+def _cmd_export_linuxcnc(args: argparse.Namespace) -> int:
+    from hyperstat.solver.atomic import write_text
+    from hyperstat.solver.export.linuxcnc import (genhexkins_parameters, hal_lines, ini_section, noise_floor,
+                                                  refuse_unrepresentable)
+
+    if not args.controller and not args.source:
+        raise HyperstatError("export-linuxcnc needs a hexapod SOURCE or --controller MACHINE.json.")
+    mech, xi, doc = _geometry(args, "export-linuxcnc")
+    if args.max_strut_error is not None:
+        if not (args.max_strut_error > 0 and math.isfinite(args.max_strut_error)):
+            raise HyperstatError(f"--max-strut-error must be a positive length in mm, got {args.max_strut_error}.")
+        threshold, origin = args.max_strut_error, "--max-strut-error"
+    elif doc is not None and noise_floor(doc):
+        threshold, origin = noise_floor(doc), "the calibration's noise floor"
     else:
-        mech, _ = load_source(args.source, args.param)
-        xi = np.zeros(len(mech.parameters))
+        threshold, origin = 1e-6, "the default for a nominal geometry"
     params = genhexkins_parameters(mech, xi)
+    refuse_unrepresentable(params, threshold, mech.name, origin)
     hal = write_text(args.hal, hal_lines(params))
     ini = write_text(args.ini, ini_section()) if args.ini else None
     if not args.quiet:
         sys.stdout.write(f"genhexkins geometry of '{mech.name}': largest strut-length difference to the model "
-                         f"{params['max_strut_difference_mm']:.3g} mm over {params['poses_checked']} poses\n"
+                         f"{params['max_strut_difference_mm']:.3g} mm over {params['poses_checked']} poses "
+                         f"(threshold {threshold:.3g} mm, {origin})\n"
                          f"wrote {hal}\n" + (f"wrote {ini}\n" if ini else ""))
+    return 0
+
+
+def _cmd_check_controller(args: argparse.Namespace) -> int:
+    from hyperstat.solver.export.controller import check_controller
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = check_controller(args.file)
+    if args.json:
+        write_json(args.json, res)
+    if not args.quiet:
+        sys.stdout.write(f"{args.file}: format, version, schema and SHA-256 valid ('{res['mechanism']}', "
+                         f"sha256 {res['sha256'][:16]}...); {res['count']} test vectors re-evaluated with the "
+                         f"reference model: forward {res['forward_mm']:.2g} mm / {res['forward_rad']:.2g} rad, "
+                         f"inverse {res['inverse_mm']:.2g} mm / {res['inverse_rad']:.2g} rad"
+                         + (f" ({res['inverse_other_branch']} on another inverse solution with the same pose)"
+                            if res["inverse_other_branch"] else "") + "\n")
+    return 0
+
+
+def _cmd_export_linuxcnc_kins(args: argparse.Namespace) -> int:
+    from hyperstat.solver.atomic import write_text
+    from hyperstat.solver.export.linuxcnc_kins import component_name, kins_component, sample_world, world_layout
+    from hyperstat.solver.export.linuxcnc_sim import write_sim
+
+    mech, xi, doc = _geometry(args, "export-linuxcnc-kins")
+    layout = world_layout(mech)
+    name = args.name or component_name(mech.name, doc["sha256"] if doc else "")
+    if not name.isidentifier():
+        raise HyperstatError(f"--name: '{name}' is not a valid component name (letters, digits, underscores).")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    comp = write_text(out / f"{name}.comp", kins_component(mech, xi, name=name))
+    ini = write_sim(out, mech, name, layout, sample_world(mech, xi, layout))
+    if not args.quiet:
+        sys.stdout.write(f"LinuxCNC kinematics of '{mech.name}' ({'identified' if doc else 'nominal'} geometry), "
+                         f"world coordinates {' '.join(layout['coordinates'])}, {len(mech.actuated)} joints\n"
+                         f"wrote {comp}\nwrote {ini} and {ini.with_suffix('.hal')}\n"
+                         f"build: halcompile --install {comp}   run: linuxcnc {ini}\n")
     return 0
 
 
@@ -107,5 +165,22 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
     p.add_argument("--hal", required=True, metavar="OUT.hal", help="HAL file with the setp lines")
     p.add_argument("--ini", metavar="OUT.ini", help="INI fragment with the [KINS] section")
+    p.add_argument("--max-strut-error", type=float, metavar="MM",
+                   help="refuse when genhexkins' strut lengths differ from the model by more (mm; default: the "
+                        "calibration's noise floor for --controller)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_export_linuxcnc)
+    p = sub.add_parser("check-controller", help="check a controller file: format, version, schema, hash, test vectors")
+    p.add_argument("file", help="controller file (MACHINE.json)")
+    p.add_argument("--json", metavar="OUT.json", help="write the check's result (largest errors, mm / rad)")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_check_controller)
+    p = sub.add_parser("export-linuxcnc-kins",
+                       help="LinuxCNC kinematics component (C, halcompile) and simulation configuration (INI, HAL)")
+    p.add_argument("source", nargs="?", help="template or model file (nominal geometry)")
+    p.add_argument("--controller", metavar="MACHINE.json", help="take the identified geometry from a controller file")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--out", required=True, metavar="DIR", help="directory for NAME.comp, machine.ini, machine.hal")
+    p.add_argument("--name", help="component name (default: hs_<mechanism>[_<hash>]_kins)")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.set_defaults(func=_cmd_export_linuxcnc_kins)

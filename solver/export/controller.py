@@ -9,12 +9,15 @@ identified machine, the tool-point offset, the identified parameters with their
 standard deviations, the machine effects selected by the diagnosis (measurement
 effects such as tracker scale or drift describe the tracker, not the machine, and are
 left out), identification and validation statistics, provenance (the template and its
-parameters, and the SHA-256 of every data file) and a SHA-256 over the content: the
-canonical JSON (sorted keys, no spaces) of every field but ``sha256``.
+parameters, and the SHA-256 of every data file), test vectors (configurations across the
+workspace with their poses, read both ways, so that a port of the model can be checked
+without hyperstat) and a SHA-256 over the content: the canonical JSON (sorted keys, no
+spaces) of every field but ``sha256``.
 
 :func:`read_controller` refuses a file whose format, version, schema or hash does not
 match.  :class:`ControllerModel` is the reference forward and inverse geometric model
-built from the file alone.
+built from the file alone; :func:`check_controller` reads a file and re-evaluates its test
+vectors with it.
 """
 
 from __future__ import annotations
@@ -30,14 +33,17 @@ import numpy as np
 
 from hyperstat.solver.atomic import dumps_json, write_text
 from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.frames import so3_log
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.modelfile import _schema_message, mechanism_from_dict, mechanism_to_dict
 
 __all__ = ["FORMAT", "VERSION", "controller_document", "write_controller", "read_controller", "content_hash",
-           "file_sha256", "ControllerModel", "MACHINE_EFFECTS"]
+           "file_sha256", "ControllerModel", "MACHINE_EFFECTS", "build_test_vectors", "check_test_vectors",
+           "check_controller", "TEST_VECTOR_TOLERANCE"]
 
 FORMAT = "hyperstat-controller"
-VERSION = 1
+#: version 2 adds the test vectors (version 1 had none)
+VERSION = 2
 MACHINE_EFFECTS = ("compliance", "violated-constraint", "thermal", "screw-pitch", "screw-periodic", "backlash")
 
 
@@ -57,6 +63,117 @@ def content_hash(doc: dict) -> str:
     body = {k: v for k, v in doc.items() if k != "sha256"}
     text = json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
     return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+TEST_VECTOR_COUNT = 24
+#: agreement a port must reach on the test vectors (mm for lengths, rad for angles)
+TEST_VECTOR_TOLERANCE = {"length_mm": 1e-9, "angle_rad": 1e-9}
+
+
+def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int = TEST_VECTOR_COUNT,
+                 seed: int = 0) -> dict:
+    """Configurations across the workspace with their poses, for checking a port of the model.
+
+    The actuated values are drawn uniformly in the middle 80 % of every actuated joint's
+    range (seeded, so the same file comes out of the same inputs), assembled on the
+    identified geometry ``xi`` (rigid: the machine effects need per-pose data and are left
+    out), and kept when they assemble.  Each vector reads both ways: forward, ``actuated``
+    gives ``position`` / ``rotation`` (output frame in the base frame) and ``tool_point``;
+    inverse, the pose gives ``actuated``.
+
+    Returns
+    -------
+    dict
+        ``tolerance`` (``length_mm``, ``angle_rad``), ``seed`` and ``vectors``: per vector
+        ``actuated`` (rad / mm, model order), ``joints`` (every joint, the assembled
+        configuration), ``position`` (mm), ``rotation`` (3 x 3, rows) and ``tool_point`` (mm).
+    """
+    kin = Kinematics(mechanism)
+    act = mechanism.actuated
+    lo, hi = mechanism.ranges[act].T
+    rng = np.random.default_rng(seed)
+    qa = lo + (hi - lo) * (0.1 + 0.8 * rng.random((count, len(act))))
+    res = kin.solve(qa, xi)
+    ok = res.converged
+    q = res.q[ok]
+    pose = kin.evaluate(q, xi, jacobians=False).output_pose
+    tool = pose[:, :3, 3] + pose[:, :3, :3] @ np.asarray(target, dtype=float)
+    vectors = [{"actuated": q[k, act].tolist(), "joints": q[k].tolist(), "position": pose[k, :3, 3].tolist(),
+                "rotation": pose[k, :3, :3].tolist(), "tool_point": tool[k].tolist()} for k in range(len(q))]
+    return {"tolerance": dict(TEST_VECTOR_TOLERANCE), "seed": seed, "vectors": vectors}
+
+
+def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dict:
+    """Re-evaluate a file's test vectors with the reference model built from the file.
+
+    Forward: the model at ``actuated`` against ``position``, ``rotation`` and
+    ``tool_point``; inverse: the model's inverse of the pose (Newton from home, not from
+    the answer) against ``actuated``.  Where a pose has several inverse solutions (the
+    two crank angles of a slider-crank), Newton from home may land on another one: it
+    then passes if its forward pose is the file's, and is counted apart.
+
+    Returns
+    -------
+    dict
+        ``count``, ``forward_mm``, ``forward_rad``, ``inverse_mm``, ``inverse_rad``
+        (largest errors; mm / rad) and ``inverse_other_branch`` (vectors whose inverse
+        landed on another solution reproducing the pose).
+
+    Raises
+    ------
+    DataError
+        One sentence naming the first vector out of tolerance.
+    """
+    model = model or ControllerModel(doc)
+    tv = doc["test_vectors"]
+    vec = tv["vectors"]
+    if not vec:
+        raise DataError("controller file: 'test_vectors' holds no vector.")
+    tol_mm, tol_rad = tv["tolerance"]["length_mm"], tv["tolerance"]["angle_rad"]
+    qa = np.array([v["actuated"] for v in vec], dtype=float)
+    n_act = len(model.mechanism.actuated)
+    if qa.shape[1] != n_act:
+        raise DataError(f"controller file: test vectors have {qa.shape[1]} actuated values, the model {n_act}.")
+    pos = np.array([v["position"] for v in vec], dtype=float)
+    rot = np.array([v["rotation"] for v in vec], dtype=float)
+    tool = np.array([v["tool_point"] for v in vec], dtype=float)
+    point, pose = model.forward(qa, with_effects=False)
+    e_pos = np.maximum(np.linalg.norm(pose[:, :3, 3] - pos, axis=1), np.linalg.norm(point - tool, axis=1))
+    e_rot = np.linalg.norm(so3_log(pose[:, :3, :3] @ np.transpose(rot, (0, 2, 1))), axis=1)
+    wanted = np.tile(np.eye(4), (len(vec), 1, 1))
+    wanted[:, :3, :3], wanted[:, :3, 3] = rot, pos
+    back = model.inverse(wanted)
+    lin = np.array([model.mechanism.joints[i].type == "P" for i in model.mechanism.actuated])
+    e_inv = np.abs(back - qa)
+    tol_inv = np.where(lin, tol_mm, tol_rad)
+    for name, err, tol, unit in (("forward position", e_pos, tol_mm, "mm"),
+                                  ("forward rotation", e_rot, tol_rad, "rad")):
+        k = int(np.argmax(err))
+        if not err[k] <= tol:
+            raise DataError(f"controller file: test vector {k}: the reference model's {name} is {err[k]:.3g} {unit} "
+                            f"from the file's (tolerance {tol:g} {unit}).")
+    off = np.flatnonzero(~np.all(e_inv <= tol_inv, axis=1))
+    branch = 0
+    if len(off):
+        # a pose reached by more than one set of actuated values (e.g. the two crank angles of a slider-crank):
+        # the inverse may land on another branch; it must then reproduce the pose
+        p2, pose2 = model.forward(back[off], with_effects=False)
+        e2 = np.maximum(np.linalg.norm(pose2[:, :3, 3] - pos[off], axis=1), np.linalg.norm(p2 - tool[off], axis=1))
+        r2 = np.linalg.norm(so3_log(pose2[:, :3, :3] @ np.transpose(rot[off], (0, 2, 1))), axis=1)
+        for i, k in enumerate(off):
+            if not (e2[i] <= tol_mm and r2[i] <= tol_rad):
+                j = int(np.argmax(e_inv[k] / tol_inv))
+                unit = "mm" if lin[j] else "rad"
+                raise DataError(f"controller file: test vector {k}: the reference inverse model gives actuated value "
+                                f"{j} {e_inv[k, j]:.3g} {unit} from the file's (tolerance {tol_inv[j]:g} {unit}), and "
+                                f"its pose misses the file's by {e2[i]:.3g} mm.")
+        branch = len(off)
+    same = np.setdiff1d(np.arange(len(vec)), off)
+    e_same = e_inv[same] if len(same) else np.zeros((1, len(lin)))
+    return {"count": len(vec), "forward_mm": float(e_pos.max()), "forward_rad": float(e_rot.max()),
+            "inverse_mm": float(e_same[:, lin].max()) if lin.any() else 0.0,
+            "inverse_rad": float(e_same[:, ~lin].max()) if (~lin).any() else 0.0,
+            "inverse_other_branch": int(branch)}
 
 
 def controller_document(mechanism, identification, effects: tuple = (), source: dict | None = None,
@@ -114,6 +231,7 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
         "statistics": json.loads(dumps_json(stats)),
         "provenance": {"source": dict(source or {}),
                        "data": [{"file": Path(f).name, "sha256": file_sha256(f)} for f in data_files]},
+        "test_vectors": build_test_vectors(mechanism, xi, theta[model.sl_target]),
     }
     if tolerances is not None:
         doc["tolerances"] = {"counts": dict(tolerances["counts"]), "task": list(tolerances.get("task", [])),
@@ -271,3 +389,31 @@ class ControllerModel:
             if np.max(np.abs(step)) < tol * max(1.0, lc):
                 break
         return qa
+
+
+def check_controller(path: str | os.PathLike) -> dict:
+    """Check a received controller file: format, version, schema, hash, then its test vectors.
+
+    Returns
+    -------
+    dict
+        ``mechanism``, ``sha256`` and the largest errors of :func:`check_test_vectors`.
+
+    Raises
+    ------
+    DataError
+        One sentence naming the file and the first check that fails.
+
+    Examples
+    --------
+    >>> check_controller("no-such-file.json")
+    Traceback (most recent call last):
+    ...
+    hyperstat.solver.errors.DataError: no-such-file.json: no such controller file.
+    """
+    doc = read_controller(path)
+    try:
+        result = check_test_vectors(doc)
+    except DataError as exc:
+        raise DataError(f"{path}: {str(exc).removeprefix('controller file: ')}") from None
+    return {"mechanism": doc["mechanism"], "sha256": doc["sha256"], **result}

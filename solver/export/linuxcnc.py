@@ -9,7 +9,11 @@ configuration: the universal joint's origin of each leg and its spherical joint'
 expressed in the output frame.  Defects that make a universal joint's axes miss each
 other, or a leg's prismatic axis miss the joint centres, have no place in this model:
 :func:`genhexkins_parameters` reports the largest strut-length difference between the
-two models over a set of poses, so that the integrator knows what the export loses.
+two models over a set of poses, so that the integrator knows what the export loses, and
+:func:`refuse_unrepresentable` stops the export when that difference is above a
+threshold (by default the calibration's noise floor): a controller that is off by more
+than the measurements could see is not what the calibration found.  The generated
+kinematics module (:mod:`hyperstat.solver.export.linuxcnc_kins`) carries every defect.
 """
 
 from __future__ import annotations
@@ -20,7 +24,8 @@ from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.model import Joint
 
-__all__ = ["genhexkins_parameters", "hal_lines", "ini_section", "strut_lengths"]
+__all__ = ["genhexkins_parameters", "hal_lines", "ini_section", "strut_lengths", "refuse_unrepresentable",
+           "noise_floor"]
 
 
 def _legs(mechanism) -> list[tuple[int, int, int, str]]:
@@ -44,8 +49,10 @@ def genhexkins_parameters(mechanism, xi: np.ndarray | None = None) -> dict:
     Returns
     -------
     dict
-        ``base``, ``platform`` (lists of [x, y, z]) and ``max_strut_difference_mm`` over 200
-        random poses of the model's workspace (0 for the nominal model).
+        ``base``, ``platform`` (lists of [x, y, z]), ``max_strut_difference_mm`` over 200
+        random poses of the model's workspace (0 for the nominal model) and
+        ``max_strut_difference_after_offset_mm``, what remains after the best constant offset
+        per strut (the part a joint offset cannot take).
     """
     legs = _legs(mechanism)
     kin = Kinematics(mechanism)
@@ -66,9 +73,51 @@ def genhexkins_parameters(mechanism, xi: np.ndarray | None = None) -> dict:
     poses = kin.evaluate(res.q[ok], xi, jacobians=False).output_pose
     model_lengths = strut_lengths(base, plat, poses)
     order = [list(act).index(mechanism.joint_index[name]) for _, _, _, name in legs]
-    diff = np.abs(model_lengths - qa[ok][:, order])
+    signed = model_lengths - qa[ok][:, order]
+    diff = np.abs(signed)
+    after = np.abs(signed - signed.mean(axis=0))
     return {"base": base.tolist(), "platform": plat.tolist(), "max_strut_difference_mm": float(diff.max()),
-            "poses_checked": int(ok.sum())}
+            "max_strut_difference_after_offset_mm": float(after.max()), "poses_checked": int(ok.sum())}
+
+
+def noise_floor(doc: dict) -> float | None:
+    """Noise floor of a controller file's calibration (mm): the noise RMS, else the identification RMS."""
+    stats = doc.get("statistics", {})
+    if stats.get("noise_rms"):
+        return float(stats["noise_rms"])
+    ident = stats.get("identification") or {}
+    return float(ident["rms"]) if ident.get("rms") else None
+
+
+def refuse_unrepresentable(params: dict, threshold_mm: float, mechanism_name: str, origin: str) -> None:
+    """Raise when genhexkins' strut lengths differ from the model by more than ``threshold_mm``.
+
+    Parameters
+    ----------
+    params : dict
+        :func:`genhexkins_parameters`.
+    threshold_mm : float
+        Largest acceptable strut-length difference (mm).
+    mechanism_name, origin : str
+        For the message (``origin`` says where the threshold comes from).
+
+    Raises
+    ------
+    DataError
+        One sentence: the difference, the threshold, and what to do.
+
+    Examples
+    --------
+    >>> refuse_unrepresentable({"max_strut_difference_mm": 1e-13}, 0.01, "hexapod", "given")
+    """
+    diff = params["max_strut_difference_mm"]
+    if diff > threshold_mm:
+        after = params.get("max_strut_difference_after_offset_mm")
+        extra = f" ({after:.3g} mm after a constant offset per strut)" if after is not None else ""
+        raise DataError(f"genhexkins cannot represent the identified geometry of '{mechanism_name}': its strut "
+                        f"lengths differ from the model by up to {diff:.3g} mm{extra}, above the threshold "
+                        f"{threshold_mm:.3g} mm ({origin}); use the generated kinematics module "
+                        f"(export-linuxcnc-kins) or raise --max-strut-error.")
 
 
 def strut_lengths(base: np.ndarray, platform: np.ndarray, poses: np.ndarray) -> np.ndarray:

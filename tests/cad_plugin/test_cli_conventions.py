@@ -39,6 +39,8 @@ def campaign(tmp_path_factory) -> Path:
     assert run.returncode == 0 and run.stdout == run.stderr == "", run
     run = _run("simulate", "r.skel.json", "--poses", "40", "--validation", "0", "--out", "r.csv", "--quiet", cwd=d)
     assert run.returncode == 0 and run.stdout == run.stderr == "", run
+    run = _run("export-controller", SC, "d.csv", "--out", "m.json", "--quiet", cwd=d)
+    assert run.returncode == 0 and (d / "m.json").is_file(), run
     return d
 
 
@@ -51,6 +53,8 @@ COMMANDS = {
     "diagnose": (["diagnose", SC, "{d}/d.csv", "--validation", "{d}/d.validation.csv", "--json", "g.json"], "g.json"),
     "export-controller": (["export-controller", SC, "{d}/d.csv", "--out", "m.json"], "m.json"),
     "export-linuxcnc": (["export-linuxcnc", HEX, "--hal", "k.hal"], "k.hal"),
+    "check-controller": (["check-controller", "{d}/m.json", "--json", "cc.json"], "cc.json"),
+    "export-linuxcnc-kins": (["export-linuxcnc-kins", TX, "--out", "kins"], "kins/machine.ini"),
     "accuracy": (["accuracy", SC, "--workspace-configurations", "60", "--json", "acc.json"], "acc.json"),
     "montecarlo": (["montecarlo", SC, "--workspace-configurations", "20", "--samples", "200", "--json", "mc.json"],
                    "mc.json"),

@@ -1,4 +1,4 @@
-"""Controller parameter file: round trip, tamper detection, and the reference model from the file alone.
+"""Controller parameter file: round trip, tamper detection, test vectors, ``check-controller``, the reference model.
 
 Units: lengths in mm, angles in rad.
 """
@@ -11,7 +11,9 @@ import warnings
 import numpy as np
 import pytest
 
-from hyperstat.solver.export.controller import ControllerModel, controller_document, read_controller, write_controller
+from hyperstat.solver.cli import main
+from hyperstat.solver.export.controller import (ControllerModel, check_controller, content_hash, controller_document,
+                                                read_controller, write_controller)
 from hyperstat.solver.diagnosis.effects import make_effect
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.calibration.identify import identify
@@ -52,7 +54,7 @@ def test_round_trip_and_determinism(exported, tripteor, tripteor_analysis):
 
 @pytest.mark.parametrize("tamper, message", [
     (lambda d: d["defects"].__setitem__("db21", d["defects"]["db21"] + 1e-9), "SHA-256 does not match"),
-    (lambda d: d.__setitem__("version", 2), "reads version 1"),
+    (lambda d: d.__setitem__("version", 1), "reads version 2"),
     (lambda d: d.__setitem__("format", "other"), "field 'format'"),
     (lambda d: d.pop("target"), "field 'target' is missing"),
     (lambda d: d["effects"].append({"effect": "gravity", "parameters": {}, "options": {}}), "effects"),
@@ -91,3 +93,66 @@ def test_the_file_carries_the_tolerance_classes(exported, tripteor, tripteor_ana
     assert back["tolerances"]["counts"] == cl.counts()
     assert {n: e["class"] for n, e in back["tolerances"]["parameters"].items()} == \
            {n: e["class"] for n, e in cl.to_dict()["parameters"].items()}
+
+
+def _one_digit_changed(text: str, after: str) -> str:
+    """The file text with one digit changed: the last digit of the first number after ``after``."""
+    import re
+
+    start = text.index(after)
+    m = re.compile(r"-?\d+\.\d+").search(text, start)
+    i = m.end() - 1
+    return text[:i] + str((int(text[i]) + 1) % 10) + text[i + 1:]
+
+
+def test_file_carries_test_vectors_across_the_workspace(exported, tripteor):
+    path, _, _ = exported
+    doc = read_controller(path)
+    vec = doc["test_vectors"]["vectors"]
+    assert len(vec) >= 20
+    qa = np.array([v["actuated"] for v in vec])
+    lo, hi = tripteor.ranges[tripteor.actuated].T
+    assert np.all(qa.max(0) - qa.min(0) > 0.5 * (hi - lo))  # spread over the strokes, not one corner
+    # each vector is a closed configuration of the identified geometry (an independent check: the
+    # closure residual of the stored joints, not the solver that produced them)
+    from hyperstat.solver.kinematics.closure import Kinematics
+
+    model = ControllerModel(doc)
+    st = Kinematics(tripteor).evaluate(np.array([v["joints"] for v in vec]), model.xi, jacobians=False)
+    assert np.abs(st.residual).max() < 1e-3  # least-squares closure of the identified (hyperstatic) geometry
+    assert np.allclose(st.output_pose[:, :3, 3], [v["position"] for v in vec], atol=1e-9)
+
+
+def test_check_controller_accepts_the_untouched_file(exported, capsys):
+    path, _, _ = exported
+    assert main(["check-controller", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "test vectors re-evaluated" in out and "SHA-256 valid" in out
+    res = check_controller(path)
+    assert res["count"] >= 20 and res["inverse_mm"] < 1e-9 and res["inverse_rad"] < 1e-9
+    assert res["inverse_other_branch"] == 0  # every pose back to the file's own actuated values
+
+
+@pytest.mark.parametrize("where", ['"defects"', '"test_vectors"', '"target"'])
+def test_check_controller_refuses_a_changed_digit(exported, tmp_path, capsys, where):
+    path, _, _ = exported
+    bad = tmp_path / "machine.json"
+    bad.write_text(_one_digit_changed(path.read_text(), where))
+    assert bad.read_text() != path.read_text()
+    assert main(["check-controller", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "SHA-256 does not match" in err and str(bad) in err
+
+
+def test_check_controller_re_evaluates_the_vectors(exported, tmp_path, capsys):
+    """A defect changed with the hash recomputed passes the hash, not the test vectors."""
+    path, _, _ = exported
+    doc = json.loads(path.read_text())
+    doc["defects"]["db21"] += 1e-4
+    doc["sha256"] = content_hash(doc)
+    bad = tmp_path / "machine.json"
+    bad.write_text(json.dumps(doc))
+    read_controller(bad)  # format, schema and hash are fine
+    assert main(["check-controller", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "test vector" in err and "tolerance" in err

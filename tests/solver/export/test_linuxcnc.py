@@ -73,3 +73,80 @@ def test_genhexkins_loads_our_parameters(hexapod):
         for n, p in enumerate(params[kind]):
             for axis, v in zip("xyz", p):
                 assert read[f"genhexkins.{kind}.{n}.{axis}"] == pytest.approx(v, rel=1e-5, abs=1e-9)  # halcmd prints 6 digits
+
+
+@pytest.fixture(scope="module")
+def identified_hexapod_file(hexapod, tmp_path_factory):
+    """Controller file of an identified hexapod (virtual machine with random defects, seed 0)."""
+    import warnings
+
+    from hyperstat.solver.analysis.stationarity import analyze
+    from hyperstat.solver.calibration.identify import identify
+    from hyperstat.solver.calibration.virtual import VirtualMachine
+    from hyperstat.solver.export.controller import controller_document, write_controller
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        analysis = analyze(hexapod, n_configurations=24, seed=0)
+        vm = VirtualMachine.random(hexapod, analysis, seed=0)
+        q = vm.poses(60, seed=1)
+        res = identify(hexapod, analysis, vm.measure(q[:40], seed=3), vm.measure(q[40:], seed=4, prefix="V"))
+    path = tmp_path_factory.mktemp("hexid") / "machine.json"
+    return write_controller(path, controller_document(hexapod, res, (), {"source": "hexapod.py"}))
+
+
+def test_hexapod_export_refuses_an_unrepresentable_identified_model(identified_hexapod_file, tmp_path, capsys):
+    """Random U-joint / axis defects: genhexkins' joint-centre model misses them by far more than the noise."""
+    from hyperstat.solver.cli import main
+    from hyperstat.solver.export.controller import ControllerModel, read_controller
+
+    doc = read_controller(identified_hexapod_file)
+    model = ControllerModel(doc)
+    params = genhexkins_parameters(model.mechanism, model.xi)
+    noise = doc["statistics"]["noise_rms"]
+    assert params["max_strut_difference_mm"] > 100 * noise  # the premise: not representable
+    hal = tmp_path / "hex.hal"
+    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(hal)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cannot represent" in err and "noise floor" in err
+    assert not hal.exists()  # nothing half-written
+    # the user's threshold decides: above the difference, the export goes through (and says the difference)
+    limit = 2 * params["max_strut_difference_mm"]
+    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(hal),
+                 "--max-strut-error", str(limit)]) == 0
+    assert hal.is_file() and "largest strut-length difference" in capsys.readouterr().out
+    # and below it, refused again, naming the option
+    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(tmp_path / "b.hal"),
+                 "--max-strut-error", str(params["max_strut_difference_mm"] / 2)]) == 2
+    assert "--max-strut-error" in capsys.readouterr().err
+
+
+def test_nominal_hexapod_export_passes(tmp_path):
+    from hyperstat.cad_plugin.cli import main
+
+    hal = tmp_path / "hex.hal"
+    assert main(["export-linuxcnc", str(TEMPLATES / "hexapod.py"), "--hal", str(hal), "--quiet"]) == 0
+    assert hal.is_file() and "setp genhexkins.base.0.x" in hal.read_text()
+
+
+def test_kins_export_refuses_a_mechanism_without_world_coordinates(tmp_path, capsys):
+    """The slider-crank has one actuated joint: no LinuxCNC world-coordinate convention; nothing written."""
+    from hyperstat.cad_plugin.cli import main
+
+    out = tmp_path / "kins"
+    assert main(["export-linuxcnc-kins", str(TEMPLATES / "slider_crank.py"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "1 actuated joints" in err
+    assert not out.exists()
+
+
+def test_kins_component_of_the_nominal_tripteor(tmp_path):
+    """The command's files: a component naming its geometry, an INI whose [KINS] and joints match the model."""
+    from hyperstat.cad_plugin.cli import main
+
+    assert main(["export-linuxcnc-kins", str(TEMPLATES / "tripteor_x7.py"), "--out", str(tmp_path), "--quiet"]) == 0
+    comp = (tmp_path / "hs_tripteor_x7_kins.comp").read_text()
+    assert comp.startswith("component hs_tripteor_x7_kins ") and "#define NACT 5" in comp
+    ini = (tmp_path / "machine.ini").read_text()
+    assert "KINEMATICS = hs_tripteor_x7_kins" in ini and "JOINTS = 5" in ini and "COORDINATES = X Y Z B C" in ini
+    assert ini.count("TYPE = LINEAR") == 3 and ini.count("TYPE = ANGULAR") == 2

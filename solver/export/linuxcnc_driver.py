@@ -1,0 +1,112 @@
+#!/usr/bin/python3
+"""Headless LinuxCNC "display" that drives a machine by MDI and records what LinuxCNC reports.
+
+Units: the machine's (mm, degrees).
+
+Run by LinuxCNC itself as the ``[DISPLAY] DISPLAY`` program of a configuration written by
+:mod:`hyperstat.solver.export.linuxcnc_sim` (``linuxcnc -r machine.ini``), with Debian's
+system Python (``/usr/bin/python3``), which has the ``linuxcnc`` module: it needs nothing
+from hyperstat.  It reads ``[HYPERSTAT] MOVES`` (a JSON file: ``{"coordinates": "XYZBC",
+"moves": [[x, y, z, b, c], ...]}``), then: estop reset, machine on, home all joints, MDI
+mode, and for every move ``G1`` to it and waits until the motion is done and in
+position; it records ``joint_actual_position`` and ``actual_position`` (LinuxCNC's forward
+kinematics of the joints) and writes them as JSON to ``[HYPERSTAT] RESULTS``, atomically.
+An error is recorded in the results (``error``) rather than raised, so that LinuxCNC shuts
+down cleanly when this program exits.
+"""
+
+import json
+import os
+import sys
+import time
+
+
+def _ini_value(path, section, key):
+    current = None
+    with open(path, encoding="utf-8") as handle:
+        for line in handle:
+            line = line.strip()
+            if line.startswith("[") and line.endswith("]"):
+                current = line[1:-1]
+            elif current == section and "=" in line:
+                k, v = line.split("=", 1)
+                if k.strip() == key:
+                    return v.strip()
+    raise KeyError(f"{path}: no [{section}] {key}")
+
+
+def _wait(stat, predicate, what, timeout=30.0):
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        stat.poll()
+        if predicate():
+            return
+        time.sleep(0.005)
+    raise RuntimeError(f"timed out waiting for {what}")
+
+
+def _settle(stat, timeout=10.0):
+    """Wait until the joints stop: in position, no velocity, positions within 1e-9 over five polls (10 ms apart)."""
+    t0, last, same = time.time(), None, 0
+    while time.time() - t0 < timeout:
+        time.sleep(0.01)
+        stat.poll()
+        now = tuple(stat.joint_actual_position)
+        still = last is not None and max(abs(a - b) for a, b in zip(now, last)) < 1e-9
+        same = same + 1 if (still and stat.inpos and stat.current_vel == 0.0) else 0
+        if same >= 5:
+            return
+        last = now
+    raise RuntimeError(f"timed out waiting for the joints to stop (in position {stat.inpos}, velocity "
+                       f"{stat.current_vel}, joints {now}, previous {last})")
+
+
+def drive(moves_path, results_path):
+    """Drive LinuxCNC through the moves of ``moves_path``; write what it reports to ``results_path``."""
+    import linuxcnc
+
+    spec = json.load(open(moves_path, encoding="utf-8"))
+    letters = spec["coordinates"]
+    out = {"coordinates": letters, "moves": [], "error": None}
+    stat, cmd, err = linuxcnc.stat(), linuxcnc.command(), linuxcnc.error_channel()
+    try:
+        cmd.state(linuxcnc.STATE_ESTOP_RESET)
+        cmd.state(linuxcnc.STATE_ON)
+        _wait(stat, lambda: stat.task_state == linuxcnc.STATE_ON, "machine on")
+        cmd.mode(linuxcnc.MODE_MANUAL)
+        cmd.wait_complete()
+        cmd.home(-1)
+        cmd.wait_complete()
+        n_joints = stat.joints
+        _wait(stat, lambda: all(stat.homed[:n_joints]), "homing")
+        out["home"] = {"joints": list(stat.joint_actual_position[:n_joints]),
+                       "world": list(stat.actual_position[:6])}
+        cmd.mode(linuxcnc.MODE_MDI)
+        cmd.wait_complete()
+        cmd.mdi("G21 G90 G94")
+        cmd.wait_complete()
+        feed = float(spec.get("feed", 60000.0))
+        for target in spec["moves"]:
+            words = " ".join(f"{a}{v:.12f}" for a, v in zip(letters, target))
+            cmd.mdi(f"G1 F{feed:.1f} {words}")
+            cmd.wait_complete(60)
+            _wait(stat, lambda: stat.interp_state == linuxcnc.INTERP_IDLE and stat.inpos
+                  and stat.queue == 0, "the move to " + words)
+            _settle(stat)
+            message = err.poll()
+            if message:
+                raise RuntimeError(f"LinuxCNC: {message[1]} (after {words})")
+            stat.poll()
+            out["moves"].append({"command": list(target), "joints": list(stat.joint_actual_position[:n_joints]),
+                                 "world": list(stat.actual_position[:6])})
+    except Exception as exc:  # recorded, so that LinuxCNC shuts down normally
+        out["error"] = f"{exc.__class__.__name__}: {exc}"
+    tmp = results_path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as handle:
+        json.dump(out, handle)
+    os.replace(tmp, results_path)
+
+
+if __name__ == "__main__":
+    ini = sys.argv[sys.argv.index("-ini") + 1] if "-ini" in sys.argv else os.environ["INI_FILE_NAME"]
+    drive(_ini_value(ini, "HYPERSTAT", "MOVES"), _ini_value(ini, "HYPERSTAT", "RESULTS"))
