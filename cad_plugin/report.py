@@ -146,12 +146,14 @@ def render_html(doc: dict, images: dict) -> str:
     # assembly conditions
     out.append('<section id="assembly"><h2>Assembly conditions</h2>')
     if doc["assembly_conditions"]:
-        out.append("<table><tr><th>id</th><th>condition</th><th>value</th><th>feature</th><th>how the value is "
-                   "obtained</th></tr>")
+        out.append("<table><tr><th>id</th><th>condition</th><th>value</th><th>feature</th><th>plays at their bound "
+                   "with the largest effect</th></tr>")
         for a in doc["assembly_conditions"]:
             out.append(f"<tr><td>{e(a['id'])}</td><td>{a['mathml']}</td><td class=\"num\">{e(_value(a))}</td>"
-                       f"<td>{e(a['feature'])}</td><td>{e(a['value_source'])}</td></tr>")
+                       f"<td>{e(a['feature'])}</td><td>{e(', '.join(a.get('limiting') or []) or '-')}</td></tr>")
         out.append("</table>")
+        if doc["assembly_conditions"]:
+            out.append(f"<p class=\"note\">Value: {e(doc['assembly_conditions'][0]['value_source'])}.</p>")
         red = tol.get("redundant", {})
         if red:
             out.append("<p>Redundant shifts shown with their equivalent (the same physical shift): "
