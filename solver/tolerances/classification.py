@@ -525,7 +525,9 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
            for g, r in redundant.items()}
     cal = _calibration_residual(decl, j_m, task_xi @ basis, n_s, n_rot, ls, len(q), decl.poses)
     cal.update({"smallest_singular_value": float(sv[-1]) if sv.size else None, "measurements": decl.measurement_kind,
-                "unknowns": int(j_m.shape[1])})
+                "unknowns": int(j_m.shape[1]),
+                "non_identifiable_share_max": max((t.evidence["residual_share"] for t in items
+                                                   if t.cls == "compensable"), default=0.0)})
     return Classification(m.name, items, params, appendix, red, decl, int(len(q)), warns, cal)
 
 
