@@ -146,12 +146,14 @@ def render_html(doc: dict, images: dict) -> str:
     # assembly conditions
     out.append('<section id="assembly"><h2>Assembly conditions</h2>')
     if doc["assembly_conditions"]:
-        out.append("<table><tr><th>id</th><th>condition</th><th>value</th><th>feature</th><th>how the value is "
-                   "obtained</th></tr>")
+        out.append("<table><tr><th>id</th><th>condition</th><th>value</th><th>feature</th><th>plays at their bound "
+                   "with the largest effect</th></tr>")
         for a in doc["assembly_conditions"]:
             out.append(f"<tr><td>{e(a['id'])}</td><td>{a['mathml']}</td><td class=\"num\">{e(_value(a))}</td>"
-                       f"<td>{e(a['feature'])}</td><td>{e(a['value_source'])}</td></tr>")
+                       f"<td>{e(a['feature'])}</td><td>{e(', '.join(a.get('limiting') or []) or '-')}</td></tr>")
         out.append("</table>")
+        if doc["assembly_conditions"]:
+            out.append(f"<p class=\"note\">Value: {e(doc['assembly_conditions'][0]['value_source'])}.</p>")
         red = tol.get("redundant", {})
         if red:
             out.append("<p>Redundant shifts shown with their equivalent (the same physical shift): "
@@ -205,7 +207,9 @@ def render_html(doc: dict, images: dict) -> str:
                f"({cal.get('poses', '-')} poses, noise {cal.get('noise_mm', 0):g} mm). What it leaves on the task "
                f"(3&sigma;, worst configuration): position {_um(cal.get('position_mm'))} &micro;m, orientation "
                f"{cal.get('orientation_rad', 0):.2g} rad; the accuracy-critical allocation uses the spec less "
-               "this residual.</p>")
+               "this residual. The part of a compensable tolerance's effect that calibration and the controller "
+               f"leave (not identifiable or not cancellable) is at most {cal.get('non_identifiable_share_max', 0):.1e} "
+               "of it.</p>")
     ident = doc["identification"]
     if ident:
         out.append(f"<p>Rank {ident['rank']} of {ident['unknowns']} unknowns, condition number "
@@ -370,7 +374,8 @@ def render_markdown(doc: dict) -> str:
                   f"{100 * c['orientation_share']:.1f} %" for c in mc.get("contributors", [])[:10]]
     cal = doc.get("calibration") or {}
     lines += ["", "## Calibration", "", f"residual after calibration (3 sigma): position {_um(cal.get('position_mm'))} um, "
-              f"orientation {cal.get('orientation_rad', 0):.2g} rad"]
+              f"orientation {cal.get('orientation_rad', 0):.2g} rad; part of a compensable tolerance's effect left: "
+              f"at most {cal.get('non_identifiable_share_max', 0):.1e}"]
     if doc["hypotheses"]:
         lines += ["", "## Design hypotheses", "", "| hypothesis | verdict |", "|---|---|"]
         lines += [f"| {h['id']} | {h['verdict']} |" for h in doc["hypotheses"]]

@@ -137,7 +137,8 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
         if it["class"] == "assembly":
             assembly.append({"id": it["id"], "statement": it["statement"], "mathml": terms_mathml(it["terms"]),
                              "value": it["value"], "unit": it["unit"], "why": it["why"],
-                             "value_source": it["value_source"], "feature": it["feature"]})
+                             "value_source": it["value_source"], "feature": it["feature"],
+                             "limiting": it["evidence"].get("assemblability", {}).get("limiting", [])})
     doc = {
         "units": {"length": "mm", "angle": "rad"},
         "mechanism": mechanism.name,

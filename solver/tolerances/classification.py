@@ -454,6 +454,15 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
                     reasons.append(f"{100 * r_unc:.0f} % of its task effect is outside what the actuators can "
                                    "cancel")
                 why = "; ".join(reasons) + f" (worst of {len(q)} configurations)"
+            if _REL / 100 <= r_total < 100 * _REL:  # within two decades of the threshold: say it is weak
+                why += (f"; weak evidence: the residual {r_total:.1e} is within a factor 100 of the threshold "
+                        f"{_REL:.0e}")
+                warns.append(f"{p.name}: its class ({cls}) rests on a task residual of {r_total:.1e}, close to the "
+                             f"threshold {_REL:.0e}.")
+        if cls == "non-influent" and infl > 1e-11 * max(top, 1e-300):
+            why += f"; weak evidence: {infl / top:.1e} of the largest task motion, close to the threshold 1e-9"
+            warns.append(f"{p.name}: non-influent by a task motion of {infl / top:.1e} of the largest, close to the "
+                         "threshold 1e-9.")
         t = Tolerance("", cls, "direction", statement, {p.name: 1.0}, params, unit[p.name], feature_of(params), words,
                       why, evidence=ev, direction=d * pscale / pscale[index[p.name]])  # per unit of the parameter
         if p.verdict == "coupled":
@@ -516,7 +525,9 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
            for g, r in redundant.items()}
     cal = _calibration_residual(decl, j_m, task_xi @ basis, n_s, n_rot, ls, len(q), decl.poses)
     cal.update({"smallest_singular_value": float(sv[-1]) if sv.size else None, "measurements": decl.measurement_kind,
-                "unknowns": int(j_m.shape[1])})
+                "unknowns": int(j_m.shape[1]),
+                "non_identifiable_share_max": max((t.evidence["residual_share"] for t in items
+                                                   if t.cls == "compensable"), default=0.0)})
     return Classification(m.name, items, params, appendix, red, decl, int(len(q)), warns, cal)
 
 

@@ -191,3 +191,45 @@ def test_bad_template_declaration_is_one_sentence(tmp_path, capsys):
     assert main(["analyze", str(bad)]) == 2
     err = capsys.readouterr().err
     assert "TOLERANCING" in err and "task component 'speed' is unknown" in err and err.count("\n") == 1
+
+
+@pytest.fixture(scope="module")
+def tripteor():
+    mech, kin, result = _setup("tripteor_x7")
+    return mech, kin, result, classify(mech, result, kin)
+
+
+def test_tripteor_accuracy_critical_db7_is_indistinguishable_from_the_target_offsets(tripteor):
+    """Second method: finite differences of the re-assembled model, not the classifier's twist maps."""
+    mech, kin, result, cl = tripteor
+    t = next(i for i in cl.items if i.statement == "db7")
+    assert t.cls == "accuracy-critical"
+    q = result.configurations
+    targets = np.array(cl.declaration.targets_mm)
+    size = 1e-4
+
+    def measured(xi):
+        res = kin.assemble(q.copy(), xi)
+        pose = kin.evaluate(res.q, xi, jacobians=False).output_pose
+        return np.concatenate([pose[:, :3, 3] + pose[:, :3, :3] @ tt for tt in targets], axis=1), pose
+
+    y0, pose0 = measured(np.zeros(len(mech.parameters)))
+    y1, pose1 = measured(size * t.direction)
+    signature = ((y1 - y0) / size).ravel()
+    # columns of the unknown target offsets (each target moves with the output frame)
+    offsets = np.zeros((len(q), 3 * len(targets), 3 * len(targets)))
+    for k in range(len(targets)):
+        offsets[:, 3 * k:3 * k + 3, 3 * k:3 * k + 3] = pose0[:, :3, :3]
+    cols = offsets.reshape(-1, 3 * len(targets))
+    coef, *_ = np.linalg.lstsq(cols, signature, rcond=None)
+    assert np.linalg.norm(cols @ coef - signature) < 1e-4 * np.linalg.norm(signature)  # first order: O(size)
+    # ... yet it moves the tool tip, which the task uses
+    assert np.max(np.linalg.norm(pose1[:, :3, 3] - pose0[:, :3, 3], axis=1)) > 0.5 * size
+
+
+def test_tripteor_compensable_tilt_is_cancelled_by_the_five_actuators(tripteor):
+    mech, kin, result, cl = tripteor
+    t = next(i for i in cl.items if i.statement == "dJ62")
+    assert t.cls == "compensable"
+    b, a = _task_residual_after_actuators(mech, kin, cl, t, result.configurations[2], 1e-4)
+    assert b > 1e-3 and a < 1e-3 * b  # tool tip and tool axis restored (second order left)
