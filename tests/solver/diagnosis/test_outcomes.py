@@ -225,3 +225,14 @@ def test_validate_diagnosis_needs_something_to_run(capsys):
 
     assert main(["validate-diagnosis"]) == 2
     assert "--independent" in capsys.readouterr().err
+
+
+def test_the_independent_generator_shares_no_code_with_hyperstat():
+    """The generator that validates the diagnosis imports nothing from hyperstat (standard: no shared code)."""
+    import ast
+    from pathlib import Path
+
+    tree = ast.parse(Path(gen.__file__).read_text())
+    imported = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    imported += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    assert imported and not [m for m in imported if m.split(".")[0] in ("hyperstat", "solver", "cad_plugin")]
