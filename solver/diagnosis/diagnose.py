@@ -63,7 +63,7 @@ from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
 
-__all__ = ["Diagnosis", "diagnose", "region_blocks", "structure_tests", "format_outcome", "OUTCOMES"]
+__all__ = ["Diagnosis", "diagnose", "region_blocks", "structure_tests", "describe_where", "format_outcome", "OUTCOMES"]
 
 PRIOR_LENGTH = 0.5  # mm, prior std of a geometric length parameter in the screening refits
 PRIOR_ANGLE = 1e-3  # rad
