@@ -63,7 +63,7 @@ from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
 
-__all__ = ["Diagnosis", "diagnose", "region_blocks", "structure_tests", "format_outcome", "OUTCOMES"]
+__all__ = ["Diagnosis", "diagnose", "region_blocks", "structure_tests", "describe_where", "format_outcome", "OUTCOMES"]
 
 PRIOR_LENGTH = 0.5  # mm, prior std of a geometric length parameter in the screening refits
 PRIOR_ANGLE = 1e-3  # rad
@@ -505,8 +505,7 @@ def describe_where(test: dict | None) -> str:
     var = test["variable"]
     follows = f"joint {var[1:]}" if var.startswith("q") else f"the metadata column '{var}'"
     if test["family"] == "candidate signature":
-        what = (f"the signature of the candidate '{var}' in sample (it does not predict held-out blocks, or its "
-                f"fit is implausible)")
+        what = f"the signature of the candidate '{var}' (its columns, fitted in sample)"
     elif test["family"] == "joint error":
         if test["kind"] == "periodic" and "cycles_per_revolution" in test:
             c = test["cycles_per_revolution"]
@@ -998,12 +997,26 @@ def _verdict(data, validation, significant, test, final, selected, structure, re
                             f"metadata explains {100 * bb_share:.0f} % of the residual variance under cross-validation")
     verdict["evidence"] = ("no candidate effect fits (none lowers the cross-validated error by 5 % within its "
                            "physical domain); the residual follows " + verdict["where"])
+    best = structure["best"]
+    if structure["structured"] and best["family"] == "candidate signature":
+        verdict["evidence"] += (f"; '{best['variable']}' fits it in sample but was not added: it does not predict "
+                                f"held-out blocks of the cross-validation, or its estimate is implausible (see rejected)")
     return "unexplained", verdict
 
 
 def format_outcome(diag: Diagnosis) -> str:
     """The answer in words, with its evidence and the rejected candidates (text output of ``diagnose``)."""
-    lines = ["", "The answer"]
+    lines = []
+    st = diag.where.get("structure")
+    if st:
+        lines += ["", f"Structure of the rigid residuals ({st['n_tests']} F-tests, threshold {st['threshold']:.1g}; "
+                      f"isotropy: Bartlett p = {st['isotropy']['p_value']:.2g})"]
+        lines += [f"  {describe_where(t)}" for t in st["tests"][:3]]
+        for sp in diag.where.get("revolute_spectra", []):
+            lines.append(f"  spectrum of joint {sp['joint']}'s error: peak at {sp['peak_cycles_per_revolution']:g} "
+                         f"cycles per revolution ({100 * sp['peak_share']:.0f} % of the residual variance, "
+                         f"p = {sp['peak_p_value']:.2g})")
+    lines += ["", "The answer"]
     o = diag.outcome
     v = diag.verdict
     if o == "no significant gap":

@@ -115,6 +115,9 @@ def applicable_effects(mechanism, analysis, data) -> dict:
         reasons["thermal"] = "no varying 'temperature[degC]' column in the data"
     if not all(f"dir{mechanism.joints[i].name}" in data.metadata for i in mechanism.actuated):
         reasons["backlash"] = "no approach-direction columns 'dir<joint>' in the data"
+    if mechanism.metadata.get("masses") and len(mechanism.chains) != 1:
+        reasons["compliance"] = reasons["backlash-gravity"] = (
+            "link masses are declared, but distributed masses are supported on serial mechanisms only")
     if "session" not in data.metadata or len(set(data.metadata["session"].tolist())) < 2:
         reasons["tracker-drift"] = "fewer than two measurement sessions in the 'session' column"
     return reasons

@@ -225,3 +225,32 @@ def test_validate_diagnosis_needs_something_to_run(capsys):
 
     assert main(["validate-diagnosis"]) == 2
     assert "--independent" in capsys.readouterr().err
+
+
+def test_the_independent_generator_shares_no_code_with_hyperstat():
+    """The generator that validates the diagnosis imports nothing from hyperstat (standard: no shared code)."""
+    import ast
+    from pathlib import Path
+
+    tree = ast.parse(Path(gen.__file__).read_text())
+    imported = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    imported += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    assert imported and not [m for m in imported if m.split(".")[0] in ("hyperstat", "solver", "cad_plugin")]
+
+
+def test_bad_link_masses_are_refused_with_the_field_named(tmp_path, capsys):
+    import json
+
+    from hyperstat.cad_plugin.cli import main
+
+    doc = json.loads(gen.SCARA.read_text())
+    doc["metadata"]["masses"]["2"]["mass"] = -3.0
+    model = tmp_path / "scara_bad.skel.json"
+    model.write_text(json.dumps(doc))
+    id_text, val_text, _ = gen.campaign(gen.SCARA, "none", 0)
+    (tmp_path / "d.csv").write_text(id_text)
+    out = tmp_path / "g.json"
+    assert main(["diagnose", str(model), str(tmp_path / "d.csv"), "--json", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "metadata.masses['2']" in err and "mass" in err
+    assert not out.exists()
