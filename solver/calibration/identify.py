@@ -302,10 +302,13 @@ class MeasurementModel:
         """Target of each row of ``data`` as an index into :attr:`targets`."""
         idx = getattr(data, "target_index", None)
         k = len(data)
-        if idx is None or len(self.targets) == 1:
+        if idx is None or (len(self.targets) == 1 and len(getattr(data, "target_names", [""])) == 1):
             return np.zeros(k, dtype=int)
         names = getattr(data, "target_names", None)
         if names is not None and list(names) != self.targets:
+            if self.targets == [""]:
+                raise DataError(f"{data.source}: this step models one target per pose, the file has "
+                                f"{len(names)} ({', '.join(names)}); give it one target's columns.")
             raise DataError(f"{data.source}: targets {', '.join(names)} differ from the model's "
                             f"{', '.join(self.targets)}.")
         return np.asarray(idx, dtype=int)

@@ -435,3 +435,18 @@ def test_six_d_measurements_enter_the_fit_with_their_own_noise(robot, tmp_path):
     assert six.validation["rms"] <= 1.2 * noise_rms(val)
     assert six.orientation["validation"]["rms"] <= 1.2 * six.orientation["noise_rms"]
     assert 0.8 < six.sigma < 1.2
+
+
+def test_a_one_target_step_refuses_a_multi_target_file(robot, tmp_path):
+    """Steps that model one target (e.g. an effect model built without targets) say so instead of
+    silently mixing three SMRs into one."""
+    from hyperstat.solver.calibration.identify import MeasurementModel
+
+    mech, analysis = robot
+    c = Campaign(5)
+    path = tmp_path / "m.csv"
+    path.write_text(c.csv(c.poses(3), "P"))
+    data = read_measurements(path, mech)
+    model = MeasurementModel(mech, analysis)
+    with pytest.raises(DataError, match=r"models one target per pose, the file has 3 \(SMR1, SMR2, SMR3\)"):
+        model.predict(model.initial(), data)
