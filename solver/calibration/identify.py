@@ -302,10 +302,13 @@ class MeasurementModel:
         """Target of each row of ``data`` as an index into :attr:`targets`."""
         idx = getattr(data, "target_index", None)
         k = len(data)
-        if idx is None or len(self.targets) == 1:
+        if idx is None or (len(self.targets) == 1 and len(getattr(data, "target_names", [""])) == 1):
             return np.zeros(k, dtype=int)
         names = getattr(data, "target_names", None)
         if names is not None and list(names) != self.targets:
+            if self.targets == [""]:
+                raise DataError(f"{data.source}: this step models one target per pose, the file has "
+                                f"{len(names)} ({', '.join(names)}); give it one target's columns.")
             raise DataError(f"{data.source}: targets {', '.join(names)} differ from the model's "
                             f"{', '.join(self.targets)}.")
         return np.asarray(idx, dtype=int)
@@ -408,6 +411,9 @@ class IdentificationResult:
         robust z-score (median / MAD of the weighted norms) and ``outlier`` flag.
     base_rounds : list of int
         Rank found at each round of the base-set decision (the last at the solution).
+    held_back : dict or None
+        Directions numerically independent at the solution whose fit did not explain
+        significantly more (chi-square test of the nested fits): kept out of the base set.
     converged : bool
         Whether the fit converged (cost not increased, iteration limit not hit).
     """
@@ -442,6 +448,7 @@ class IdentificationResult:
     converged: bool = True
     model_selection: dict | None = None
     orientation: dict | None = None
+    held_back: dict | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (units: mm, rad)."""
@@ -463,6 +470,7 @@ class IdentificationResult:
             "converged": self.converged,
             "nominal": self.nominal,
             "base_rounds": self.base_rounds,
+            "held_back": self.held_back,
             "model_selection": self.model_selection,
             "orientation": self.orientation,
             "iterations": self.iterations,
@@ -841,6 +849,7 @@ def identify(
     rounds: list[int] = []
     converged = True
     chosen: list | None = None
+    cost, rank_used, held_back = float("inf"), 0, None
     for _round in range(max_rounds):
         # re-check at the solution: the set fitted so far first (it stays when it is still a base
         # set there), then the measurement set-up, then the rest
@@ -861,14 +870,37 @@ def identify(
         rounds.append(rank)
         if chosen is not None and base_idx == chosen:
             break  # the set decided at the solution is the one fitted
+        previous = None
         if chosen is not None:
+            previous = (theta.copy(), list(chosen), cost, rank_used, fitter.q.copy())
             # parameters that left the base set go back to their prior; the refit absorbs them
             left = [j for j in chosen if j not in base_idx]
             theta[left] = theta_prior[left]
         chosen = base_idx
         theta, ok = fitter.fit(theta, np.array(base_idx, dtype=int), scale, max_nfev)
+        final, r_now, jw_all = fitter.residual(theta)
+        new_cost = float(r_now @ r_now)
+        if previous is not None:
+            # A set that changed at the solution is kept only when its fit is sound: a swap of
+            # equivalent representatives must reach the same cost, and extra directions must
+            # explain significantly more (chi-square test of the nested fits, 0.1 % level).
+            # Directions that only second-order effects separate (a perturbed over-constrained
+            # machine) are numerically independent but carry no information: held back.
+            extra = len(base_idx) - len(previous[1])
+            dof = max(n_rows - len(base_idx), 1)
+            s2 = 1.0 if data.noise is not None else new_cost / dof
+            from scipy.special import chdtri  # imported here: import hyperstat.solver stays fast
+
+            needed = chdtri(extra, 1e-3) * s2 if extra > 0 else -1e-6 * max(previous[2], 1.0) - 0.01 * s2
+            if not (np.isfinite(new_cost) and previous[2] - new_cost > needed):
+                theta, chosen, cost, rank_used, q_prev = previous
+                fitter.q = q_prev
+                final, _, jw_all = fitter.residual(theta)
+                js = jw_all * scale
+                held_back = (rank, extra, float(previous[2] - new_cost))
+                break
         converged = converged and ok
-        final, _, jw_all = fitter.residual(theta)
+        cost, rank_used = new_cost, rank
         js = jw_all * scale
         if imposed is not None:
             rounds.append(rank)
@@ -876,6 +908,13 @@ def identify(
     else:
         warns.append(f"the identifiable set still changed after {max_rounds} rounds (ranks {rounds}): the rank "
                      f"decision is fragile at this solution; read the singular-value gap.")
+    rank = rank_used
+    if held_back is not None:
+        # the singular-value gap at the accepted rank, from the Jacobian at the solution
+        norms = np.linalg.norm(js, axis=0)
+        vis = norms > 1e-12 * max(norms.max(), 1e-300)
+        sv = np.linalg.svd(js[:, vis] / norms[vis], compute_uv=False)
+        gap = float(sv[rank - 1] / sv[rank]) if rank < len(sv) and sv[rank] > 0 else float("inf")
     selection = None
     if imposed is None and (select_size in ("cv", "bic") or (select_size == "auto" and n_rows < 5 * len(chosen))):
         how = "cv" if select_size == "cv" or (select_size == "auto" and data.noise is None) else "bic"
@@ -984,6 +1023,10 @@ def identify(
         converged=converged,
         model_selection=selection,
         orientation=orientation,
+        held_back=None if held_back is None else {
+            "rank_at_solution": held_back[0], "extra_directions": held_back[1], "chi2_decrease": held_back[2],
+            "reason": "numerically independent at the solution but not significant (chi-square test, 0.1 %): "
+                      "held at their prior"},
     )
 
 

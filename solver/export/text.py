@@ -205,6 +205,11 @@ def format_identification(result) -> str:
     rounds = getattr(result, "base_rounds", [])
     if len(rounds) > 1:
         lines.append(f"identifiable set decided at the solution: rank by round {rounds}")
+    held = getattr(result, "held_back", None)
+    if held:
+        lines.append(f"  {held['extra_directions']} more direction(s) independent at the solution (rank "
+                     f"{held['rank_at_solution']}) explain chi2 {held['chi2_decrease']:.3g} less: not significant, "
+                     f"held at their prior")
     sel = getattr(result, "model_selection", None)
     if sel:
         values = (" -> CV RMS (um) " + " ".join(f"{1000 * v:.1f}" for v in sel["cv_rms"])) if sel.get("cv_rms") \

@@ -85,3 +85,23 @@ def test_measurements_without_the_controller_columns_are_refused(workflow, tmp_p
     err = capsys.readouterr().err
     assert "column 'J3[deg]' (controller joint J3) is missing" in err
     assert not (tmp_path / "o.json").exists()
+
+
+def test_joint_map_option_overrides_the_models(workflow, tmp_path, capsys):
+    """--joint-map MAP.yaml replaces the model's map: a map without the FANUC coupling gives an
+    absurd fit that says so (joint values kept inside the ranges by taking poses with small J3)."""
+    t = workflow
+    model = tmp_path / "m.skel.json"
+    assert main(["import-robot", str(t / "fanuc_like.dh.yaml"), "--out", str(model), "--quiet"]) == 0
+    raw = tmp_path / "raw.map.yaml"
+    raw.write_text("joint_map:\n  units: {angle: deg}\n  joints:\n    '1': {J1: 1}\n    '2': {J2: -1}\n"
+                   "    '3': {J3: 1}\n    '4': {J4: -1}\n    '5': {J5: 1}\n    '6': {J6: 1, offset: 0.5}\n")
+    lines = (t / "meas.csv").read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("pose,"))
+    keep = [line for line in lines[head + 1:] if abs(float(line.split(",")[3])) < 60.0]
+    assert len(keep) >= 15
+    data = tmp_path / "d.csv"
+    data.write_text("\n".join(lines[:head + 1] + keep) + "\n")
+    assert main(["identify", str(model), str(data), "--joint-map", str(raw)]) == 0
+    out = capsys.readouterr().out
+    assert "warning: ABSURD FIT: sigma = " in out and "q3 = J3 + J2" in out

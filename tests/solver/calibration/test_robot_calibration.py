@@ -383,11 +383,11 @@ def test_corrected_dh_table_follows_the_calibrated_model(robot, calibrated, tmp_
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_small_data_warns_and_picks_a_smaller_parameter_set(robot, tmp_path, seed):
-    """12 poses of one SMR, geometric errors a tenth of the noise's effect (the UR10 situation of
-    the issue): the full fit predicts held-out poses worse than the nominal model and says so
+    """12 poses of one SMR, geometric errors (a fiftieth of the main campaign's) below the noise's
+    effect (the UR10 situation of the issue; seeds 0-5 all pass, 0-1 kept for time): the full fit predicts held-out poses worse than the nominal model and says so
     loudly; the information criterion keeps fewer parameters and predicts better."""
     mech, analysis = robot
-    c = Campaign(seed, errors=0.05, noise=(0.1, 0.0))
+    c = Campaign(seed, errors=0.02, noise=(0.1, 0.0))
     d, v = tmp_path / "d.csv", tmp_path / "v.csv"
     d.write_text(c.csv(c.poses(12), "P", only=("SMR1",)))
     v.write_text(c.csv(c.poses(40), "V", only=("SMR1",)))
@@ -435,3 +435,18 @@ def test_six_d_measurements_enter_the_fit_with_their_own_noise(robot, tmp_path):
     assert six.validation["rms"] <= 1.2 * noise_rms(val)
     assert six.orientation["validation"]["rms"] <= 1.2 * six.orientation["noise_rms"]
     assert 0.8 < six.sigma < 1.2
+
+
+def test_a_one_target_step_refuses_a_multi_target_file(robot, tmp_path):
+    """Steps that model one target (e.g. an effect model built without targets) say so instead of
+    silently mixing three SMRs into one."""
+    from hyperstat.solver.calibration.identify import MeasurementModel
+
+    mech, analysis = robot
+    c = Campaign(5)
+    path = tmp_path / "m.csv"
+    path.write_text(c.csv(c.poses(3), "P"))
+    data = read_measurements(path, mech)
+    model = MeasurementModel(mech, analysis)
+    with pytest.raises(DataError, match=r"models one target per pose, the file has 3 \(SMR1, SMR2, SMR3\)"):
+        model.predict(model.initial(), data)
