@@ -165,7 +165,8 @@ def linuxcnc_env(workdir: Path) -> dict:
     return env
 
 
-def run_moves(ini: str | os.PathLike, coordinates: str, moves: np.ndarray, timeout: float = 300.0) -> dict:
+def run_moves(ini: str | os.PathLike, coordinates: str, moves: np.ndarray, timeout: float = 300.0,
+              unwrap: str = "") -> dict:
     """Start LinuxCNC on ``ini`` with the headless driver, move to ``moves`` by MDI, return what it reported.
 
     Parameters
@@ -176,6 +177,10 @@ def run_moves(ini: str | os.PathLike, coordinates: str, moves: np.ndarray, timeo
         World coordinate letters, e.g. ``"XYZBC"``.
     moves : ndarray, (K, len(coordinates))
         Targets (mm, degrees).
+    unwrap : str
+        Rotary axes (e.g. ``"ABC"``) the driver moves on the turn nearest their current
+        position (an angle near +-180 degrees must not turn the wrist over); the command
+        sent is in the result.
 
     Returns
     -------
@@ -199,7 +204,7 @@ def run_moves(ini: str | os.PathLike, coordinates: str, moves: np.ndarray, timeo
         driver.write_text(Path(__file__).with_name("linuxcnc_driver.py").read_text(encoding="utf-8"),
                           encoding="utf-8")
         os.chmod(driver, 0o755)
-        (work / "moves.json").write_text(json.dumps({"coordinates": coordinates,
+        (work / "moves.json").write_text(json.dumps({"coordinates": coordinates, "unwrap": unwrap,
                                                       "moves": np.asarray(moves, float).tolist()}))
         text = ini.read_text(encoding="utf-8")
         lines = [f"DISPLAY = {driver}" if line.startswith("DISPLAY =") else line for line in text.splitlines()]

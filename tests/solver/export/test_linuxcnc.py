@@ -113,12 +113,12 @@ def test_hexapod_export_refuses_an_unrepresentable_identified_model(identified_h
     # the user's threshold decides: above the difference, the export goes through (and says the difference)
     limit = 2 * params["max_strut_difference_mm"]
     assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(hal),
-                 "--max-strut-error", str(limit)]) == 0
+                 "--max-error", str(limit)]) == 0
     assert hal.is_file() and "largest strut-length difference" in capsys.readouterr().out
     # and below it, refused again, naming the option
     assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(tmp_path / "b.hal"),
-                 "--max-strut-error", str(params["max_strut_difference_mm"] / 2)]) == 2
-    assert "--max-strut-error" in capsys.readouterr().err
+                 "--max-error", str(params["max_strut_difference_mm"] / 2)]) == 2
+    assert "--max-error" in capsys.readouterr().err
 
 
 def test_nominal_hexapod_export_passes(tmp_path):
