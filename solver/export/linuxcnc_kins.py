@@ -89,7 +89,7 @@ def world_layout(mechanism) -> dict:
             if len(set(letters)) == len(letters):
                 wrist.sort(key=lambda w: w[1])
                 return {"coordinates": "XYZ" + "".join(letters and sorted(letters)), "mode": "tcp", "wrist": wrist}
-    raise DataError(f"'{m.name}' has {n} actuated joints and no world-coordinate convention in the LinuxCNC export "
+    raise DataError(f"'{m.name}' has {n} actuated joint{'' if n == 1 else 's'} and no world-coordinate convention in the LinuxCNC export "
                     f"(3: X Y Z; 6: X Y Z A B C; 4 or 5: X Y Z plus the last revolute joints of the output path, "
                     f"outside every loop, as rotary axes).")
 

@@ -136,7 +136,7 @@ def test_kins_export_refuses_a_mechanism_without_world_coordinates(tmp_path, cap
     out = tmp_path / "kins"
     assert main(["export-linuxcnc-kins", str(TEMPLATES / "slider_crank.py"), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "1 actuated joints" in err
+    assert len(err.splitlines()) == 1 and "1 actuated joint and" in err
     assert not out.exists()
 
 
