@@ -156,9 +156,11 @@ def remove_component(name: str) -> None:
 
 
 def linuxcnc_env(workdir: Path) -> dict:
-    """Environment for a LinuxCNC run: as root, RTAPI needs an unprivileged uid and a socket path it can reach."""
+    """Environment for a headless LinuxCNC run (no DISPLAY; as root, an unprivileged RTAPI uid and socket path)."""
     env = dict(os.environ)
-    env.pop("PYTHONPATH", None)
+    # headless: with a DISPLAY the linuxcnc script asks questions (a stale lock) in a Tk window nobody sees
+    for name in ("PYTHONPATH", "DISPLAY", "WAYLAND_DISPLAY"):
+        env.pop(name, None)
     env["RTAPI_FIFO_PATH"] = str(workdir / "rtapi.sock")
     if os.geteuid() == 0:
         env["RTAPI_UID"] = "65534"
