@@ -134,18 +134,42 @@ def _cmd_check_controller(args: argparse.Namespace) -> int:
 
 def _cmd_export_linuxcnc_kins(args: argparse.Namespace) -> int:
     from hyperstat.solver.atomic import write_text
-    from hyperstat.solver.export.linuxcnc_kins import component_name, kins_component, sample_world, world_layout
+    from hyperstat.solver.export.linuxcnc_kins import (component_name, inverse_conditioning, kins_component,
+                                                       sample_world, world_layout)
     from hyperstat.solver.export.linuxcnc_sim import write_sim
 
     mech, xi, doc = _geometry(args, "export-linuxcnc-kins")
     layout = world_layout(mech)
+    home = mech.home.copy()
+    if args.home:
+        from hyperstat.solver.kinematics.closure import Kinematics
+
+        for spec in args.home:
+            joint, sep, value = spec.partition("=")
+            j = mech.joint_index.get(joint.strip())
+            if not sep or j is None or j not in mech.actuated:
+                raise HyperstatError(f"--home: '{spec}' is not ACTUATED_JOINT=VALUE (actuated joints: "
+                                     f"{', '.join(mech.joints[i].name for i in mech.actuated)}).")
+            try:
+                home[j] = float(value)
+            except ValueError:
+                raise HyperstatError(f"--home: '{value}' in '{spec}' is not a number (rad or mm).") from None
+        res = Kinematics(mech).solve(home[mech.actuated][None, :], xi)
+        if not res.converged[0]:
+            raise HyperstatError(f"--home: the mechanism does not assemble at {', '.join(args.home)}.")
+        home = res.q[0]
+    cond = inverse_conditioning(mech, xi, home)
+    if cond < 1e-8:
+        raise HyperstatError(f"the home configuration of '{mech.name}' is singular for the world coordinates "
+                             f"{' '.join(layout['coordinates'])} (conditioning {cond:.1g}): the kinematics could not "
+                             f"leave it; choose another with --home ACTUATED_JOINT=VALUE (rad or mm).")
     name = args.name or component_name(mech.name, doc["sha256"] if doc else "")
     if not name.isidentifier():
         raise HyperstatError(f"--name: '{name}' is not a valid component name (letters, digits, underscores).")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    comp = write_text(out / f"{name}.comp", kins_component(mech, xi, name=name))
-    ini = write_sim(out, mech, name, layout, sample_world(mech, xi, layout))
+    comp = write_text(out / f"{name}.comp", kins_component(mech, xi, name=name, home=home))
+    ini = write_sim(out, mech, name, layout, sample_world(mech, xi, layout), home=home)
     if not args.quiet:
         sys.stdout.write(f"LinuxCNC kinematics of '{mech.name}' ({'identified' if doc else 'nominal'} geometry), "
                          f"world coordinates {' '.join(layout['coordinates'])}, {len(mech.actuated)} joints\n"
@@ -189,5 +213,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
     p.add_argument("--out", required=True, metavar="DIR", help="directory for NAME.comp, machine.ini, machine.hal")
     p.add_argument("--name", help="component name (default: hs_<mechanism>[_<hash>]_kins)")
+    p.add_argument("--home", action="append", metavar="JOINT=VALUE",
+                   help="home of an actuated joint (rad or mm; default the model's home), e.g. away from a singularity")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_export_linuxcnc_kins)

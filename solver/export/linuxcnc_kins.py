@@ -43,7 +43,7 @@ from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Joint
 
-__all__ = ["world_layout", "world_of", "kins_component", "component_name", "sample_world"]
+__all__ = ["world_layout", "world_of", "kins_component", "component_name", "sample_world", "inverse_conditioning"]
 
 _LETTERS = "ABC"
 
@@ -136,6 +136,34 @@ def sample_world(mechanism, xi: np.ndarray | None, layout: dict, count: int = 20
     res = kin.solve(qa, xi)
     q = res.q[res.converged]
     return world_of(q, kin.evaluate(q, xi, jacobians=False).output_pose, layout)
+
+
+def inverse_conditioning(mechanism, xi: np.ndarray | None, q: np.ndarray) -> float:
+    """Smallest over largest singular value of the component's inverse-kinematics Jacobian at ``q``.
+
+    The rows are those the component's Newton iterates on (closure residuals, rotations
+    times the length scale, and the output constraints of :func:`world_layout`), the
+    columns its unknowns (every joint but the wrist joints of ``tcp`` mode).  Zero at a
+    singularity, where Newton has no direction to leave by (the SCARA template's home, arm
+    stretched); about 1e-4 at the Tripteor X7's and the hexapod's homes.
+    """
+    layout = world_layout(mechanism)
+    kin = Kinematics(mechanism)
+    st = kin.evaluate(np.asarray(q, dtype=float)[None, :], xi, jacobians=True)
+    lc = kin.length_scale
+    rows = []
+    if len(mechanism.closures):
+        c = st.closure_q[0].copy()
+        for k in range(len(mechanism.closures)):
+            c[6 * k:6 * k + 3] *= lc
+        rows.append(c)
+    out = st.output_q[0].copy()
+    out[:3] *= lc
+    rows.append(out if layout["mode"] == "pose" else out[3:])
+    wrist = {w[0] for w in layout["wrist"]}
+    cols = [j for j in range(len(mechanism.joints)) if j not in wrist]
+    s = np.linalg.svd(np.vstack(rows)[:, cols], compute_uv=False)
+    return float(s[-1] / s[0]) if s[0] > 0 else 0.0
 
 
 def component_name(mechanism_name: str, digest: str = "") -> str:
