@@ -258,6 +258,16 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
     mode = {"xyz": 0, "tcp": 1, "pose": 2}[layout["mode"]]
     wrist = layout["wrist"] or [(0, "A")]
     lc = kin.length_scale
+    # what is left of the closure residual on this geometry (an identified hyperstatic machine keeps some, in
+    # directions no joint motion changes): a solve ending above ten times it found a false minimum
+    res_max = 1e-9 * max(1.0, lc)
+    if n_cl:
+        act_idx = m.actuated
+        lo, hi = m.ranges[act_idx].T
+        qa = lo + (hi - lo) * (0.1 + 0.8 * np.random.default_rng(0).random((50, len(act_idx))))
+        res = kin.solve(qa, xi)
+        if res.converged.any():
+            res_max = max(res_max, 10.0 * float(res.residual[res.converged].max()))
     lines = [
         f'component {name} "hyperstat kinematics of {m.name} (identified geometry; mm, degrees)";',
         'pin out bit dummy = 0 "unused (halcompile needs a pin; the kinematics functions have none)";',
@@ -280,6 +290,7 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
         f"#define LSCALE {lc:.17g}",
         f"#define TOL {tolerance * max(1.0, lc):.17g}",
         f"#define MAXIT {int(max_iterations)}",
+        f"#define RES_MAX {res_max:.17g}",
         "static const double EL_D[NEL][16] = {" + ",\n  ".join(_c_array(d) for d in el_d) + "};",
         f"static const int EL_JOINT[NEL] = {_c_array(el_joint, '{:d}')};",
         f"static const int EL_ROT[NEL] = {_c_array(el_rot, '{:d}')};",
@@ -430,6 +441,22 @@ static void closure_rows(const struct walk *w, double r[][1], double jac[][NQ], 
     }
 }
 
+/* largest closure residual (rotations times LSCALE, mm) */
+static double closure_residual(const struct walk *w)
+{
+    double m = 0.0, v[3];
+    int k, i;
+    for (k = 0; k < NCL; k++) {
+        const double *fc = w->ce[k], *fr = w->fr[CL_FRAME[k]];
+        rot_log(fc, fr, v);
+        for (i = 0; i < 3; i++) {
+            if (fabs(LSCALE * v[i]) > m) m = fabs(LSCALE * v[i]);
+            if (fabs(fc[4 * i + 3] - fr[4 * i + 3]) > m) m = fabs(fc[4 * i + 3] - fr[4 * i + 3]);
+        }
+    }
+    return m;
+}
+
 /* solve (J^T J + damping) dx = -J^T r over the unknown joints (mask), Gaussian elimination */
 static int gn_step(double r[][1], double jac[][NQ], int nrow, const int *mask, double *dx)
 {
@@ -557,7 +584,7 @@ int kinematicsForward(const double *joints, EmcPose *pos, const KINEMATICS_FORWA
     double q[NQ], dx[NQ];
     int mask[NQ], i;
 #if NCL > 0
-    int it;
+    int it, start;
 #endif
     (void)fflags; (void)iflags; (void)r; (void)jac; (void)dx; (void)mask;
     for (i = 0; i < NQ; i++) { q[i] = q_prev[i]; mask[i] = 1; }
@@ -567,15 +594,22 @@ int kinematicsForward(const double *joints, EmcPose *pos, const KINEMATICS_FORWA
     }
     walk(q, &w);
 #if NCL > 0
-    for (it = 1; it <= MAXIT; it++) {
-        closure_rows(&w, r, jac, 0);
-        if (gn_step(r, jac, 6 * NCL, mask, dx)) return -1;
-        cap_step(dx);
-        for (i = 0; i < NQ; i++) q[i] += dx[i];
-        walk(q, &w);
-        if (max_abs(dx, NQ) < TOL) break;
+    for (start = 0; start < 2; start++) {  /* from the previous pose, else from home */
+        if (start) {
+            for (i = 0; i < NQ; i++) if (mask[i]) q[i] = Q_HOME[i];
+            walk(q, &w);
+        }
+        for (it = 1; it <= MAXIT; it++) {
+            closure_rows(&w, r, jac, 0);
+            if (gn_step(r, jac, 6 * NCL, mask, dx)) return -1;
+            cap_step(dx);
+            for (i = 0; i < NQ; i++) q[i] += dx[i];
+            walk(q, &w);
+            if (max_abs(dx, NQ) < TOL) break;
+        }
+        if (it <= MAXIT && closure_residual(&w) <= RES_MAX) break;  /* converged to a true solution */
     }
-    if (it > MAXIT) return -1;
+    if (start == 2) return -1;
 #endif
     for (i = 0; i < NQ; i++) q_prev[i] = q[i];
     pose_to_world(w.fr[OUT_FRAME], q, pos);
@@ -606,7 +640,7 @@ static int inverse_from(double *q, const EmcPose *pos)
         cap_step(dx);
         for (i = 0; i < NQ; i++) q[i] += dx[i];
         walk(q, &w);
-        if (max_abs(dx, NQ) < TOL) return 0;
+        if (max_abs(dx, NQ) < TOL) return closure_residual(&w) <= RES_MAX ? 0 : -1;
     }
     return -1;
 }
