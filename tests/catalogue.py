@@ -52,6 +52,15 @@ def _json_edit(src: Path, dst: Path, change: Callable[[dict], None]) -> Path:
     return _write(dst, json.dumps(doc))
 
 
+def _rehashed_defect_change(doc: dict) -> None:
+    """Move the first defect by 1e-4 (mm or rad) and recompute the hash: only the test vectors can tell."""
+    from hyperstat.solver.export.controller import content_hash
+
+    name = sorted(doc["defects"])[0]
+    doc["defects"][name] += 1e-4
+    doc["sha256"] = content_hash(doc)
+
+
 def _analyze(path: Path, tmp: Path, *extra: str) -> list:
     return ["analyze", str(path), *extra, "--json", str(tmp / "out.json")]
 
@@ -197,6 +206,11 @@ CASES = [
     Case("controller-not-json", "controller file", "not JSON",
          lambda t, g: ["export-linuxcnc", "--controller", str(_write(t / "c.json", "[1,")), "--hal",
                        str(t / "out.hal")], "c.json"),
+    Case("controller-test-vectors", "controller file", "defect changed and hash recomputed (test vectors fail)",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed_defect_change)),
+                       "--json", str(t / "out.json")], "test vector"),
+    Case("kins-mechanism", "model file", "mechanism with no LinuxCNC world coordinates (export-linuxcnc-kins)",
+         lambda t, g: ["export-linuxcnc-kins", str(g["model"]), "--out", str(t / "out")], "actuated joint"),
     # command-line values
     Case("option-noise", "option", "noise model that cannot be read",
          lambda t, g: ["simulate", str(SC), "--noise", "5 um", "--out", str(t / "out.csv")], "--noise"),

@@ -82,28 +82,37 @@ def _geometry(args: argparse.Namespace, what: str):
 
 def _cmd_export_linuxcnc(args: argparse.Namespace) -> int:
     from hyperstat.solver.atomic import write_text
-    from hyperstat.solver.export.linuxcnc import (genhexkins_parameters, hal_lines, ini_section, noise_floor,
-                                                  refuse_unrepresentable)
+    from hyperstat.solver.export import genserkins, linuxcnc
+    from hyperstat.solver.export.linuxcnc import noise_floor
 
     if not args.controller and not args.source:
-        raise HyperstatError("export-linuxcnc needs a hexapod SOURCE or --controller MACHINE.json.")
+        raise HyperstatError("export-linuxcnc needs a hexapod or 6R robot SOURCE, or --controller MACHINE.json.")
     mech, xi, doc = _geometry(args, "export-linuxcnc")
-    if args.max_strut_error is not None:
-        if not (args.max_strut_error > 0 and math.isfinite(args.max_strut_error)):
-            raise HyperstatError(f"--max-strut-error must be a positive length in mm, got {args.max_strut_error}.")
-        threshold, origin = args.max_strut_error, "--max-strut-error"
+    if args.max_error is not None:
+        if not (args.max_error > 0 and math.isfinite(args.max_error)):
+            raise HyperstatError(f"--max-error must be a positive length in mm, got {args.max_error}.")
+        threshold, origin = args.max_error, "--max-error"
     elif doc is not None and noise_floor(doc):
         threshold, origin = noise_floor(doc), "the calibration's noise floor"
     else:
         threshold, origin = 1e-6, "the default for a nominal geometry"
-    params = genhexkins_parameters(mech, xi)
-    refuse_unrepresentable(params, threshold, mech.name, origin)
-    hal = write_text(args.hal, hal_lines(params))
-    ini = write_text(args.ini, ini_section()) if args.ini else None
+    if mech.closures:  # a parallel mechanism: genhexkins (6-UPS only)
+        params = linuxcnc.genhexkins_parameters(mech, xi)
+        linuxcnc.refuse_unrepresentable(params, threshold, mech.name, origin)
+        hal_text, ini_text = linuxcnc.hal_lines(params), linuxcnc.ini_section()
+        summary = (f"genhexkins geometry of '{mech.name}': largest strut-length difference to the model "
+                   f"{params['max_strut_difference_mm']:.3g} mm over {params['poses_checked']} poses")
+    else:  # a serial robot: genserkins (6R only)
+        params = genserkins.genserkins_parameters(mech, xi)
+        genserkins.refuse_unrepresentable(params, threshold, mech.name, origin)
+        hal_text, ini_text = "loadrt genserkins\n" + genserkins.hal_lines(params), genserkins.ini_section()
+        summary = (f"genserkins (modified DH) geometry of '{mech.name}': largest pose difference to the model "
+                   f"{params['max_position_difference_mm']:.3g} mm, {params['max_rotation_difference_rad']:.3g} rad "
+                   f"over {params['configurations_checked']} configurations")
+    hal = write_text(args.hal, hal_text)
+    ini = write_text(args.ini, ini_text) if args.ini else None
     if not args.quiet:
-        sys.stdout.write(f"genhexkins geometry of '{mech.name}': largest strut-length difference to the model "
-                         f"{params['max_strut_difference_mm']:.3g} mm over {params['poses_checked']} poses "
-                         f"(threshold {threshold:.3g} mm, {origin})\n"
+        sys.stdout.write(f"{summary} (threshold {threshold:.3g} mm, {origin})\n"
                          f"wrote {hal}\n" + (f"wrote {ini}\n" if ini else ""))
     return 0
 
@@ -128,18 +137,42 @@ def _cmd_check_controller(args: argparse.Namespace) -> int:
 
 def _cmd_export_linuxcnc_kins(args: argparse.Namespace) -> int:
     from hyperstat.solver.atomic import write_text
-    from hyperstat.solver.export.linuxcnc_kins import component_name, kins_component, sample_world, world_layout
+    from hyperstat.solver.export.linuxcnc_kins import (component_name, inverse_conditioning, kins_component,
+                                                       sample_world, world_layout)
     from hyperstat.solver.export.linuxcnc_sim import write_sim
 
     mech, xi, doc = _geometry(args, "export-linuxcnc-kins")
     layout = world_layout(mech)
+    home = mech.home.copy()
+    if args.home:
+        from hyperstat.solver.kinematics.closure import Kinematics
+
+        for spec in args.home:
+            joint, sep, value = spec.partition("=")
+            j = mech.joint_index.get(joint.strip())
+            if not sep or j is None or j not in mech.actuated:
+                raise HyperstatError(f"--home: '{spec}' is not ACTUATED_JOINT=VALUE (actuated joints: "
+                                     f"{', '.join(mech.joints[i].name for i in mech.actuated)}).")
+            try:
+                home[j] = float(value)
+            except ValueError:
+                raise HyperstatError(f"--home: '{value}' in '{spec}' is not a number (rad or mm).") from None
+        res = Kinematics(mech).solve(home[mech.actuated][None, :], xi)
+        if not res.converged[0]:
+            raise HyperstatError(f"--home: the mechanism does not assemble at {', '.join(args.home)}.")
+        home = res.q[0]
+    cond = inverse_conditioning(mech, xi, home)
+    if cond < 1e-8:
+        raise HyperstatError(f"the home configuration of '{mech.name}' is singular for the world coordinates "
+                             f"{' '.join(layout['coordinates'])} (conditioning {cond:.1g}): the kinematics could not "
+                             f"leave it; choose another with --home ACTUATED_JOINT=VALUE (rad or mm).")
     name = args.name or component_name(mech.name, doc["sha256"] if doc else "")
     if not name.isidentifier():
         raise HyperstatError(f"--name: '{name}' is not a valid component name (letters, digits, underscores).")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    comp = write_text(out / f"{name}.comp", kins_component(mech, xi, name=name))
-    ini = write_sim(out, mech, name, layout, sample_world(mech, xi, layout))
+    comp = write_text(out / f"{name}.comp", kins_component(mech, xi, name=name, home=home))
+    ini = write_sim(out, mech, name, layout, sample_world(mech, xi, layout), home=home)
     if not args.quiet:
         sys.stdout.write(f"LinuxCNC kinematics of '{mech.name}' ({'identified' if doc else 'nominal'} geometry), "
                          f"world coordinates {' '.join(layout['coordinates'])}, {len(mech.actuated)} joints\n"
@@ -159,15 +192,16 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, metavar="MACHINE.json", help="controller file")
     common_options(p)
     p.set_defaults(func=_cmd_export_controller)
-    p = sub.add_parser("export-linuxcnc", help="LinuxCNC genhexkins parameters of a hexapod (HAL setp, INI [KINS])")
-    p.add_argument("source", nargs="?", help="hexapod template or model file (nominal geometry)")
+    p = sub.add_parser("export-linuxcnc",
+                       help="LinuxCNC genhexkins (hexapod) or genserkins (6R robot) parameters (HAL setp, INI [KINS])")
+    p.add_argument("source", nargs="?", help="hexapod or 6R robot template or model file (nominal geometry)")
     p.add_argument("--controller", metavar="MACHINE.json", help="take the identified geometry from a controller file")
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
     p.add_argument("--hal", required=True, metavar="OUT.hal", help="HAL file with the setp lines")
     p.add_argument("--ini", metavar="OUT.ini", help="INI fragment with the [KINS] section")
-    p.add_argument("--max-strut-error", type=float, metavar="MM",
-                   help="refuse when genhexkins' strut lengths differ from the model by more (mm; default: the "
-                        "calibration's noise floor for --controller)")
+    p.add_argument("--max-error", type=float, metavar="MM",
+                   help="refuse when genhexkins' strut lengths (genserkins' poses) differ from the model by more "
+                        "(mm; default: the calibration's noise floor for --controller)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_export_linuxcnc)
     p = sub.add_parser("check-controller", help="check a controller file: format, version, schema, hash, test vectors")
@@ -182,5 +216,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
     p.add_argument("--out", required=True, metavar="DIR", help="directory for NAME.comp, machine.ini, machine.hal")
     p.add_argument("--name", help="component name (default: hs_<mechanism>[_<hash>]_kins)")
+    p.add_argument("--home", action="append", metavar="JOINT=VALUE",
+                   help="home of an actuated joint (rad or mm; default the model's home), e.g. away from a singularity")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_export_linuxcnc_kins)

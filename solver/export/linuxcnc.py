@@ -117,7 +117,7 @@ def refuse_unrepresentable(params: dict, threshold_mm: float, mechanism_name: st
         raise DataError(f"genhexkins cannot represent the identified geometry of '{mechanism_name}': its strut "
                         f"lengths differ from the model by up to {diff:.3g} mm{extra}, above the threshold "
                         f"{threshold_mm:.3g} mm ({origin}); use the generated kinematics module "
-                        f"(export-linuxcnc-kins) or raise --max-strut-error.")
+                        f"(export-linuxcnc-kins) or raise --max-error.")
 
 
 def strut_lengths(base: np.ndarray, platform: np.ndarray, poses: np.ndarray) -> np.ndarray:

@@ -8,9 +8,11 @@ Run by LinuxCNC itself as the ``[DISPLAY] DISPLAY`` program of a configuration w
 system Python (``/usr/bin/python3``), which has the ``linuxcnc`` module: it needs nothing
 from hyperstat.  It reads ``[HYPERSTAT] MOVES`` (a JSON file: ``{"coordinates": "XYZBC",
 "moves": [[x, y, z, b, c], ...]}``), then: estop reset, machine on, home all joints, MDI
-mode, and for every move ``G1`` to it and waits until the motion is done and in
-position; it records ``joint_actual_position`` and ``actual_position`` (LinuxCNC's forward
-kinematics of the joints) and writes them as JSON to ``[HYPERSTAT] RESULTS``, atomically.
+mode, and for every move ``G1`` to it (the rotary axes named in ``unwrap``, e.g. ``"ABC"``,
+on the turn nearest their current position) and waits until the commanded position is the
+target, the motion done and the joints still; it records ``joint_actual_position`` and
+``actual_position`` (LinuxCNC's forward kinematics of the joints) and writes them as JSON to
+``[HYPERSTAT] RESULTS``, atomically.
 An error is recorded in the results (``error``) rather than raised, so that LinuxCNC shuts
 down cleanly when this program exits.
 """
@@ -86,16 +88,27 @@ def drive(moves_path, results_path):
         cmd.mdi("G21 G90 G94")
         cmd.wait_complete()
         feed = float(spec.get("feed", 60000.0))
+        unwrap = spec.get("unwrap", "")
         for target in spec["moves"]:
+            if unwrap:  # rotary axes: the turn nearest the current position (360 degrees apart, same orientation)
+                stat.poll()
+                target = [v + 360.0 * round((stat.position["XYZABC".index(a)] - v) / 360.0) if a in unwrap else v
+                          for a, v in zip(letters, target)]
             words = " ".join(f"{a}{v:.12f}" for a, v in zip(letters, target))
             cmd.mdi(f"G1 F{feed:.1f} {words}")
             cmd.wait_complete(60)
-            _wait(stat, lambda: stat.interp_state == linuxcnc.INTERP_IDLE and stat.inpos
-                  and stat.queue == 0, "the move to " + words)
+            index = ["XYZABC".index(a) for a in letters]
+
+            def arrived():
+                message = err.poll()
+                if message:
+                    raise RuntimeError(f"LinuxCNC: {message[1]} (after {words})")
+                return (stat.interp_state == linuxcnc.INTERP_IDLE and stat.inpos and stat.queue == 0
+                        and all(abs(stat.position[i] - v) <= 1e-6 * max(1.0, abs(v)) for i, v in zip(index, target)))
+
+            # the commanded position must reach the target (a loaded machine may not have started the move yet)
+            _wait(stat, arrived, "the move to " + words, timeout=60.0)
             _settle(stat)
-            message = err.poll()
-            if message:
-                raise RuntimeError(f"LinuxCNC: {message[1]} (after {words})")
             stat.poll()
             out["moves"].append({"command": list(target), "joints": list(stat.joint_actual_position[:n_joints]),
                                  "world": list(stat.actual_position[:6])})

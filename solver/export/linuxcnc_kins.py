@@ -43,7 +43,7 @@ from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Joint
 
-__all__ = ["world_layout", "world_of", "kins_component", "component_name", "sample_world"]
+__all__ = ["world_layout", "world_of", "kins_component", "component_name", "sample_world", "inverse_conditioning"]
 
 _LETTERS = "ABC"
 
@@ -89,7 +89,7 @@ def world_layout(mechanism) -> dict:
             if len(set(letters)) == len(letters):
                 wrist.sort(key=lambda w: w[1])
                 return {"coordinates": "XYZ" + "".join(letters and sorted(letters)), "mode": "tcp", "wrist": wrist}
-    raise DataError(f"'{m.name}' has {n} actuated joints and no world-coordinate convention in the LinuxCNC export "
+    raise DataError(f"'{m.name}' has {n} actuated joint{'' if n == 1 else 's'} and no world-coordinate convention in the LinuxCNC export "
                     f"(3: X Y Z; 6: X Y Z A B C; 4 or 5: X Y Z plus the last revolute joints of the output path, "
                     f"outside every loop, as rotary axes).")
 
@@ -136,6 +136,34 @@ def sample_world(mechanism, xi: np.ndarray | None, layout: dict, count: int = 20
     res = kin.solve(qa, xi)
     q = res.q[res.converged]
     return world_of(q, kin.evaluate(q, xi, jacobians=False).output_pose, layout)
+
+
+def inverse_conditioning(mechanism, xi: np.ndarray | None, q: np.ndarray) -> float:
+    """Smallest over largest singular value of the component's inverse-kinematics Jacobian at ``q``.
+
+    The rows are those the component's Newton iterates on (closure residuals, rotations
+    times the length scale, and the output constraints of :func:`world_layout`), the
+    columns its unknowns (every joint but the wrist joints of ``tcp`` mode).  Zero at a
+    singularity, where Newton has no direction to leave by (the SCARA template's home, arm
+    stretched); about 1e-4 at the Tripteor X7's and the hexapod's homes.
+    """
+    layout = world_layout(mechanism)
+    kin = Kinematics(mechanism)
+    st = kin.evaluate(np.asarray(q, dtype=float)[None, :], xi, jacobians=True)
+    lc = kin.length_scale
+    rows = []
+    if len(mechanism.closures):
+        c = st.closure_q[0].copy()
+        for k in range(len(mechanism.closures)):
+            c[6 * k:6 * k + 3] *= lc
+        rows.append(c)
+    out = st.output_q[0].copy()
+    out[:3] *= lc
+    rows.append(out if layout["mode"] == "pose" else out[3:])
+    wrist = {w[0] for w in layout["wrist"]}
+    cols = [j for j in range(len(mechanism.joints)) if j not in wrist]
+    s = np.linalg.svd(np.vstack(rows)[:, cols], compute_uv=False)
+    return float(s[-1] / s[0]) if s[0] > 0 else 0.0
 
 
 def component_name(mechanism_name: str, digest: str = "") -> str:
@@ -230,6 +258,16 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
     mode = {"xyz": 0, "tcp": 1, "pose": 2}[layout["mode"]]
     wrist = layout["wrist"] or [(0, "A")]
     lc = kin.length_scale
+    # what is left of the closure residual on this geometry (an identified hyperstatic machine keeps some, in
+    # directions no joint motion changes): a solve ending above ten times it found a false minimum
+    res_max = 1e-9 * max(1.0, lc)
+    if n_cl:
+        act_idx = m.actuated
+        lo, hi = m.ranges[act_idx].T
+        qa = lo + (hi - lo) * (0.1 + 0.8 * np.random.default_rng(0).random((50, len(act_idx))))
+        res = kin.solve(qa, xi)
+        if res.converged.any():
+            res_max = max(res_max, 10.0 * float(res.residual[res.converged].max()))
     lines = [
         f'component {name} "hyperstat kinematics of {m.name} (identified geometry; mm, degrees)";',
         'pin out bit dummy = 0 "unused (halcompile needs a pin; the kinematics functions have none)";',
@@ -252,6 +290,7 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
         f"#define LSCALE {lc:.17g}",
         f"#define TOL {tolerance * max(1.0, lc):.17g}",
         f"#define MAXIT {int(max_iterations)}",
+        f"#define RES_MAX {res_max:.17g}",
         "static const double EL_D[NEL][16] = {" + ",\n  ".join(_c_array(d) for d in el_d) + "};",
         f"static const int EL_JOINT[NEL] = {_c_array(el_joint, '{:d}')};",
         f"static const int EL_ROT[NEL] = {_c_array(el_rot, '{:d}')};",
@@ -402,6 +441,22 @@ static void closure_rows(const struct walk *w, double r[][1], double jac[][NQ], 
     }
 }
 
+/* largest closure residual (rotations times LSCALE, mm) */
+static double closure_residual(const struct walk *w)
+{
+    double m = 0.0, v[3];
+    int k, i;
+    for (k = 0; k < NCL; k++) {
+        const double *fc = w->ce[k], *fr = w->fr[CL_FRAME[k]];
+        rot_log(fc, fr, v);
+        for (i = 0; i < 3; i++) {
+            if (fabs(LSCALE * v[i]) > m) m = fabs(LSCALE * v[i]);
+            if (fabs(fc[4 * i + 3] - fr[4 * i + 3]) > m) m = fabs(fc[4 * i + 3] - fr[4 * i + 3]);
+        }
+    }
+    return m;
+}
+
 /* solve (J^T J + damping) dx = -J^T r over the unknown joints (mask), Gaussian elimination */
 static int gn_step(double r[][1], double jac[][NQ], int nrow, const int *mask, double *dx)
 {
@@ -529,7 +584,7 @@ int kinematicsForward(const double *joints, EmcPose *pos, const KINEMATICS_FORWA
     double q[NQ], dx[NQ];
     int mask[NQ], i;
 #if NCL > 0
-    int it;
+    int it, start;
 #endif
     (void)fflags; (void)iflags; (void)r; (void)jac; (void)dx; (void)mask;
     for (i = 0; i < NQ; i++) { q[i] = q_prev[i]; mask[i] = 1; }
@@ -539,15 +594,22 @@ int kinematicsForward(const double *joints, EmcPose *pos, const KINEMATICS_FORWA
     }
     walk(q, &w);
 #if NCL > 0
-    for (it = 1; it <= MAXIT; it++) {
-        closure_rows(&w, r, jac, 0);
-        if (gn_step(r, jac, 6 * NCL, mask, dx)) return -1;
-        cap_step(dx);
-        for (i = 0; i < NQ; i++) q[i] += dx[i];
-        walk(q, &w);
-        if (max_abs(dx, NQ) < TOL) break;
+    for (start = 0; start < 2; start++) {  /* from the previous pose, else from home */
+        if (start) {
+            for (i = 0; i < NQ; i++) if (mask[i]) q[i] = Q_HOME[i];
+            walk(q, &w);
+        }
+        for (it = 1; it <= MAXIT; it++) {
+            closure_rows(&w, r, jac, 0);
+            if (gn_step(r, jac, 6 * NCL, mask, dx)) return -1;
+            cap_step(dx);
+            for (i = 0; i < NQ; i++) q[i] += dx[i];
+            walk(q, &w);
+            if (max_abs(dx, NQ) < TOL) break;
+        }
+        if (it <= MAXIT && closure_residual(&w) <= RES_MAX) break;  /* converged to a true solution */
     }
-    if (it > MAXIT) return -1;
+    if (start == 2) return -1;
 #endif
     for (i = 0; i < NQ; i++) q_prev[i] = q[i];
     pose_to_world(w.fr[OUT_FRAME], q, pos);
@@ -578,7 +640,7 @@ static int inverse_from(double *q, const EmcPose *pos)
         cap_step(dx);
         for (i = 0; i < NQ; i++) q[i] += dx[i];
         walk(q, &w);
-        if (max_abs(dx, NQ) < TOL) return 0;
+        if (max_abs(dx, NQ) < TOL) return closure_residual(&w) <= RES_MAX ? 0 : -1;
     }
     return -1;
 }

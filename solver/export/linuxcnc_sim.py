@@ -133,14 +133,24 @@ def _require(tool: str) -> str:
     return path
 
 
+MODULE_DIR = Path("/usr/lib/linuxcnc/modules")
+
+
+def _privileged(argv: list[str]) -> list[str]:
+    """``argv`` as root: unchanged for root, else through ``sudo -n`` (no password prompt) when there is one."""
+    if os.geteuid() == 0 or not shutil.which("sudo"):
+        return argv
+    return ["sudo", "-n", *argv]
+
+
 def build_component(comp_file: str | os.PathLike) -> str:
     """Compile and install a ``.comp`` kinematics component with ``halcompile --install``; return its name.
 
     LinuxCNC loads modules only from its module directory (``/usr/lib/linuxcnc/modules``),
-    so this needs write access there (root, or ``sudo``).
+    so this needs write access there: root, or ``sudo`` without a password.
     """
     comp_file = Path(comp_file)
-    run = subprocess.run([_require("halcompile"), "--install", comp_file.name], cwd=comp_file.parent,
+    run = subprocess.run(_privileged([_require("halcompile"), "--install", comp_file.name]), cwd=comp_file.parent,
                          capture_output=True, text=True, timeout=300)
     if run.returncode != 0:
         last = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no message"]
@@ -150,22 +160,25 @@ def build_component(comp_file: str | os.PathLike) -> str:
 
 def remove_component(name: str) -> None:
     """Remove an installed component module (``/usr/lib/linuxcnc/modules/NAME.so``)."""
-    path = Path("/usr/lib/linuxcnc/modules") / f"{name}.so"
+    path = MODULE_DIR / f"{name}.so"
     if path.exists():
-        path.unlink()
+        subprocess.run(_privileged(["rm", "-f", str(path)]), capture_output=True, timeout=60)
 
 
 def linuxcnc_env(workdir: Path) -> dict:
-    """Environment for a LinuxCNC run: as root, RTAPI needs an unprivileged uid and a socket path it can reach."""
+    """Environment for a headless LinuxCNC run (no DISPLAY; as root, an unprivileged RTAPI uid and socket path)."""
     env = dict(os.environ)
-    env.pop("PYTHONPATH", None)
+    # headless: with a DISPLAY the linuxcnc script asks questions (a stale lock) in a Tk window nobody sees
+    for name in ("PYTHONPATH", "DISPLAY", "WAYLAND_DISPLAY"):
+        env.pop(name, None)
     env["RTAPI_FIFO_PATH"] = str(workdir / "rtapi.sock")
     if os.geteuid() == 0:
         env["RTAPI_UID"] = "65534"
     return env
 
 
-def run_moves(ini: str | os.PathLike, coordinates: str, moves: np.ndarray, timeout: float = 300.0) -> dict:
+def run_moves(ini: str | os.PathLike, coordinates: str, moves: np.ndarray, timeout: float = 300.0,
+              unwrap: str = "") -> dict:
     """Start LinuxCNC on ``ini`` with the headless driver, move to ``moves`` by MDI, return what it reported.
 
     Parameters
@@ -176,6 +189,10 @@ def run_moves(ini: str | os.PathLike, coordinates: str, moves: np.ndarray, timeo
         World coordinate letters, e.g. ``"XYZBC"``.
     moves : ndarray, (K, len(coordinates))
         Targets (mm, degrees).
+    unwrap : str
+        Rotary axes (e.g. ``"ABC"``) the driver moves on the turn nearest their current
+        position (an angle near +-180 degrees must not turn the wrist over); the command
+        sent is in the result.
 
     Returns
     -------
@@ -199,7 +216,7 @@ def run_moves(ini: str | os.PathLike, coordinates: str, moves: np.ndarray, timeo
         driver.write_text(Path(__file__).with_name("linuxcnc_driver.py").read_text(encoding="utf-8"),
                           encoding="utf-8")
         os.chmod(driver, 0o755)
-        (work / "moves.json").write_text(json.dumps({"coordinates": coordinates,
+        (work / "moves.json").write_text(json.dumps({"coordinates": coordinates, "unwrap": unwrap,
                                                       "moves": np.asarray(moves, float).tolist()}))
         text = ini.read_text(encoding="utf-8")
         lines = [f"DISPLAY = {driver}" if line.startswith("DISPLAY =") else line for line in text.splitlines()]

@@ -113,12 +113,12 @@ def test_hexapod_export_refuses_an_unrepresentable_identified_model(identified_h
     # the user's threshold decides: above the difference, the export goes through (and says the difference)
     limit = 2 * params["max_strut_difference_mm"]
     assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(hal),
-                 "--max-strut-error", str(limit)]) == 0
+                 "--max-error", str(limit)]) == 0
     assert hal.is_file() and "largest strut-length difference" in capsys.readouterr().out
     # and below it, refused again, naming the option
     assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(tmp_path / "b.hal"),
-                 "--max-strut-error", str(params["max_strut_difference_mm"] / 2)]) == 2
-    assert "--max-strut-error" in capsys.readouterr().err
+                 "--max-error", str(params["max_strut_difference_mm"] / 2)]) == 2
+    assert "--max-error" in capsys.readouterr().err
 
 
 def test_nominal_hexapod_export_passes(tmp_path):
@@ -136,7 +136,7 @@ def test_kins_export_refuses_a_mechanism_without_world_coordinates(tmp_path, cap
     out = tmp_path / "kins"
     assert main(["export-linuxcnc-kins", str(TEMPLATES / "slider_crank.py"), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "1 actuated joints" in err
+    assert len(err.splitlines()) == 1 and "1 actuated joint and" in err
     assert not out.exists()
 
 
@@ -150,3 +150,23 @@ def test_kins_component_of_the_nominal_tripteor(tmp_path):
     ini = (tmp_path / "machine.ini").read_text()
     assert "KINEMATICS = hs_tripteor_x7_kins" in ini and "JOINTS = 5" in ini and "COORDINATES = X Y Z B C" in ini
     assert ini.count("TYPE = LINEAR") == 3 and ini.count("TYPE = ANGULAR") == 2
+
+
+def test_kins_export_refuses_a_singular_home_and_takes_another(tmp_path, capsys):
+    """The SCARA template homes with its arm stretched: singular for X Y Z C, refused; --home 2=1.0 bends it."""
+    from hyperstat.cad_plugin.cli import main
+    from hyperstat.cad_plugin.templates import build_template
+    from hyperstat.solver.export.linuxcnc_kins import inverse_conditioning
+
+    scara = build_template(TEMPLATES / "scara.py").mechanism()
+    assert inverse_conditioning(scara, None, scara.home) < 1e-12
+    out = tmp_path / "kins"
+    assert main(["export-linuxcnc-kins", str(TEMPLATES / "scara.py"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "singular" in err and "--home" in err and not out.exists()
+    assert main(["export-linuxcnc-kins", str(TEMPLATES / "scara.py"), "--out", str(out), "--home", "2=1.0",
+                 "--quiet"]) == 0
+    ini = (out / "machine.ini").read_text()
+    assert "HOME = 57.2957795131" in ini  # 1 rad, LinuxCNC's degrees
+    assert main(["export-linuxcnc-kins", str(TEMPLATES / "scara.py"), "--out", str(out), "--home", "9=1"]) == 2
+    assert "actuated joints: 1, 2, 3, 4" in capsys.readouterr().err

@@ -81,3 +81,4 @@ def test_linuxcnc_forward_equals_the_reference_forward(run):
     e_c = math.radians(np.abs(lcnc[:, 3] - np.degrees(joints[:, 3])).max())
     print(f"\nSCARA, LinuxCNC forward vs reference forward over {len(moves)} poses: max {e_pos:.3g} mm, {e_c:.3g} rad")
     assert e_pos < 1e-6 and e_c < 1e-6
+    assert np.abs(lcnc - run["world"]).max() < 1e-6  # and the machine reached every commanded pose
