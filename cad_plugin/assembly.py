@@ -207,6 +207,8 @@ def sidecar(skeleton: "Skeleton") -> dict:
             assert isinstance(spec, FrameSpec)
             nodes[node] = {"kind": "fixed", "element": name, "defects": spec.defects,
                            "defect_names": dict(spec.defect_names)}
+            if getattr(spec, "target", None) is not None:  # placed where another chain put that frame
+                nodes[node]["target"] = spec.target
     declared = set(skeleton._frames)
     for frame in skeleton.poses:
         if frame in skeleton._items:

@@ -81,7 +81,7 @@ def _rebuild(meta: dict, poses: dict[str, np.ndarray], where: str) -> Mechanism:
                    defect_names=info.get("defect_names", {}), range=tuple(info["range"]), home=info["home"])
             else:
                 b.fixed(info["element"], t[:3, 3], t[:3, 2], t[:3, 0], defects=info["defects"],
-                        defect_names=info.get("defect_names", {}))
+                        defect_names=info.get("defect_names", {}), target=info.get("target"))
         for ch in meta["chains"]:
             b.chain(ch["name"], ch["start"], ch["end"], ch["elements"])
     except (KeyError, TypeError) as exc:

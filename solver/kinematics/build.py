@@ -280,7 +280,8 @@ class MechanismBuilder:
                     origin = w_prev[:3, :3].T @ (spec.origin - w_prev[:3, 3])
                     d = _clean(make_transform(rot, origin))
                 placement = Placement.from_matrix(d)
-                lw = w_prev @ d
+                # a targeted transform ends exactly on its target (w_prev @ d is only that to round-off)
+                lw = reached[spec.target] if getattr(spec, "target", None) is not None else w_prev @ d
                 self.poses[el_name] = lw
                 if isinstance(spec, JointSpec):
                     elements.append(
