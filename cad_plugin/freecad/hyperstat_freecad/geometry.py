@@ -237,15 +237,30 @@ def color_markers(skeleton, analysis: dict) -> list[str]:
         sphere.HyperstatColor = color
         sphere.setEditorMode("HyperstatColor", 1)
         part.addObject(sphere)
-        if offset.Length > 0:
-            label = doc.addObject("App::Annotation", "VerdictLabel")
-            label.LabelText = [f"{element}: {verdict}"]
-            label.Position = part.getGlobalPlacement().Base + offset * 1.6
-            _tag(label, "HyperstatRole", "verdict-label", "What this object is for hyperstat")
-            _tag(label, "HyperstatElement", element, "Element (joint or fixed transform) of this label")
-            skeleton.addObject(label)  # a plain group: the position stays global
         if FreeCAD.GuiUp and sphere.ViewObject is not None:
             sphere.ViewObject.ShapeColor = color
+    _label_groups(skeleton, centres, offsets, verdicts, radius)
     if missing:
         FreeCAD.Console.PrintWarning(f"hyperstat: no marker found for element(s) {', '.join(missing)}.\n")
     return missing
+
+
+def _label_groups(skeleton, centres: dict, offsets: dict, verdicts: dict, radius: float) -> None:
+    """One text label per shared point, one line per joint ("11: forced"), above the ring of spheres."""
+    import FreeCAD
+
+    doc = skeleton.Document
+    groups: dict[tuple, list[str]] = {}
+    for element, offset in offsets.items():
+        if any(offset):
+            key = tuple(round(c, 6) for c in centres[element])
+            groups.setdefault(key, []).append(element)
+    for members in groups.values():
+        members.sort()
+        ring = max(sum(c * c for c in offsets[members[0]]) ** 0.5, radius)
+        label = doc.addObject("App::Annotation", "VerdictLabel")
+        label.LabelText = [f"{e}: {verdicts[e]}" for e in members]
+        label.Position = FreeCAD.Vector(*centres[members[0]]) + FreeCAD.Vector(ring, 0, 2.0 * ring)
+        _tag(label, "HyperstatRole", "verdict-label", "What this object is for hyperstat")
+        _tag(label, "HyperstatElement", ",".join(members), "Joints sharing this point")
+        skeleton.addObject(label)  # a plain group: the position stays global

@@ -82,9 +82,12 @@ class Job:
         Called with the failure (the generator has seen it first); default: a message box.
     progress : callable(str), optional
         Also told each stage (a task panel's own label).
+    on_cancel : callable(), optional
+        Called when the user cancelled (nothing was written to the document).
     """
 
-    def __init__(self, title: str, steps, on_done, on_error=None, progress=None):
+    def __init__(self, title: str, steps, on_done, on_error=None, progress=None, on_cancel=None):
+        self.on_cancel = on_cancel
         self.title = title
         self.steps = steps
         self.on_done = on_done
@@ -133,7 +136,10 @@ class Job:
         if self._status is not None:
             self._status.update(text)
         if self.progress is not None:
-            self.progress(text)
+            try:
+                self.progress(text)
+            except RuntimeError:  # the panel was closed (its widgets are gone)
+                self.progress = None
 
     def _advance(self, resume) -> None:
         try:
@@ -196,6 +202,8 @@ class Job:
             self.steps.close()
             self._close()
             self._info(f"{self.title}: cancelled; the document is unchanged.")
+            if self.on_cancel is not None:
+                self.on_cancel()
             return
         try:
             if status != QtCore.QProcess.NormalExit:  # killed by the timeout, or crashed

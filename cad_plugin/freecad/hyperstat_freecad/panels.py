@@ -100,7 +100,7 @@ class _JobPanel:
 
         self._busy(True)
         self.job = Job(self.title, steps, on_done=lambda value: self._finished(on_done, value),
-                       on_error=self._failed, progress=self.progress_label.setText)
+                       on_error=self._failed, progress=self.progress_label.setText, on_cancel=self._cancelled)
         if not self.job.start():
             self.job = None
             self._busy(False)
@@ -110,6 +110,11 @@ class _JobPanel:
         if ACTIVE and ACTIVE[0] is self:
             _close()
         on_done(value)
+
+    def _cancelled(self) -> None:
+        self.job = None
+        if ACTIVE and ACTIVE[0] is self:
+            self._busy(False)
 
     def _failed(self, exc) -> None:
         self.job = None
@@ -143,16 +148,20 @@ class InsertPanel(_JobPanel):
         label.setWordWrap(True)
         layout.addWidget(label)
         self.combo = QtGui.QComboBox()
+        self.combo.setSizeAdjustPolicy(QtGui.QComboBox.AdjustToMinimumContentsLengthWithIcon)
+        self.combo.setMinimumContentsLength(8)
         for path in list_templates():
             self.combo.addItem(path.stem, str(path))
         layout.addWidget(self.combo)
         self.browse_button = QtGui.QPushButton("Other template file...")
         self.browse_button.clicked.connect(self.browse)
         layout.addWidget(self.browse_button)
-        self.spreadsheet = QtGui.QCheckBox("Drive the parameters from a spreadsheet")
+        self.spreadsheet = QtGui.QCheckBox("Spreadsheet")
+        self.spreadsheet.setToolTip("Drive the parameters from a spreadsheet (one aliased cell per parameter)")
         self.spreadsheet.setChecked(True)
         layout.addWidget(self.spreadsheet)
-        self.analyse = QtGui.QCheckBox("Analyse after inserting")
+        self.analyse = QtGui.QCheckBox("Analyse at once")
+        self.analyse.setToolTip("Run the stationarity analysis after inserting (same undo step)")
         self.analyse.setChecked(True)
         layout.addWidget(self.analyse)
         note = QtGui.QLabel("A template is Python and runs as code: only use templates you trust.")
@@ -271,7 +280,8 @@ class ParametersPanel(_JobPanel):
             self.boxes[name] = (box, scale)
             self.shown[name] = box.value()
             layout.addRow(name, box)
-        self.analyse = QtGui.QCheckBox("Analyse after rebuilding")
+        self.analyse = QtGui.QCheckBox("Analyse too")
+        self.analyse.setToolTip("Analyse after rebuilding (same undo step)")
         self.analyse.setChecked(True)
         layout.addRow(self.analyse)
         self.progress_label, self.progress_bar = _progress_widgets(layout)

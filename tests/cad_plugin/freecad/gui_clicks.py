@@ -148,6 +148,14 @@ def state(doc):
     return out
 
 
+def edges(panel):
+    """Right edges (screen x) of the panel's form and of the dock that holds it (FreeCAD's Combo View)."""
+    dock = main_window().findChild(QtGui.QDockWidget, "Combo View")
+    return {"panel_width_hint": panel.form.minimumSizeHint().width(), "panel_width": panel.form.width(),
+            "panel_right": panel.form.mapToGlobal(QtCore.QPoint(panel.form.width(), 0)).x(),
+            "dock_right": dock.mapToGlobal(QtCore.QPoint(dock.width(), 0)).x()}
+
+
 def _undo_action():
     return main_window().findChild(QtGui.QAction, "Std_Undo")
 
@@ -164,6 +172,7 @@ def screenshot(name):
 
 
 def record(name, doc, **extra):
+    pump(0.5)  # let the panel's layout settle before measuring it
     panel = active_panel()
     info = {"state": state(doc), "panel": type(panel).__name__ if panel else None,
             "dialog_open": bool(FreeCADGui.Control.activeDialog()), **extra}
@@ -172,13 +181,9 @@ def record(name, doc, **extra):
         info["table"] = [[t.item(r, c).text() if t.item(r, c) else "" for c in range(t.columnCount())]
                          for r in range(t.rowCount())]
         info["table_header"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]
-    if panel is not None:
-        info["panel_width_hint"] = panel.form.minimumSizeHint().width()
-        info["panel_width"] = panel.form.width()
-        info["panel_right"] = panel.form.mapToGlobal(QtCore.QPoint(panel.form.width(), 0)).x()
-        dock = main_window().findChild(QtGui.QDockWidget, "Combo View")
-        info["dock_right"] = dock.mapToGlobal(QtCore.QPoint(dock.width(), 0)).x()
     info["screenshot"] = screenshot(name)
+    if panel is not None:
+        info.update(edges(panel))
     REPORT["steps"][name] = info
     _event("recorded")
 
@@ -225,7 +230,7 @@ def run():
         REPORT["steps"]["after_ok"] = {"panel": type(active_panel()).__name__,
                                         "progress_visible": panel.progress_bar.isVisible(),
                                         "inputs_enabled": panel.combo.isEnabled(),
-                                        "objects": len(doc.Objects), "job": _job_running()}
+                                        "objects": len(doc.Objects), "job": _job_running(), **edges(panel)}
         screenshot("insert_running")
         pump(1.0)
         REPORT["steps"]["after_ok"]["ticks_during_first_second"] = len(ticks)
@@ -233,6 +238,7 @@ def run():
         ticker.stop()
         REPORT["steps"]["insert_ticks"] = len(ticks)
         record("insert", doc)
+        screenshot("workbench")  # the picture of docs/freecad.md and the README
 
         # ---------------------------------------------------------------- identify, diagnose
         if DATA:
@@ -265,7 +271,7 @@ def run():
         REPORT["steps"]["refused"] = {"boxes": REPORT["boxes"][boxes_before:], "panel": type(active_panel()).__name__,
                                       "panel_is_same": active_panel() is editor,
                                       "dialog_open": bool(FreeCADGui.Control.activeDialog()),
-                                      "inputs_enabled": editor.boxes["depth"][0].isEnabled(),
+                                      "inputs_enabled": editor.boxes["depth"][0].isEnabled(), **edges(editor),
                                       "state": state(doc)}
         REPORT["stage"] = "edit"
         editor.set_value("depth", 850.0)

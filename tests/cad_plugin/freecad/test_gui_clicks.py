@@ -178,7 +178,8 @@ def test_commands_stay_available_while_result_panels_are_open(clicks):
 
 def test_panels_fit_the_default_dock_width(clicks):
     steps = _steps(clicks)
-    for name in ("insert", "identify", "diagnose", "edit", "analyse"):
+    # insert panel (busy), parameters panel, results, identification, diagnosis
+    for name in ("after_ok", "refused", "insert", "identify", "diagnose", "edit", "analyse"):
         # the panel's right edge is inside the dock (FreeCAD's default width): nothing cut off
         assert steps[name]["panel_right"] <= steps[name]["dock_right"], (name, steps[name])
 
