@@ -543,14 +543,15 @@ class BarPlot:
 
         painter = QtGui.QPainter(widget)
         width = widget.width()
-        label_w = min(110, width // 3)
+        label_w = min(130, int(width * 0.42))
         top = 16
         painter.drawText(2, 12, f"{self.title} [{self.unit}]")
         values = [abs(v) for _, v in self.bars] + ([abs(self.reference[1])] if self.reference else [])
-        scale = (width - label_w - 60) / max(max(values, default=1.0), 1e-300)
+        scale = max(width - label_w - 50, 10) / max(max(values, default=1.0), 1e-300)
         for i, (label, value) in enumerate(self.bars):
             y = top + 18 * i
-            painter.drawText(QtCore.QRect(0, y, label_w - 4, 16), QtCore.Qt.AlignRight | QtCore.Qt.AlignVCenter, label)
+            text = painter.fontMetrics().elidedText(label, QtCore.Qt.ElideRight, label_w - 6)
+            painter.drawText(QtCore.QRect(0, y, label_w - 4, 16), QtCore.Qt.AlignRight | QtCore.Qt.AlignVCenter, text)
             painter.fillRect(label_w, y + 2, max(1, int(abs(value) * scale)), 12, QtGui.QColor(0, 150, 190))
             painter.drawText(label_w + int(abs(value) * scale) + 4, y + 13, f"{value:.3g}")
         if self.reference:
