@@ -286,6 +286,29 @@ def run():
         wait_panel("ResultsPanel")
         record("analyse", doc)
 
+        # ---------------------------------------------------------------- cancel a running job
+        REPORT["stage"] = "cancel"
+        undo_before = list(doc.UndoNames)
+        click_command("Hyperstat_Rebuild")
+        wait_until(_job_running, "the rebuild to start", timeout=20)
+        cancel = main_window().findChild(QtGui.QPushButton, "HyperstatCancel")
+        pump(1.0)  # FreeCAD refreshes the commands' enabled state from its event loop
+        boxes_before = len(REPORT["boxes"])
+        enabled = toolbar_button("Hyperstat_Analyze")[1].isEnabled()
+        if enabled:  # clickable: a second job must be refused with one message
+            click_command("Hyperstat_Analyze")
+            wait_until(lambda: len(REPORT["boxes"]) > boxes_before, "the refusal of a second job", timeout=20)
+        REPORT["steps"]["cancel"] = {"button_visible": bool(cancel and cancel.isVisible()),
+                                     "analyse_enabled_while_running": enabled,
+                                     "second_job_boxes": REPORT["boxes"][boxes_before:],
+                                     "job_still_running": _job_running()}
+        QtTest.QTest.mouseClick(cancel, QtCore.Qt.LeftButton)
+        wait_until(lambda: not _job_running(), "the cancelled job to end", timeout=60)
+        pump(0.5)
+        REPORT["steps"]["cancel"].update({"undo_before": undo_before, "state": state(doc),
+                                          "cancel_button_left": main_window().findChild(QtGui.QPushButton,
+                                                                                        "HyperstatCancel") is not None})
+
         # ---------------------------------------------------------------- spreadsheet edit: stale state
         REPORT["stage"] = "spreadsheet"
         import hyperstat_freecad as hs

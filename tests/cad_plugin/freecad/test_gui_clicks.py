@@ -201,3 +201,18 @@ def test_identify_and_diagnose_show_tables(clicks):
     assert [b for b in clicks["report"]["boxes"] if b["stage"] in ("identify", "diagnose")] == []
     diag = steps["diagnose"]
     assert diag["panel"] == "DiagnosisPanel" and len(diag["table"]) > 0
+
+
+def test_cancel_stops_the_job_and_leaves_the_document(clicks):
+    steps = _steps(clicks)
+    cancel = steps["cancel"]
+    assert cancel["button_visible"] is True
+    # one job at a time: the command is greyed, or a click on it is refused with one sentence
+    if cancel["analyse_enabled_while_running"]:
+        assert len(cancel["second_job_boxes"]) == 1
+        assert "'Rebuild' is still running" in cancel["second_job_boxes"][0]["text"]
+    else:
+        assert cancel["second_job_boxes"] == []
+    assert cancel["job_still_running"] is True  # the refusal did not stop the first job
+    assert cancel["state"]["undo"] == cancel["undo_before"]  # cancelled: nothing recorded
+    assert cancel["state"]["status"] == "analysed" and cancel["state"]["parameters"]["depth"] == 850.0
