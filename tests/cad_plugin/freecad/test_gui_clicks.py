@@ -9,7 +9,7 @@ panels, every message box, and the screenshots (verdict colours present in the 3
 Expected verdicts come from the solver run in this process on the template (no FreeCAD,
 no STEP, no model file).  ``HYPERSTAT_REQUIRE_FREECAD=1`` (``make test``) makes a missing
 FreeCAD or Xvfb a failure, not a skip.  ``HYPERSTAT_SCREENSHOTS=DIR`` copies the
-screenshots there (``make freecad-screenshot`` uses it for ``docs/img``).
+screenshots that ``docs/freecad.md`` shows there (``make freecad-screenshot`` uses it for ``docs/img``).
 """
 
 from __future__ import annotations
@@ -30,6 +30,8 @@ from tests.cad_plugin.freecad.test_workbench import WORKBENCH, _cli, _install, _
 
 SCRIPT = Path(__file__).resolve().parent / "gui_clicks.py"
 TIMEOUT_S = 1500
+#: the screenshots docs/freecad.md shows (docs/img/freecad_<name>.png)
+DOC_SCREENSHOTS = ("workbench", "insert_running", "identify", "diagnose")
 
 sys.path.insert(0, str(WORKBENCH))
 from hyperstat_freecad.verdicts import VERDICT_COLORS, element_verdicts, parameter_class, tolerance_class  # noqa: E402
@@ -73,8 +75,8 @@ def clicks(tmp_path_factory) -> dict:
     if os.environ.get("HYPERSTAT_SCREENSHOTS"):
         dest = Path(os.environ["HYPERSTAT_SCREENSHOTS"])
         dest.mkdir(parents=True, exist_ok=True)
-        for png in out.glob("freecad_*.png"):
-            shutil.copy(png, dest / png.name)
+        for name in DOC_SCREENSHOTS:
+            shutil.copy(out / f"freecad_{name}.png", dest / f"freecad_{name}.png")
     return {"report": report, "out": out}
 
 
