@@ -68,12 +68,14 @@ bench: setup
 	$(PY) -m pip install --quiet -e '.[bench]'
 	$(PY) benchmarks/run.py --markdown out/bench.md
 
-# FreeCAD 0.20 (Debian freecad-python3: freecadcmd and the freecad GUI) and Xvfb for the workbench tests.
-# Installed with apt-get only when a tool is missing (sudo when not root), so running it again is a no-op.
-FREECAD_PACKAGES := freecad-python3 xvfb xauth
+# FreeCAD 0.20 (Debian freecad-python3: freecadcmd and the freecad GUI), Xvfb, and Qt's test module for
+# FreeCAD's Python (python3-pyside2.qttest: the GUI tests click with QTest.mouseClick) for the workbench tests.
+# Installed with apt-get only when something is missing (sudo when not root), so running it again is a no-op.
+FREECAD_PACKAGES := freecad-python3 xvfb xauth python3-pyside2.qttest
 freecad-deps:
 	@if command -v freecadcmd >/dev/null 2>&1 && command -v freecad >/dev/null 2>&1 \
-	    && command -v xvfb-run >/dev/null 2>&1 && command -v xauth >/dev/null 2>&1; then :; else \
+	    && command -v xvfb-run >/dev/null 2>&1 && command -v xauth >/dev/null 2>&1 \
+	    && /usr/bin/python3 -c "from PySide2 import QtTest" >/dev/null 2>&1; then :; else \
 	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
 	  echo "installing $(FREECAD_PACKAGES) (apt-get, about a minute)"; \
 	  $$SUDO apt-get update -q && \
@@ -84,14 +86,10 @@ freecad-deps:
 freecad-install: setup freecad-deps
 	$(PY) cad_plugin/freecad/install.py
 
-# docs/img/freecad_workbench.png: the GUI under Xvfb, in a throwaway HOME (your FreeCAD settings are untouched).
+# docs/img/freecad_*.png: the screenshots of the clicking GUI test (FreeCAD under Xvfb, throwaway HOME).
 freecad-screenshot: setup freecad-deps
-	rm -rf out/freecad-home out/freecad-smoke && mkdir -p out/freecad-home docs/img
-	HOME=$(CURDIR)/out/freecad-home $(PY) cad_plugin/freecad/install.py --start-in-workbench
-	HOME=$(CURDIR)/out/freecad-home HYPERSTAT_SMOKE_OUT=$(CURDIR)/out/freecad-smoke QTWEBENGINE_CHROMIUM_FLAGS=--no-sandbox \
-	  xvfb-run -a -s "-screen 0 1700x1000x24" freecad cad_plugin/freecad/tools/gui_smoke.py >out/freecad-smoke.log 2>&1
-	$(PY) -c "import json, sys; r = json.load(open('out/freecad-smoke/report.json')); sys.exit(0 if r['ok'] else r.get('error'))"
-	cp out/freecad-smoke/freecad_workbench.png docs/img/freecad_workbench.png
+	mkdir -p docs/img
+	HYPERSTAT_REQUIRE_FREECAD=1 HYPERSTAT_SCREENSHOTS=$(CURDIR)/docs/img $(PY) -m pytest -q tests/cad_plugin/freecad/test_gui_clicks.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

@@ -14,7 +14,7 @@ The solver runs as the ``hyperstat`` command line (see :mod:`.runner` for why an
 how it is found); GUI commands live in :mod:`.commands` and :mod:`.panels`.
 """
 
-from .feature import SkeletonFeature, is_skeleton, parameter_specs
+from .feature import SkeletonFeature, is_skeleton
 from .geometry import markers, verdict_spheres
 from .operations import (
     analyze,
@@ -32,7 +32,7 @@ from .operations import (
     skeletons,
     work_dir,
 )
-from .parameters import current_parameters
+from .parameters import current_parameters, parameter_specs
 from .runner import CommandMissing, HyperstatWorkbenchError, find_cli, list_templates, run_cli, templates_dir
 from .verdicts import VERDICT_COLORS, element_verdicts, parameter_class
 

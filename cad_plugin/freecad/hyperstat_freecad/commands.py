@@ -3,15 +3,16 @@
 Units: lengths in mm, angles in rad.
 
 Each command finds its skeleton (the selected one, or the only one of the active
-document), runs an operation of :mod:`.operations` through :func:`.messages.guarded`
-(errors become messages, never a dead panel) and shows a panel with the outcome.
+document), runs the steps of an operation of :mod:`.operations` as a :class:`.jobs.Job`
+(in the background, with a progress bar and Cancel in the status bar; errors become
+messages, never a dead panel) and, once it is done, opens a panel with the outcome.
 """
 
 from __future__ import annotations
 
 import os
 
-from .messages import guarded, icon_path, show_error, show_info
+from .messages import icon_path, show_error, show_info
 
 __all__ = ["register", "register_preferences", "TOOLBAR", "MENU", "CONTEXT", "COMMANDS", "target_skeleton"]
 
@@ -56,6 +57,10 @@ class _Command:
     def IsActive(self) -> bool:
         import FreeCAD
 
+        from .jobs import running
+
+        if running():
+            return False  # one command-line job at a time; its progress bar has a Cancel button
         if not self.needs_skeleton:
             return True
         doc = FreeCAD.ActiveDocument
@@ -100,17 +105,23 @@ class EditParameters(_Command):
             open_parameters(obj)
 
 
+def _job(title: str, steps, on_done) -> None:
+    from .jobs import Job
+
+    Job(title, steps, on_done).start()
+
+
 class Rebuild(_Command):
     icon = "rebuild"
     menu = "Rebuild"
     tip = "Re-run 'hyperstat build' with the current parameters and re-import the skeleton"
 
     def run(self) -> None:
-        from .operations import rebuild
+        from .operations import rebuild_steps
 
         obj = target_skeleton()
-        if obj is not None and guarded("Rebuild", rebuild, obj) is not None:
-            show_info("Rebuild", f"{obj.Label}: {obj.Summary}")
+        if obj is not None:
+            _job("Rebuild", rebuild_steps(obj), lambda o: show_info("Rebuild", f"{o.Label}: {o.Summary}"))
 
 
 class Analyze(_Command):
@@ -119,12 +130,12 @@ class Analyze(_Command):
     tip = "Stationarity analysis: colour each marker by the verdict of its defects (forced, coupled, free)"
 
     def run(self) -> None:
-        from .operations import analyze
-        from .panels import open_results
+        from .operations import analyze_steps
+        from .panels import open_results, show_later
 
         obj = target_skeleton()
-        if obj is not None and guarded("Analyse", analyze, obj) is not None:
-            open_results(obj)
+        if obj is not None:
+            _job("Analyse", analyze_steps(obj), lambda _a: show_later(open_results, obj))
 
 
 class Results(_Command):
@@ -155,8 +166,8 @@ class Identify(_Command):
     tip = "Choose measurement files (CSV) and identify the free influential defects ('hyperstat identify')"
 
     def run(self) -> None:
-        from .operations import identify
-        from .panels import open_text
+        from .operations import identify_steps
+        from .panels import open_identification, show_later
 
         obj = target_skeleton()
         if obj is None:
@@ -165,8 +176,7 @@ class Identify(_Command):
         if not data:
             return
         validation = _open_file("Validation measurements (cancel for none)", "hyperstat measurements (*.csv)")
-        if guarded("Identify", identify, obj, data, validation or None) is not None:
-            open_text(f"Identification of {obj.Label}", obj.IdentificationText, "identify")
+        _job("Identify", identify_steps(obj, data, validation or None), lambda _r: show_later(open_identification, obj))
 
 
 class Diagnose(_Command):
@@ -175,8 +185,8 @@ class Diagnose(_Command):
     tip = "Where the identified model still misses, which unmodelled effect, how far it shrinks ('hyperstat diagnose')"
 
     def run(self) -> None:
-        from .operations import diagnose
-        from .panels import open_text
+        from .operations import diagnose_steps
+        from .panels import open_diagnosis, show_later
 
         obj = target_skeleton()
         if obj is None:
@@ -186,8 +196,7 @@ class Diagnose(_Command):
             data = _open_file("Measurements", "hyperstat measurements (*.csv)")
             if not data:
                 return
-        if guarded("Diagnose", diagnose, obj, data) is not None:
-            open_text(f"Diagnosis of {obj.Label}", obj.DiagnosisText, "diagnose")
+        _job("Diagnose", diagnose_steps(obj, data), lambda _r: show_later(open_diagnosis, obj))
 
 
 def _default_dir(obj) -> str:
@@ -205,14 +214,14 @@ class Report(_Command):
 
         import FreeCADGui
 
-        from .operations import export_report
+        from .operations import report_steps
 
         obj = target_skeleton()
         if obj is None:
             return
         folder = QtGui.QFileDialog.getExistingDirectory(FreeCADGui.getMainWindow(), "Report folder", _default_dir(obj))
-        if folder and guarded("Report", export_report, obj, folder) is not None:
-            show_info("Report", f"written in {folder}")
+        if folder:
+            _job("Report", report_steps(obj, folder), lambda _r: show_info("Report", f"written in {folder}"))
 
 
 class ExportController(_Command):
@@ -225,7 +234,7 @@ class ExportController(_Command):
 
         import FreeCADGui
 
-        from .operations import export_controller
+        from .operations import controller_steps
 
         obj = target_skeleton()
         if obj is None:
@@ -233,8 +242,8 @@ class ExportController(_Command):
         path, _ = QtGui.QFileDialog.getSaveFileName(FreeCADGui.getMainWindow(), "Controller file",
                                                     os.path.join(_default_dir(obj), f"{obj.Label}.machine.json"),
                                                     "JSON (*.json)")
-        if path and guarded("Controller file", export_controller, obj, path) is not None:
-            show_info("Controller file", f"written: {path}")
+        if path:
+            _job("Controller file", controller_steps(obj, path), lambda _r: show_info("Controller file", f"written: {path}"))
 
 
 COMMANDS = {
@@ -255,9 +264,19 @@ MENU = TOOLBAR
 CONTEXT = ["Hyperstat_EditParameters", "Hyperstat_Rebuild", "Hyperstat_Analyze", "Hyperstat_Results"]
 
 
+_OBSERVER: list = []
+
+
 def register() -> None:
-    """Add the commands to FreeCAD (once)."""
+    """Add the commands to FreeCAD (once), and the observer that keeps outdated skeletons marked."""
+    import FreeCAD
     import FreeCADGui
+
+    from .feature import OutdatedObserver
+
+    if not _OBSERVER:
+        _OBSERVER.append(OutdatedObserver())
+        FreeCAD.addDocumentObserver(_OBSERVER[0])
 
     known = set(FreeCADGui.listCommands())
     for name, cls in COMMANDS.items():

@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import json
 
-__all__ = ["SkeletonFeature", "BASE_PROPERTIES", "is_skeleton", "parameter_specs"]
+from .parameters import current_parameters, parameter_specs
+
+__all__ = ["SkeletonFeature", "BASE_PROPERTIES", "is_skeleton", "parameter_specs", "OutdatedObserver"]
 
 TYPE = "HyperstatSkeleton"
 VERSION = 1
@@ -58,24 +60,25 @@ BASE_PROPERTIES = [
 ]
 
 
+#: the properties a user (or a spreadsheet) sets; every other one is an *output*: writing it (a build, an
+#: analysis, an identification) does not mark the skeleton "needs recompute"
+INPUTS = ("Template", "Configurations", "Seed")
+
+
 def add_base_properties(obj) -> None:
-    """Add the properties of :data:`BASE_PROPERTIES` that ``obj`` does not have yet."""
+    """Add the properties of :data:`BASE_PROPERTIES` that ``obj`` does not have yet; mark outputs as such."""
     for type_, name, group, tip, mode in BASE_PROPERTIES:
         if name not in obj.PropertiesList:
             obj.addProperty(type_, name, group, tip)
             if mode:
                 obj.setEditorMode(name, mode)
+        if name not in INPUTS and "Output" not in obj.getPropertyStatus(name):
+            obj.setPropertyStatus(name, "Output")
 
 
 def is_skeleton(obj) -> bool:
     """True for an object whose proxy is a :class:`SkeletonFeature`."""
     return getattr(getattr(obj, "Proxy", None), "Type", None) == TYPE
-
-
-def parameter_specs(obj) -> list[dict]:
-    """Template parameters of the skeleton (name, default, unit, doc, minimum, maximum)."""
-    text = getattr(obj, "ParameterSpecs", "") or "[]"
-    return json.loads(text)
 
 
 class SkeletonFeature:
@@ -92,8 +95,6 @@ class SkeletonFeature:
 
     def execute(self, obj) -> None:
         """Mark the object outdated when its parameters differ from the last build."""
-        from .parameters import current_parameters
-
         if not obj.BuiltParameters:
             return
         try:
@@ -124,3 +125,20 @@ class SkeletonFeature:
 
     def loads(self, state) -> None:
         self.__setstate__(state)
+
+
+class OutdatedObserver:
+    """Document observer: after a recompute, an *outdated* skeleton keeps FreeCAD's "needs recompute" mark.
+
+    A spreadsheet edit changes the parameters; the recompute evaluates them and the skeleton's
+    ``execute`` sets ``Status`` to *outdated* (it does not rebuild, see the module docstring).
+    FreeCAD then clears the touched flag, which would show the old geometry as up to date:
+    this observer touches the skeleton again, so the tree shows it as needing work until a
+    Rebuild or an Analyse.  Results written by Identify or Diagnose are *output* properties
+    and do not touch it.  Registered once by the GUI (``FreeCAD.addDocumentObserver``).
+    """
+
+    def slotRecomputedDocument(self, doc) -> None:
+        for obj in doc.Objects:
+            if is_skeleton(obj) and obj.Status.startswith("outdated") and "Touched" not in obj.State:
+                obj.touch()

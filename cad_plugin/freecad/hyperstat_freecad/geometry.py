@@ -27,7 +27,7 @@ from .runner import HyperstatWorkbenchError
 from .verdicts import VERDICT_COLORS, element_verdicts
 
 __all__ = ["import_step", "geometry_root", "markers", "remove_tree", "verdict_spheres", "color_markers",
-           "clear_verdicts", "SPHERE_SCALE"]
+           "clear_verdicts", "verdict_labels", "coincident_offsets", "SPHERE_SCALE"]
 
 #: verdict sphere radius as a fraction of the marker size (0.18 in the CadQuery / pyvista views;
 #: larger here so that the colour shows around the joint barrels at FreeCAD's usual zoom)
@@ -150,26 +150,85 @@ def clear_verdicts(skeleton) -> None:
     doc = skeleton.Document
     for sphere in verdict_spheres(skeleton).values():
         doc.removeObject(sphere.Name)
+    for label in verdict_labels(skeleton).values():
+        doc.removeObject(label.Name)
+
+
+def verdict_labels(skeleton) -> dict:
+    """Text labels of the spheres spread around a shared point, keyed by element name."""
+    return {o.HyperstatElement: o for o in skeleton.Group if getattr(o, "HyperstatRole", "") == "verdict-label"}
+
+
+def coincident_offsets(centres: dict[str, tuple[float, float, float]], radius: float,
+                       tolerance: float) -> dict[str, tuple[float, float, float]]:
+    """Global offsets (mm) that spread spheres of ``radius`` whose centres coincide (within ``tolerance``).
+
+    A group of ``n`` coincident elements is put on a ring of radius ``1.15 r / sin(pi / n)`` in the
+    global xy plane, so that neighbouring spheres are at least ``2.3 r`` apart (chord
+    ``2 R sin(pi / n)``): every colour shows, none flickers.  Lone elements keep their place.
+
+    >>> off = coincident_offsets({"11": (0, 0, 0), "21": (0, 0, 0), "5": (9, 0, 0)}, 1.0, 1e-6)
+    >>> off["5"], round(sum(c * c for c in off["11"]) ** 0.5, 3)
+    ((0.0, 0.0, 0.0), 1.15)
+    """
+    import math
+
+    groups: list[list[str]] = []
+    for name in sorted(centres):
+        for group in groups:
+            if max(abs(a - b) for a, b in zip(centres[name], centres[group[0]])) <= tolerance:
+                group.append(name)
+                break
+        else:
+            groups.append([name])
+    out = {}
+    for group in groups:
+        n = len(group)
+        if n == 1:
+            out[group[0]] = (0.0, 0.0, 0.0)
+            continue
+        ring = 1.15 * radius / math.sin(math.pi / n)
+        for k, name in enumerate(group):
+            angle = 2 * math.pi * k / n
+            out[name] = (ring * math.cos(angle), ring * math.sin(angle), 0.0)
+    return out
 
 
 def color_markers(skeleton, analysis: dict) -> list[str]:
-    """Add a sphere coloured by verdict to every element's marker; return elements without a marker."""
+    """Add a sphere coloured by verdict to every element's marker; return elements without a marker.
+
+    Where several joints share a point (e.g. joints 11, 21 and 41 of the Tripteor), their spheres
+    are spread on a small ring around it (:func:`coincident_offsets`) and each gets a text label
+    with its element's name, so that forced cannot be mistaken for coupled.
+    """
     import FreeCAD
     import Part
 
     clear_verdicts(skeleton)
     doc = skeleton.Document
     parts = markers(skeleton)
-    radius = SPHERE_SCALE * float(skeleton.MarkerSize.Value or 1.0)
+    size = float(skeleton.MarkerSize.Value or 1.0)
+    radius = SPHERE_SCALE * size
     missing = []
-    for element, verdict in sorted(element_verdicts(analysis).items()):
+    verdicts = element_verdicts(analysis)
+    placed = {}
+    for element in sorted(verdicts):
         part = parts.get(f"m_{element}")
         if part is None:
             missing.append(element)
             continue
+        placed[element] = part
+    centres = {e: tuple(p.getGlobalPlacement().Base) for e, p in placed.items()}
+    offsets = coincident_offsets(centres, radius, 1e-6 * max(size, 1.0))
+    for element, part in placed.items():
+        verdict = verdicts[element]
         color = VERDICT_COLORS[verdict]
         sphere = doc.addObject("Part::Feature", "Verdict")
         sphere.Shape = Part.makeSphere(radius)
+        offset = FreeCAD.Vector(*offsets[element])
+        if offset.Length > 0:
+            local = part.getGlobalPlacement().Rotation.inverted().multVec(offset)
+            sphere.Placement = FreeCAD.Placement(local, FreeCAD.Rotation())
         sphere.Label = f"v_{element}"
         _tag(sphere, "HyperstatRole", "verdict", "What this object is for hyperstat")
         _tag(sphere, "HyperstatElement", element, "Element (joint or fixed transform) of this marker")
@@ -180,6 +239,28 @@ def color_markers(skeleton, analysis: dict) -> list[str]:
         part.addObject(sphere)
         if FreeCAD.GuiUp and sphere.ViewObject is not None:
             sphere.ViewObject.ShapeColor = color
+    _label_groups(skeleton, centres, offsets, verdicts, radius)
     if missing:
         FreeCAD.Console.PrintWarning(f"hyperstat: no marker found for element(s) {', '.join(missing)}.\n")
     return missing
+
+
+def _label_groups(skeleton, centres: dict, offsets: dict, verdicts: dict, radius: float) -> None:
+    """One text label per shared point, one line per joint ("11: forced"), above the ring of spheres."""
+    import FreeCAD
+
+    doc = skeleton.Document
+    groups: dict[tuple, list[str]] = {}
+    for element, offset in offsets.items():
+        if any(offset):
+            key = tuple(round(c, 6) for c in centres[element])
+            groups.setdefault(key, []).append(element)
+    for members in groups.values():
+        members.sort()
+        ring = max(sum(c * c for c in offsets[members[0]]) ** 0.5, radius)
+        label = doc.addObject("App::Annotation", "VerdictLabel")
+        label.LabelText = [f"{e}: {verdicts[e]}" for e in members]
+        label.Position = FreeCAD.Vector(*centres[members[0]]) + FreeCAD.Vector(ring, 0, 2.0 * ring)
+        _tag(label, "HyperstatRole", "verdict-label", "What this object is for hyperstat")
+        _tag(label, "HyperstatElement", ",".join(members), "Joints sharing this point")
+        skeleton.addObject(label)  # a plain group: the position stays global

@@ -8,6 +8,14 @@ results are stored in the object's properties, so a saved document keeps them.
 Failures raise :class:`~.runner.HyperstatWorkbenchError` with one sentence that the
 GUI shows as a message and a script can print.
 
+Each user action is written once, as a generator of *steps* (``insert_steps``,
+``rebuild_steps``, ``analyze_steps``...): it yields a :class:`Call` for every run of the
+command line, receives its :class:`~.runner.CliResult`, and touches the document only
+after the last run, inside one undo transaction (``openTransaction`` /
+``commitTransaction``; aborted on an error, so a failed action leaves nothing behind).
+:func:`drive` runs the steps synchronously (scripts, ``freecadcmd``); the GUI runs the
+same steps with :class:`~.jobs.Job`, one ``QProcess`` per call, so FreeCAD never freezes.
+
 Example (``freecadcmd``)::
 
     import FreeCAD, hyperstat_freecad as hs
@@ -20,32 +28,86 @@ Example (``freecadcmd``)::
 from __future__ import annotations
 
 import json
+import math
 import os
+import shutil
 import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 from . import geometry
-from .feature import SkeletonFeature, is_skeleton, parameter_specs
-from .parameters import add_parameter_properties, bind_spreadsheet, cli_overrides, current_parameters, set_parameter
-from .runner import HyperstatWorkbenchError, list_templates, run_cli, templates_dir
+from .feature import SkeletonFeature, is_skeleton
+from .parameters import (add_parameter_properties, bind_spreadsheet, cli_overrides, current_parameters, expression_of,
+                         parameter_specs, set_parameter)
+from .runner import CliResult, HyperstatWorkbenchError, list_templates, run_cli, templates_dir
 from .verdicts import parameter_class, verdict_counts
 
 __all__ = [
+    "Call",
+    "drive",
+    "transaction",
     "resolve_template",
     "describe_template",
     "work_dir",
+    "insert_steps",
     "insert_skeleton",
     "set_parameters",
     "needs_rebuild",
+    "rebuild_steps",
     "rebuild",
+    "edit_steps",
+    "analyze_steps",
     "analyze",
     "results",
+    "identify_steps",
     "identify",
+    "diagnose_steps",
     "diagnose",
+    "report_steps",
     "export_report",
+    "controller_steps",
     "export_controller",
     "skeletons",
 ]
+
+
+@dataclass
+class Call:
+    """One run of the command line requested by a step generator: ``hyperstat ARGUMENTS``."""
+
+    arguments: list[str]
+    label: str
+
+
+def drive(steps):
+    """Run a step generator synchronously (each :class:`Call` with :func:`~.runner.run_cli`); return its value.
+
+    A failed call is thrown into the generator (which may record it, e.g. in ``Status``) and re-raised.
+    """
+    try:
+        call = next(steps)
+        while True:
+            try:
+                result = run_cli(call.arguments)
+            except Exception as exc:  # noqa: BLE001 - handed to the generator, which re-raises
+                call = steps.throw(exc)
+            else:
+                call = steps.send(result)
+    except StopIteration as stop:
+        return stop.value
+
+
+@contextmanager
+def transaction(doc, name: str):
+    """One undo step for everything done in the block; aborted (rolled back) if the block raises."""
+    doc.openTransaction(name)
+    try:
+        yield
+    except BaseException:
+        doc.abortTransaction()
+        raise
+    doc.commitTransaction()
 
 
 def skeletons(doc) -> list:
@@ -97,18 +159,147 @@ def _write_atomic(path: Path, text: str) -> Path:
     return path
 
 
+def _stage(folder: Path) -> Path:
+    """A fresh folder for one action's files (a failed action leaves the previous files untouched)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    return Path(tempfile.mkdtemp(prefix=".run-", dir=folder))
+
+
+def _document_dir(doc) -> Path:
+    return Path(doc.TransientDir) / "hyperstat"
+
+
 def _model_file(obj) -> Path:
-    """The model file of the last build, rewritten from the object if the cache is gone."""
+    """The model file of the last build, rewritten from the object if the cache is gone (rebuilds if outdated)."""
     if needs_rebuild(obj):
         rebuild(obj)
+    return _cached_model(obj)
+
+
+def _cached_model(obj) -> Path:
     path = work_dir(obj) / "skeleton.skel.json"
     if not path.is_file() or path.read_text(encoding="utf-8") != obj.ModelJson:
         _write_atomic(path, obj.ModelJson)
     return path
 
 
+def _build_call(template: str, values: dict[str, float], folder: Path, name: str) -> Call:
+    return Call(["build", template, *cli_overrides(values), "--step", str(folder / "skeleton.step"),
+                 "--model", str(folder / "skeleton.skel.json")], f"building {name} (hyperstat build)")
+
+
+def _analyze_call(obj_or_none, model: Path, folder: Path, configurations: int, seed: int) -> Call:
+    return Call(["analyze", str(model), "--json", str(folder / "analysis.json"), "--configurations",
+                 str(configurations), "--seed", str(seed), "--quiet"],
+                "stationarity analysis (hyperstat analyze)")
+
+
+def _same(a: dict[str, float], b: dict[str, float]) -> bool:
+    return set(a) == set(b) and all(math.isclose(a[k], b[k], rel_tol=1e-12, abs_tol=1e-12) for k in a)
+
+
+def _apply_build(obj, folder: Path, values: dict[str, float], res: CliResult) -> None:
+    """Import the STEP file of a build in ``folder`` and replace the skeleton's geometry (inside a transaction)."""
+    doc = obj.Document
+    sidecar = json.loads((folder / "skeleton.step.json").read_text(encoding="utf-8"))
+    root = geometry.import_step(doc, folder / "skeleton.step", set(sidecar["nodes"]))
+    old = geometry.geometry_root(obj)
+    if old is not None:
+        geometry.remove_tree(doc, old)
+    obj.addObject(root)
+    root.Label = f"{obj.Label} geometry"
+    obj.ModelJson = (folder / "skeleton.skel.json").read_text(encoding="utf-8")
+    obj.MarkerSize = float(sidecar.get("marker_size", 1.0))
+    obj.Mechanism = str(sidecar.get("name", ""))
+    obj.Summary = res.stdout.splitlines()[0] if res.stdout.strip() else ""
+    # the values as the properties give them back (degrees <-> rad), so that a recompute sees no change
+    read = current_parameters(obj)
+    obj.BuiltParameters = json.dumps(read if _same(read, values) else values, sort_keys=True)
+    _clear_results(obj)
+    obj.Status = "built; not analysed"
+
+
+def _apply_analysis(obj, text: str) -> dict:
+    analysis = json.loads(text)
+    obj.Analysis = text
+    obj.Mobility = int(analysis.get("mobility") or 0)
+    obj.Overconstraint = int(analysis.get("overconstraint") or 0)
+    obj.Rank = int(analysis.get("rank") or 0)
+    obj.VerdictCounts = {k: str(v) for k, v in verdict_counts(analysis).items()}
+    obj.ParameterVerdicts = {p["name"]: parameter_class(p) for p in analysis["parameters"]}
+    geometry.color_markers(obj, analysis)
+    obj.Status = "analysed"
+    return analysis
+
+
+def _remove_created(doc, names: list[str]) -> None:
+    for n in reversed(names):
+        o = doc.getObject(n)
+        if o is not None:
+            root = geometry.geometry_root(o) if is_skeleton(o) else None
+            if root is not None:
+                geometry.remove_tree(doc, root)
+            doc.removeObject(n)
+
+
+def insert_steps(doc, template: str | os.PathLike, parameters: dict[str, float] | None = None,
+                 name: str = "Skeleton", spreadsheet: bool = True, analyse: bool = False):
+    """Steps of :func:`insert_skeleton` (``analyse``: also analyse, in the same undo transaction)."""
+    import FreeCAD
+
+    path = resolve_template(template)
+    stage = _stage(_document_dir(doc))
+    try:
+        out = stage / "parameters.json"
+        yield Call(["parameters", str(path), "--json", str(out), "--quiet"],
+                   f"reading the parameters of {path.stem} (hyperstat parameters)")
+        specs = json.loads(out.read_text(encoding="utf-8"))["parameters"]
+        known = {s["name"]: s for s in specs}
+        unknown = sorted(set(parameters or {}) - set(known))
+        if unknown:
+            valid = ", ".join(f"{n} [{s['unit']}]" for n, s in known.items())
+            raise HyperstatWorkbenchError(f"{path.name}: unknown parameter '{unknown[0]}'; valid parameters: {valid}.")
+        values = {n: float(s["default"]) for n, s in known.items()}
+        values.update({k: float(v) for k, v in (parameters or {}).items()})
+        res = yield _build_call(str(path), values, stage, path.stem)
+        text = None
+        if analyse:
+            yield _analyze_call(None, stage / "skeleton.skel.json", stage, 24, 0)
+            text = (stage / "analysis.json").read_text(encoding="utf-8")
+        created: list[str] = []
+        try:
+            with transaction(doc, f"Insert skeleton {path.stem}"):
+                obj = doc.addObject("App::DocumentObjectGroupPython", name)
+                created.append(obj.Name)
+                SkeletonFeature(obj)
+                if FreeCAD.GuiUp:
+                    from .viewprovider import ViewProviderSkeleton
+
+                    ViewProviderSkeleton(obj.ViewObject)
+                obj.Label = path.stem
+                obj.Template = str(path)
+                obj.ParameterSpecs = json.dumps(specs)
+                add_parameter_properties(obj, specs)
+                for key, value in (parameters or {}).items():
+                    set_parameter(obj, known[key], value)
+                if spreadsheet:
+                    created.append(bind_spreadsheet(obj, specs).Name)
+                doc.recompute()
+                _apply_build(obj, stage, values, res)
+                if text is not None:
+                    _apply_analysis(obj, text)
+                doc.recompute()
+        except BaseException:
+            _remove_created(doc, created)  # when undo is off, the aborted transaction removed nothing
+            raise
+        shutil.copy(stage / "skeleton.skel.json", work_dir(obj) / "skeleton.skel.json")
+        return obj
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
 def insert_skeleton(doc, template: str | os.PathLike, parameters: dict[str, float] | None = None,
-                    name: str = "Skeleton", spreadsheet: bool = True):
+                    name: str = "Skeleton", spreadsheet: bool = True, analyse: bool = False):
     """Insert a skeleton built from a template, its parameters as properties (and a spreadsheet).
 
     Parameters
@@ -122,6 +313,8 @@ def insert_skeleton(doc, template: str | os.PathLike, parameters: dict[str, floa
         Internal name of the new object.
     spreadsheet : bool
         Also create a spreadsheet whose aliases drive the parameters.
+    analyse : bool
+        Also analyse (one undo step for both).
 
     Returns
     -------
@@ -133,57 +326,10 @@ def insert_skeleton(doc, template: str | os.PathLike, parameters: dict[str, floa
         On an unknown template or parameter, or a build that fails; nothing is left
         in the document then.
     """
-    import FreeCAD
-
-    path = resolve_template(template)
-    info = describe_template(path)
-    specs = info["parameters"]
-    known = {s["name"]: s for s in specs}
-    unknown = sorted(set(parameters or {}) - set(known))
-    if unknown:
-        valid = ", ".join(f"{n} [{s['unit']}]" for n, s in known.items())
-        raise HyperstatWorkbenchError(f"{path.name}: unknown parameter '{unknown[0]}'; valid parameters: {valid}.")
-    obj = doc.addObject("App::DocumentObjectGroupPython", name)
-    created = [obj.Name]
-    try:
-        SkeletonFeature(obj)
-        if FreeCAD.GuiUp:
-            from .viewprovider import ViewProviderSkeleton
-
-            ViewProviderSkeleton(obj.ViewObject)
-        obj.Label = path.stem
-        obj.Template = str(path)
-        obj.ParameterSpecs = json.dumps(specs)
-        add_parameter_properties(obj, specs)
-        for key, value in (parameters or {}).items():
-            set_parameter(obj, known[key], value)
-        if spreadsheet:
-            created.append(bind_spreadsheet(obj, specs).Name)
-        rebuild(obj)
-    except BaseException:
-        for n in reversed(created):
-            o = doc.getObject(n)
-            if o is not None:
-                root = geometry.geometry_root(o) if is_skeleton(o) else None
-                if root is not None:
-                    geometry.remove_tree(doc, root)
-                doc.removeObject(n)
-        raise
-    return obj
+    return drive(insert_steps(doc, template, parameters, name, spreadsheet, analyse))
 
 
-def set_parameters(obj, values: dict[str, float]):
-    """Set parameters (template units: mm, rad); a spreadsheet-bound one is set in its cell.
-
-    Returns the object; call :func:`rebuild` or :func:`analyze` to use the new values.
-
-    Raises
-    ------
-    HyperstatWorkbenchError
-        On an unknown parameter name.
-    """
-    from .parameters import expression_of
-
+def _write_parameters(obj, values: dict[str, float]) -> None:
     specs = {s["name"]: s for s in parameter_specs(obj)}
     for key, value in values.items():
         if key not in specs:
@@ -197,6 +343,20 @@ def set_parameters(obj, values: dict[str, float]):
         else:
             set_parameter(obj, specs[key], value)
     obj.Document.recompute()
+
+
+def set_parameters(obj, values: dict[str, float]):
+    """Set parameters (template units: mm, rad); a spreadsheet-bound one is set in its cell.
+
+    Returns the object; call :func:`rebuild` or :func:`analyze` to use the new values.
+
+    Raises
+    ------
+    HyperstatWorkbenchError
+        On an unknown parameter name.
+    """
+    with transaction(obj.Document, "Set parameters"):
+        _write_parameters(obj, values)
     return obj
 
 
@@ -216,6 +376,47 @@ def _clear_results(obj) -> None:
     obj.ParameterVerdicts = {}
 
 
+def rebuild_steps(obj, values: dict[str, float] | None = None, analyse: bool = False, title: str = "Rebuild"):
+    """Steps of a rebuild; with ``values`` (template units) an *Edit parameters*: they are written only if the
+    build succeeds, in the same undo transaction as the new geometry (and the analysis with ``analyse``)."""
+    doc = obj.Document
+    doc.recompute()
+    full = current_parameters(obj)
+    if values:
+        unknown = sorted(set(values) - set(full))
+        if unknown:
+            raise HyperstatWorkbenchError(f"{obj.Label}: unknown parameter '{unknown[0]}'; valid: {', '.join(full)}.")
+        full.update({k: float(v) for k, v in values.items()})
+    stage = _stage(work_dir(obj))
+    try:
+        try:
+            res = yield _build_call(obj.Template, full, stage, obj.Label)
+            text = None
+            if analyse:
+                yield _analyze_call(obj, stage / "skeleton.skel.json", stage, obj.Configurations, obj.Seed)
+                text = (stage / "analysis.json").read_text(encoding="utf-8")
+        except HyperstatWorkbenchError as exc:
+            if not values:  # the document's own parameters failed; refused new values are simply not written
+                obj.Status = f"error: {exc}"
+            raise
+        with transaction(doc, f"{title} {obj.Label}"):
+            if values:
+                _write_parameters(obj, values)
+            _apply_build(obj, stage, full, res)
+            if text is not None:
+                _apply_analysis(obj, text)
+            doc.recompute()
+        shutil.copy(stage / "skeleton.skel.json", work_dir(obj) / "skeleton.skel.json")
+        return obj
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def edit_steps(obj, values: dict[str, float], analyse: bool = True):
+    """Steps of *Edit parameters*: build with ``values`` (mm, rad), then write them, rebuild and analyse (one undo)."""
+    return rebuild_steps(obj, values, analyse, "Edit parameters of")
+
+
 def rebuild(obj):
     """``hyperstat build`` with the object's parameters; re-import the STEP file; clear old results.
 
@@ -225,32 +426,33 @@ def rebuild(obj):
         If the build fails (a parameter out of bounds, an assembly that does not close...):
         the object keeps its previous geometry and shows the error in ``Status``.
     """
-    doc = obj.Document
-    doc.recompute()
-    values = current_parameters(obj)
-    folder = work_dir(obj)
-    step, model = folder / "skeleton.step", folder / "skeleton.skel.json"
+    return drive(rebuild_steps(obj))
+
+
+def analyze_steps(obj, configurations: int | None = None, seed: int | None = None):
+    """Steps of :func:`analyze`: rebuild first if outdated, analyse, store and colour (one undo transaction)."""
+    if needs_rebuild(obj):
+        obj = yield from rebuild_steps(obj, analyse=False)
+    configurations = int(obj.Configurations if configurations is None else configurations)
+    seed = int(obj.Seed if seed is None else seed)
+    model = _cached_model(obj)
+    stage = _stage(work_dir(obj))
     try:
-        res = run_cli(["build", obj.Template, *cli_overrides(values), "--step", str(step), "--model", str(model)])
-        sidecar = json.loads((folder / "skeleton.step.json").read_text(encoding="utf-8"))
-        root = geometry.import_step(doc, step, set(sidecar["nodes"]))
-    except HyperstatWorkbenchError as exc:
-        obj.Status = f"error: {exc}"
-        raise
-    old = geometry.geometry_root(obj)
-    if old is not None:
-        geometry.remove_tree(doc, old)
-    obj.addObject(root)
-    root.Label = f"{obj.Label} geometry"
-    obj.ModelJson = model.read_text(encoding="utf-8")
-    obj.MarkerSize = float(sidecar.get("marker_size", 1.0))
-    obj.Mechanism = str(sidecar.get("name", ""))
-    obj.Summary = res.stdout.splitlines()[0] if res.stdout.strip() else ""
-    obj.BuiltParameters = json.dumps(values, sort_keys=True)
-    _clear_results(obj)
-    obj.Status = "built; not analysed"
-    doc.recompute()
-    return obj
+        try:
+            yield _analyze_call(obj, model, stage, configurations, seed)
+        except HyperstatWorkbenchError as exc:
+            obj.Status = f"error: {exc}"
+            raise
+        text = (stage / "analysis.json").read_text(encoding="utf-8")
+        with transaction(obj.Document, f"Analyse {obj.Label}"):
+            if (obj.Configurations, obj.Seed) != (configurations, seed):
+                obj.Configurations, obj.Seed = configurations, seed
+            analysis = _apply_analysis(obj, text)
+            obj.Document.recompute()
+        shutil.copy(stage / "analysis.json", work_dir(obj) / "analysis.json")
+        return analysis
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 def analyze(obj, configurations: int | None = None, seed: int | None = None) -> dict:
@@ -262,30 +464,7 @@ def analyze(obj, configurations: int | None = None, seed: int | None = None) -> 
         The analysis JSON (units mm, rad): ``parameters`` with each verdict, ``relations``,
         ``mobility``, ``overconstraint``, ``rank``...
     """
-    if configurations is not None:
-        obj.Configurations = int(configurations)
-    if seed is not None:
-        obj.Seed = int(seed)
-    model = _model_file(obj)
-    out = work_dir(obj) / "analysis.json"
-    try:
-        run_cli(["analyze", str(model), "--json", str(out), "--configurations", str(obj.Configurations),
-                 "--seed", str(obj.Seed), "--quiet"])
-    except HyperstatWorkbenchError as exc:
-        obj.Status = f"error: {exc}"
-        raise
-    text = out.read_text(encoding="utf-8")
-    analysis = json.loads(text)
-    obj.Analysis = text
-    obj.Mobility = int(analysis.get("mobility") or 0)
-    obj.Overconstraint = int(analysis.get("overconstraint") or 0)
-    obj.Rank = int(analysis.get("rank") or 0)
-    obj.VerdictCounts = {k: str(v) for k, v in verdict_counts(analysis).items()}
-    obj.ParameterVerdicts = {p["name"]: parameter_class(p) for p in analysis["parameters"]}
-    geometry.color_markers(obj, analysis)
-    obj.Status = "analysed"
-    obj.Document.recompute()
-    return analysis
+    return drive(analyze_steps(obj, configurations, seed))
 
 
 def results(obj) -> dict | None:
@@ -302,15 +481,35 @@ def _measurements(obj, data, validation) -> list[str]:
     for label, value in (("measurement file", data), ("validation file", validation)):
         if value and not Path(value).is_file():
             raise HyperstatWorkbenchError(f"{obj.Label}: the {label} '{value}' does not exist.")
-    obj.MeasurementFile, obj.ValidationFile = data, validation
-    args = [obj.MeasurementFile]
-    if obj.ValidationFile:
-        args += ["--validation", obj.ValidationFile]
+    args = [data]
+    if validation:
+        args += ["--validation", validation]
     return args
 
 
 def _sample_args(obj) -> list[str]:
     return ["--configurations", str(obj.Configurations), "--seed", str(obj.Seed)]
+
+
+def _model_steps(obj):
+    if needs_rebuild(obj):
+        yield from rebuild_steps(obj)
+    return _cached_model(obj)
+
+
+def identify_steps(obj, data: str | os.PathLike | None = None, validation: str | os.PathLike | None = None):
+    """Steps of :func:`identify` (stores the results without marking the skeleton for recompute)."""
+    meas = _measurements(obj, data, validation)
+    model = yield from _model_steps(obj)
+    out = work_dir(obj) / "identification.json"
+    res = yield Call(["identify", str(model), *meas, "--json", str(out), *_sample_args(obj)],
+                     "identification (hyperstat identify)")
+    text = out.read_text(encoding="utf-8")
+    with transaction(obj.Document, f"Identify {obj.Label}"):
+        obj.MeasurementFile, obj.ValidationFile = meas[0], (meas[2] if len(meas) > 2 else "")
+        obj.Identification = text
+        obj.IdentificationText = res.stdout
+    return json.loads(text)
 
 
 def identify(obj, data: str | os.PathLike | None = None, validation: str | os.PathLike | None = None) -> dict:
@@ -319,13 +518,20 @@ def identify(obj, data: str | os.PathLike | None = None, validation: str | os.Pa
     Returns the identification JSON, also stored in ``Identification``; the printed
     summary goes to ``IdentificationText``.
     """
+    return drive(identify_steps(obj, data, validation))
+
+
+def diagnose_steps(obj, data: str | os.PathLike | None = None, validation: str | os.PathLike | None = None):
+    """Steps of :func:`diagnose`."""
     meas = _measurements(obj, data, validation)
-    model = _model_file(obj)
-    out = work_dir(obj) / "identification.json"
-    res = run_cli(["identify", str(model), *meas, "--json", str(out), *_sample_args(obj)])
+    model = yield from _model_steps(obj)
+    out = work_dir(obj) / "diagnosis.json"
+    res = yield Call(["diagnose", str(model), *meas, "--json", str(out)], "diagnosis (hyperstat diagnose)")
     text = out.read_text(encoding="utf-8")
-    obj.Identification = text
-    obj.IdentificationText = res.stdout
+    with transaction(obj.Document, f"Diagnose {obj.Label}"):
+        obj.MeasurementFile, obj.ValidationFile = meas[0], (meas[2] if len(meas) > 2 else "")
+        obj.Diagnosis = text
+        obj.DiagnosisText = res.stdout
     return json.loads(text)
 
 
@@ -337,14 +543,7 @@ def diagnose(obj, data: str | os.PathLike | None = None, validation: str | os.Pa
     CommandMissing
         If the installed hyperstat has no ``diagnose`` command.
     """
-    meas = _measurements(obj, data, validation)
-    model = _model_file(obj)
-    out = work_dir(obj) / "diagnosis.json"
-    res = run_cli(["diagnose", str(model), *meas, "--json", str(out)])
-    text = out.read_text(encoding="utf-8")
-    obj.Diagnosis = text
-    obj.DiagnosisText = res.stdout
-    return json.loads(text)
+    return drive(diagnose_steps(obj, data, validation))
 
 
 def _data_options(obj) -> list[str]:
@@ -356,23 +555,36 @@ def _data_options(obj) -> list[str]:
     return out
 
 
+def report_steps(obj, out_dir: str | os.PathLike):
+    """Steps of :func:`export_report`."""
+    model = yield from _model_steps(obj)
+    yield Call(["report", str(model), *_data_options(obj), "--out", str(out_dir)], "tolerance report (hyperstat report)")
+    with transaction(obj.Document, f"Report of {obj.Label}"):
+        obj.ReportDir = str(out_dir)
+    return Path(out_dir)
+
+
 def export_report(obj, out_dir: str | os.PathLike) -> Path:
     """``hyperstat report``: the tolerance report (HTML, Markdown, JSON) in ``out_dir``.
 
     Measurements loaded in the object are passed with ``--data`` / ``--validation``.
     """
-    model = _model_file(obj)
-    run_cli(["report", str(model), *_data_options(obj), "--out", str(out_dir)])
-    obj.ReportDir = str(out_dir)
-    return Path(out_dir)
+    return drive(report_steps(obj, out_dir))
+
+
+def controller_steps(obj, out_file: str | os.PathLike):
+    """Steps of :func:`export_controller`."""
+    if not obj.MeasurementFile:
+        raise HyperstatWorkbenchError("Load measurements first: the controller file holds the identified parameters.")
+    model = yield from _model_steps(obj)
+    extra = ["--validation", obj.ValidationFile] if obj.ValidationFile else []
+    yield Call(["export-controller", str(model), obj.MeasurementFile, *extra, "--diagnose", "--out", str(out_file)],
+               "controller file (hyperstat export-controller)")
+    with transaction(obj.Document, f"Controller file of {obj.Label}"):
+        obj.ControllerFile = str(out_file)
+    return Path(out_file)
 
 
 def export_controller(obj, out_file: str | os.PathLike) -> Path:
     """``hyperstat export-controller``: the controller parameter file (JSON), from the loaded measurements."""
-    model = _model_file(obj)
-    if not obj.MeasurementFile:
-        raise HyperstatWorkbenchError("Load measurements first: the controller file holds the identified parameters.")
-    extra = ["--validation", obj.ValidationFile] if obj.ValidationFile else []
-    run_cli(["export-controller", str(model), obj.MeasurementFile, *extra, "--diagnose", "--out", str(out_file)])
-    obj.ControllerFile = str(out_file)
-    return Path(out_file)
+    return drive(controller_steps(obj, out_file))

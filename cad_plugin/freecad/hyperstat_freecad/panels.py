@@ -3,7 +3,7 @@
 Units: lengths in mm; angles shown in degrees (FreeCAD's convention) and passed to
 hyperstat in rad.
 
-Every action a panel runs goes through :func:`.messages.guarded`: an error becomes a
+Every action a panel runs is a :class:`.jobs.Job` (the GUI never freezes); an error becomes a
 message box and a line in the report view, and the panel stays open and usable.
 """
 
@@ -11,24 +11,25 @@ from __future__ import annotations
 
 import math
 
-from .messages import guarded, icon_path, show_error, show_info
-from .verdicts import VERDICT_COLORS, VERDICT_ORDER, VERDICT_TEXT, parameter_class
+from .messages import icon_path, show_error, show_info
+from .verdicts import VERDICT_COLORS, VERDICT_ORDER, VERDICT_TEXT, parameter_class, tolerance_class
 
-__all__ = ["InsertPanel", "ParametersPanel", "ResultsPanel", "TextPanel", "show_panel", "open_parameters",
-           "open_results", "open_text", "ACTIVE"]
+__all__ = ["InsertPanel", "ParametersPanel", "ResultsPanel", "TextPanel", "show_panel", "show_later",
+           "open_parameters", "open_results", "open_text", "open_identification", "open_diagnosis", "ACTIVE",
+           "IdentificationPanel", "DiagnosisPanel", "BarPlot", "legend_html"]
 
 #: the panel on screen (kept referenced so that Qt does not lose it; tests read it)
 ACTIVE: list = []
 
 
 def show_panel(panel) -> bool:
-    """Show a task panel, closing one of ours that is open; refuse politely if another is."""
+    """Show a task panel, closing one of ours that is open; refuse politely if another workbench's is."""
     import FreeCADGui
 
     if FreeCADGui.Control.activeDialog():
-        if ACTIVE:
-            FreeCADGui.Control.closeDialog()
-        else:
+        if ACTIVE and not getattr(ACTIVE[0], "job", None):
+            _close()
+        if FreeCADGui.Control.activeDialog():
             show_error("Task panel", "Another task panel is open: close it first.")
             return False
     ACTIVE[:] = [panel]
@@ -36,15 +37,101 @@ def show_panel(panel) -> bool:
     return True
 
 
+def show_later(opener, *args, tries: int = 40) -> None:
+    """Call ``opener(*args)`` from Qt's event loop once no task dialog is closing any more.
+
+    A panel's OK runs inside FreeCAD's handling of that button, where the dialog is still
+    the active one: opening the next panel from there is what made the first OK fail.
+    """
+    from PySide import QtCore
+
+    def attempt(left=tries):
+        import FreeCADGui
+
+        if FreeCADGui.Control.activeDialog() and not ACTIVE and left > 0:
+            QtCore.QTimer.singleShot(50, lambda: attempt(left - 1))  # still closing
+            return
+        opener(*args)
+
+    QtCore.QTimer.singleShot(0, attempt)
+
+
 def _close() -> None:
     import FreeCADGui
 
-    FreeCADGui.Control.closeDialog()
     ACTIVE.clear()
+    FreeCADGui.Control.closeDialog()
 
 
-class InsertPanel:
+def _progress_widgets(layout):
+    """A busy progress bar with a label (hidden until a job runs) at the bottom of a panel."""
+    from PySide import QtGui
+
+    label = QtGui.QLabel()
+    label.setWordWrap(True)
+    label.setObjectName("HyperstatPanelProgressText")
+    bar = QtGui.QProgressBar()
+    bar.setRange(0, 0)
+    bar.setObjectName("HyperstatPanelProgress")
+    for w in (label, bar):
+        w.hide()
+        layout.addWidget(w) if not isinstance(layout, QtGui.QFormLayout) else layout.addRow(w)
+    return label, bar
+
+
+class _JobPanel:
+    """A panel whose OK starts a :class:`~.jobs.Job`: the panel stays open, greyed, with a progress bar,
+    until the job ends; Cancel stops the job.  The next panel opens after this one has closed."""
+
+    job = None
+    title = "Hyperstat"
+
+    def _inputs(self) -> list:
+        return []
+
+    def _busy(self, busy: bool) -> None:
+        for w in self._inputs():
+            w.setEnabled(not busy)
+        self.progress_label.setVisible(busy)
+        self.progress_bar.setVisible(busy)
+
+    def _run(self, steps, on_done) -> None:
+        from .jobs import Job
+
+        self._busy(True)
+        self.job = Job(self.title, steps, on_done=lambda value: self._finished(on_done, value),
+                       on_error=self._failed, progress=self.progress_label.setText, on_cancel=self._cancelled)
+        if not self.job.start():
+            self.job = None
+            self._busy(False)
+
+    def _finished(self, on_done, value) -> None:
+        self.job = None
+        if ACTIVE and ACTIVE[0] is self:
+            _close()
+        on_done(value)
+
+    def _cancelled(self) -> None:
+        self.job = None
+        if ACTIVE and ACTIVE[0] is self:
+            self._busy(False)
+
+    def _failed(self, exc) -> None:
+        self.job = None
+        if ACTIVE and ACTIVE[0] is self:
+            self._busy(False)  # the panel stays open to fix the input
+        show_error(self.title, exc)
+
+    def getStandardButtons(self) -> int:
+        from PySide import QtGui
+
+        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+
+
+class InsertPanel(_JobPanel):
     """Choose a template (shipped or any file) and insert its skeleton."""
+
+    title = "Insert skeleton"
 
     def __init__(self, doc):
         from PySide import QtGui
@@ -52,29 +139,43 @@ class InsertPanel:
         from .runner import list_templates
 
         self.doc = doc
+        self.inserted = None
         self.form = QtGui.QWidget()
-        self.form.setWindowTitle("Insert a hyperstat skeleton")
+        self.form.setWindowTitle("Insert skeleton")
         self.form.setWindowIcon(QtGui.QIcon(icon_path("insert")))
         layout = QtGui.QVBoxLayout(self.form)
-        layout.addWidget(QtGui.QLabel("Template (lengths in mm, angles in rad):"))
+        label = QtGui.QLabel("Template (lengths in mm, angles in rad):")
+        label.setWordWrap(True)
+        layout.addWidget(label)
         self.combo = QtGui.QComboBox()
+        self.combo.setSizeAdjustPolicy(QtGui.QComboBox.AdjustToMinimumContentsLengthWithIcon)
+        self.combo.setMinimumContentsLength(8)
         for path in list_templates():
             self.combo.addItem(path.stem, str(path))
         layout.addWidget(self.combo)
-        browse = QtGui.QPushButton("Other template file...")
-        browse.clicked.connect(self.browse)
-        layout.addWidget(browse)
-        self.spreadsheet = QtGui.QCheckBox("Drive the parameters from a spreadsheet")
+        self.browse_button = QtGui.QPushButton("Other template file...")
+        self.browse_button.clicked.connect(self.browse)
+        layout.addWidget(self.browse_button)
+        self.spreadsheet = QtGui.QCheckBox("Spreadsheet")
+        self.spreadsheet.setToolTip("Drive the parameters from a spreadsheet (one aliased cell per parameter)")
         self.spreadsheet.setChecked(True)
         layout.addWidget(self.spreadsheet)
-        self.analyse = QtGui.QCheckBox("Analyse after inserting")
+        self.analyse = QtGui.QCheckBox("Analyse at once")
+        self.analyse.setToolTip("Run the stationarity analysis after inserting (same undo step)")
         self.analyse.setChecked(True)
         layout.addWidget(self.analyse)
         note = QtGui.QLabel("A template is Python and runs as code: only use templates you trust.")
         note.setWordWrap(True)
         layout.addWidget(note)
         if self.combo.count() == 0:
-            layout.addWidget(QtGui.QLabel("No shipped templates found: run 'make freecad-install' or browse."))
+            empty = QtGui.QLabel("No shipped templates found: run 'make freecad-install' or browse.")
+            empty.setWordWrap(True)
+            layout.addWidget(empty)
+        self.progress_label, self.progress_bar = _progress_widgets(layout)
+        layout.addStretch(1)
+
+    def _inputs(self) -> list:
+        return [self.combo, self.browse_button, self.spreadsheet, self.analyse]
 
     def select(self, name_or_path: str) -> None:
         """Choose a template by name or path (what the user does with the combo box)."""
@@ -91,32 +192,36 @@ class InsertPanel:
         if path:
             self.select(path)
 
-    def getStandardButtons(self) -> int:
-        from PySide import QtGui
-
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
-
     def accept(self) -> bool:
-        from .operations import analyze, insert_skeleton
+        """OK: build (and analyse) in the background; the panel closes when the skeleton is in the document."""
+        from .operations import insert_steps
 
+        if self.job is not None:
+            return False  # already under way
         template = self.combo.itemData(self.combo.currentIndex()) if self.combo.count() else None
         if not template:
-            show_error("Insert skeleton", "Choose a template first.")
+            show_error(self.title, "Choose a template first.")
             return False
-        then_analyse = self.analyse.isChecked()
-        obj = guarded("Insert skeleton", insert_skeleton, self.doc, template, spreadsheet=self.spreadsheet.isChecked())
-        if obj is None:
-            return False  # the message was shown; the panel stays open
+        analyse = self.analyse.isChecked()
+        try:
+            steps = insert_steps(self.doc, template, spreadsheet=self.spreadsheet.isChecked(), analyse=analyse)
+        except Exception as exc:  # noqa: BLE001
+            show_error(self.title, exc)
+            return False
+        self._run(steps, lambda obj: self._inserted(obj, analyse))
+        return False  # FreeCAD keeps the panel open; it closes itself when done
+
+    def _inserted(self, obj, analysed: bool) -> None:
         self.inserted = obj
         _fit_view()
-        _close()  # the form's widgets are gone after this
-        if then_analyse and guarded("Analyse", analyze, obj) is not None:
-            open_results(obj)
+        if analysed:
+            show_later(open_results, obj)
         else:
-            show_info("Insert skeleton", f"{obj.Label}: {obj.Summary}")
-        return True
+            show_info(self.title, f"{obj.Label}: {obj.Summary}")
 
     def reject(self) -> bool:
+        if self.job is not None:
+            self.job.cancel()
         _close()
         return True
 
@@ -130,28 +235,37 @@ def _fit_view() -> None:
         view.fitAll()
 
 
-class ParametersPanel:
-    """Edit the template parameters (spreadsheet-bound ones are written to their cells), then rebuild."""
+class ParametersPanel(_JobPanel):
+    """Edit the template parameters (spreadsheet-bound ones are written to their cells), then rebuild.
+
+    The values are written only when the build with them succeeds, in the same undo step
+    as the new geometry and its analysis: a value the template refuses leaves the document
+    as it was, with one message, and the panel open to fix it.
+    """
+
+    title = "Edit parameters"
 
     def __init__(self, obj):
         from PySide import QtGui
 
-        from .feature import parameter_specs
-        from .parameters import current_parameters, expression_of
+        from .parameters import current_parameters, expression_of, parameter_specs
 
         self.obj = obj
         self.specs = parameter_specs(obj)
         values = current_parameters(obj)
         self.original = dict(values)
         self.form = QtGui.QWidget()
-        self.form.setWindowTitle(f"Parameters of {obj.Label}")
+        self.form.setWindowTitle("Parameters")
         self.form.setWindowIcon(QtGui.QIcon(icon_path("parameters")))
         layout = QtGui.QFormLayout(self.form)
+        layout.setFieldGrowthPolicy(QtGui.QFormLayout.AllNonFixedFieldsGrow)
         self.boxes = {}
+        self.shown = {}
         for spec in self.specs:
             name, unit = spec["name"], spec.get("unit", "1")
             box = QtGui.QDoubleSpinBox()
             box.setDecimals(6)
+            box.setMinimumWidth(90)
             scale = (180.0 / math.pi) if unit == "rad" else 1.0
             lo = spec.get("minimum")
             hi = spec.get("maximum")
@@ -164,47 +278,74 @@ class ParametersPanel:
                 tip += f"\nDriven by the spreadsheet ({expr}): a change here is written to that cell."
             box.setToolTip(tip)
             self.boxes[name] = (box, scale)
+            self.shown[name] = box.value()
             layout.addRow(name, box)
-        self.analyse = QtGui.QCheckBox("Analyse after rebuilding")
+        self.analyse = QtGui.QCheckBox("Analyse too")
+        self.analyse.setToolTip("Analyse after rebuilding (same undo step)")
         self.analyse.setChecked(True)
         layout.addRow(self.analyse)
+        self.progress_label, self.progress_bar = _progress_widgets(layout)
+
+    def _inputs(self) -> list:
+        return [box for box, _ in self.boxes.values()] + [self.analyse]
 
     def set_value(self, name: str, value: float) -> None:
         """Type a value (template units: mm, rad) into a field."""
         box, scale = self.boxes[name]
         box.setValue(value * scale)
 
+    def changed(self) -> dict[str, float]:
+        """The values the user changed (template units); untouched fields keep their full precision."""
+        return {name: box.value() / scale for name, (box, scale) in self.boxes.items()
+                if box.value() != self.shown[name]}
+
     def reject(self) -> bool:
-        """Cancel: put back the values the panel opened with (a failed OK may have written some)."""
-        from .operations import set_parameters
-        from .parameters import current_parameters
-
+        """Cancel: stop a running build; the document keeps the values it had (nothing was written)."""
+        if self.job is not None:
+            self.job.cancel()
         _close()
-        if current_parameters(self.obj) != self.original:
-            guarded("Parameters", set_parameters, self.obj, self.original)
         return True
-
-    def getStandardButtons(self) -> int:
-        from PySide import QtGui
-
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
 
     def accept(self) -> bool:
-        from .operations import analyze, rebuild, set_parameters
+        """OK: build with the changed values in the background, then write them, rebuild and analyse (one undo)."""
+        from .operations import analyze_steps, edit_steps, needs_rebuild
 
-        values = {name: box.value() / scale for name, (box, scale) in self.boxes.items()}
-        then_analyse = self.analyse.isChecked()
-        if guarded("Parameters", set_parameters, self.obj, values) is None:
+        if self.job is not None:
             return False
-        if guarded("Rebuild", rebuild, self.obj) is None:
-            return False  # message shown, panel stays open to fix the value
-        _close()  # the form's widgets are gone after this
-        if then_analyse and guarded("Analyse", analyze, self.obj) is not None:
-            open_results(self.obj)
+        values = self.changed()
+        analyse = self.analyse.isChecked()
+        try:
+            if values or needs_rebuild(self.obj):
+                steps = edit_steps(self.obj, values, analyse)
+            elif analyse and not self.obj.Analysis:
+                steps = analyze_steps(self.obj)
+            else:
+                _close()
+                if self.obj.Analysis:
+                    show_later(open_results, self.obj)
+                return True
+        except Exception as exc:  # noqa: BLE001
+            show_error(self.title, exc)
+            return False
+        self._run(steps, lambda _value: show_later(open_results, self.obj) if analyse else None)
+        return False
+
+
+class _NonModal:
+    """A panel that only shows results: while it is open, the workbench's and FreeCAD's commands stay
+    available (FreeCAD greys out document-changing commands while a task panel forbids it)."""
+
+    def isAllowedAlterDocument(self) -> bool:
+        return True
+
+    def isAllowedAlterView(self) -> bool:
+        return True
+
+    def isAllowedAlterSelection(self) -> bool:
         return True
 
 
-class ResultsPanel:
+class ResultsPanel(_NonModal):
     """The analysis: summary, one row per defect parameter coloured by verdict, the relations."""
 
     def __init__(self, obj):
@@ -215,48 +356,52 @@ class ResultsPanel:
         self.obj = obj
         analysis = results(obj)
         self.form = QtGui.QWidget()
-        self.form.setWindowTitle(f"Stationarity analysis of {obj.Label}")
+        self.form.setWindowTitle("Analysis")
         self.form.setWindowIcon(QtGui.QIcon(icon_path("results")))
         layout = QtGui.QVBoxLayout(self.form)
         self.summary = QtGui.QLabel()
         self.summary.setWordWrap(True)
         layout.addWidget(self.summary)
         self.table = QtGui.QTableWidget(0, 6)
-        self.table.setHorizontalHeaderLabels(["parameter", "element", "unit", "verdict", "influence", "reason"])
+        self.table.setHorizontalHeaderLabels(["parameter", "element", "class", "influence", "unit", "reason"])
         self.table.setEditTriggers(QtGui.QAbstractItemView.NoEditTriggers)
         self.table.setSelectionBehavior(QtGui.QAbstractItemView.SelectRows)
         self.table.itemSelectionChanged.connect(self.select_marker)
-        self.table.setMinimumHeight(380)
+        _fit_dock(self.table, 300)
         layout.addWidget(self.table, 1)
         self.relations = QtGui.QPlainTextEdit()
         self.relations.setReadOnly(True)
         self.relations.setMaximumHeight(110)
+        _fit_dock(self.relations, 0)
         layout.addWidget(self.relations)
-        legend = QtGui.QLabel(" ".join(
-            f"<span style='background:{_hex(VERDICT_COLORS[c])}'>&nbsp;&nbsp;&nbsp;</span> {VERDICT_TEXT[c]}<br>"
-            for c in VERDICT_ORDER))
-        legend.setTextFormat(QtCore.Qt.RichText)
-        layout.addWidget(legend)
+        self.legend = QtGui.QLabel()
+        self.legend.setWordWrap(True)
+        self.legend.setTextFormat(QtCore.Qt.RichText)
+        layout.addWidget(self.legend)
         if analysis is None:
             self.summary.setText(f"{obj.Label}: not analysed since its last build ({obj.Status}). Run Analyse.")
             self.rows = []
+            self.legend.setText(legend_html(None))
             return
-        counts = {c: 0 for c in VERDICT_ORDER}
         self.rows = analysis["parameters"]
+        self.classes = [tolerance_class(analysis, p) for p in self.rows]
         self.table.setRowCount(len(self.rows))
         for i, p in enumerate(self.rows):
-            cls = parameter_class(p)
-            counts[cls] += 1
+            verdict = parameter_class(p)
             influence = p.get("influence")
-            cells = [p["name"], p["element"], p.get("unit", ""), cls,
-                     "" if influence is None else f"{influence:.3g}", p.get("reason", "")]
+            cells = [p["name"], p["element"], self.classes[i], "" if influence is None else f"{influence:.3g}",
+                     p.get("unit", ""), p.get("reason", "")]
             for j, text in enumerate(cells):
                 item = QtGui.QTableWidgetItem(str(text))
-                if j == 3:
-                    item.setBackground(QtGui.QColor.fromRgbF(*VERDICT_COLORS[cls]))
+                item.setToolTip(f"{p['name']} ({p['element']}): {self.classes[i]}; {p.get('reason', '')}")
+                if j == 2:
+                    item.setBackground(QtGui.QColor.fromRgbF(*VERDICT_COLORS[verdict]))
                 self.table.setItem(i, j, item)
         self.table.resizeColumnsToContents()
-        per_class = ", ".join(f"{counts[c]} {c}" for c in VERDICT_ORDER if counts[c])
+        counts: dict[str, int] = {}
+        for c in self.classes:
+            counts[c] = counts.get(c, 0) + 1
+        per_class = ", ".join(f"{n} {c}" for c, n in counts.items())
         self.summary.setText(
             f"<b>{analysis.get('mechanism', obj.Mechanism)}</b>: mobility {analysis.get('mobility')}, "
             f"over-constraint {analysis.get('overconstraint')}, rank {analysis.get('rank')} "
@@ -265,6 +410,7 @@ class ResultsPanel:
         rel = analysis.get("relations") or []
         self.relations.setPlainText("Relations between coupled defects:\n" + "\n".join(r["text"] for r in rel)
                                     if rel else "No relation between defects.")
+        self.legend.setText(legend_html(analysis))
 
     def select_marker(self) -> None:
         """Select the verdict sphere of the element of the selected row in the 3D view."""
@@ -296,11 +442,29 @@ class ResultsPanel:
         return True
 
 
+def _fit_dock(widget, min_height: int) -> None:
+    """Let a wide widget shrink to FreeCAD's default dock width (it scrolls instead of widening the panel)."""
+    from PySide import QtGui
+
+    widget.setSizePolicy(QtGui.QSizePolicy.Ignored, QtGui.QSizePolicy.Expanding)
+    widget.setMinimumWidth(120)
+    if min_height:
+        widget.setMinimumHeight(min_height)
+
+
+def legend_html(analysis) -> str:
+    """The marker colours and what they mean, with the labels drawn next to the markers."""
+    rows = [f"<span style='background:{_hex(VERDICT_COLORS[c])}'>&nbsp;&nbsp;&nbsp;</span> <b>{c}</b>: "
+            f"{VERDICT_TEXT[c]}" for c in VERDICT_ORDER]
+    return ("Marker colours (a joint takes its most severe verdict; where joints coincide the spheres are "
+            "spread around the point and labelled):<br>" + "<br>".join(rows))
+
+
 def _hex(rgb) -> str:
     return "#" + "".join(f"{round(255 * c):02x}" for c in rgb)
 
 
-class TextPanel:
+class TextPanel(_NonModal):
     """What a command printed (identification, diagnosis), in a fixed-width font."""
 
     def __init__(self, title: str, text: str, icon: str = "hyperstat"):
@@ -352,3 +516,176 @@ def open_text(title: str, text: str, icon: str = "hyperstat") -> None:
         show_panel(TextPanel(title, text, icon))
     except Exception as exc:  # noqa: BLE001
         show_error(title, exc)
+
+
+class BarPlot:
+    """A small horizontal bar chart drawn with QPainter (no plotting library in FreeCAD's Python)."""
+
+    def __init__(self, title: str, bars: list[tuple[str, float]], unit: str, reference: tuple[str, float] | None = None):
+        from PySide import QtGui
+
+        self.bars, self.unit, self.reference = bars, unit, reference
+        plot = self
+
+        class _Widget(QtGui.QWidget):
+            def paintEvent(self, event):  # noqa: N802 - Qt's name
+                plot.paint(self)
+
+        self.widget = _Widget()
+        self.widget.setObjectName("HyperstatBarPlot")
+        self.widget.setToolTip(title)
+        self.widget.setMinimumHeight(18 * len(bars) + 30)
+        self.widget.setSizePolicy(QtGui.QSizePolicy.Ignored, QtGui.QSizePolicy.Fixed)
+        self.title = title
+
+    def paint(self, widget) -> None:
+        from PySide import QtCore, QtGui
+
+        painter = QtGui.QPainter(widget)
+        width = widget.width()
+        label_w = min(130, int(width * 0.42))
+        top = 16
+        painter.drawText(2, 12, f"{self.title} [{self.unit}]")
+        values = [abs(v) for _, v in self.bars] + ([abs(self.reference[1])] if self.reference else [])
+        scale = max(width - label_w - 50, 10) / max(max(values, default=1.0), 1e-300)
+        for i, (label, value) in enumerate(self.bars):
+            y = top + 18 * i
+            text = painter.fontMetrics().elidedText(label, QtCore.Qt.ElideRight, label_w - 6)
+            painter.drawText(QtCore.QRect(0, y, label_w - 4, 16), QtCore.Qt.AlignRight | QtCore.Qt.AlignVCenter, text)
+            painter.fillRect(label_w, y + 2, max(1, int(abs(value) * scale)), 12, QtGui.QColor(0, 150, 190))
+            painter.drawText(label_w + int(abs(value) * scale) + 4, y + 13, f"{value:.3g}")
+        if self.reference:
+            x = label_w + int(abs(self.reference[1]) * scale)
+            painter.setPen(QtGui.QPen(QtGui.QColor(200, 30, 120), 2, QtCore.Qt.DashLine))
+            painter.drawLine(x, top, x, top + 18 * len(self.bars))
+            painter.drawText(x + 3, top + 18 * len(self.bars) + 12, self.reference[0])
+        painter.end()
+
+
+def _table(headers: list[str], rows: list[list[str]]):
+    from PySide import QtGui
+
+    table = QtGui.QTableWidget(len(rows), len(headers))
+    table.setHorizontalHeaderLabels(headers)
+    table.setEditTriggers(QtGui.QAbstractItemView.NoEditTriggers)
+    table.setSelectionBehavior(QtGui.QAbstractItemView.SelectRows)
+    for i, row in enumerate(rows):
+        for j, text in enumerate(row):
+            table.setItem(i, j, QtGui.QTableWidgetItem(str(text)))
+    table.resizeColumnsToContents()
+    _fit_dock(table, 200)
+    return table
+
+
+class _ReportPanel(_NonModal):
+    """Summary, table and plot of a command's JSON; the printed report is one click away."""
+
+    def _build(self, title: str, icon: str, summary: str, table, plot, text: str) -> None:
+        from PySide import QtGui
+
+        self.form = QtGui.QWidget()
+        self.form.setWindowTitle(title)
+        self.form.setWindowIcon(QtGui.QIcon(icon_path(icon)))
+        layout = QtGui.QVBoxLayout(self.form)
+        self.summary = QtGui.QLabel(summary)
+        self.summary.setWordWrap(True)
+        layout.addWidget(self.summary)
+        self.table = table
+        layout.addWidget(table, 1)
+        self.plot = plot
+        if plot is not None:
+            layout.addWidget(plot.widget)
+        self.text = QtGui.QPlainTextEdit()
+        self.text.setReadOnly(True)
+        self.text.setFont(QtGui.QFont("Monospace"))
+        self.text.setPlainText(text)
+        self.text.hide()
+        _fit_dock(self.text, 0)
+        toggle = QtGui.QPushButton("Show the printed report")
+        toggle.setCheckable(True)
+        toggle.toggled.connect(self.text.setVisible)
+        layout.addWidget(toggle)
+        layout.addWidget(self.text)
+
+    def getStandardButtons(self) -> int:
+        from PySide import QtGui
+
+        return int(QtGui.QDialogButtonBox.Close)
+
+    def accept(self) -> bool:
+        _close()
+        return True
+
+    def reject(self) -> bool:
+        _close()
+        return True
+
+
+def _um(value) -> str:
+    return "" if value is None else f"{1000.0 * float(value):.1f}"
+
+
+class IdentificationPanel(_ReportPanel):
+    """``hyperstat identify``: residuals (identification, validation), one row per identified parameter."""
+
+    def __init__(self, obj):
+        import json
+
+        data = json.loads(obj.Identification)
+        ident, val = data.get("identification") or {}, data.get("validation") or {}
+        summary = (f"<b>{obj.Label}</b>: {len(data.get('parameters', []))} parameters identified, rank "
+                   f"{data.get('rank')} of {data.get('unknowns')} unknowns, condition number "
+                   f"{data.get('condition_number') or 0:.3g}.<br>Residual RMS (um): identification "
+                   f"{_um(ident.get('rms'))} ({ident.get('n')} points), validation {_um(val.get('rms'))} "
+                   f"({val.get('n', 0)} points, never fitted). Estimates in mm / rad, with 1-sigma.")
+        rows = [[p["name"], f"{p.get('estimate', 0):.4g}", f"{p.get('std') or 0:.2g}", p.get("unit", ""),
+                 "yes" if p.get("identifiable", True) else "no"] for p in data.get("parameters", [])]
+        table = _table(["parameter", "estimate", "1-sigma", "unit", "identifiable"], rows)
+        plot = BarPlot("residual RMS", [("identification", 1000.0 * float(ident.get("rms") or 0)),
+                                        ("validation", 1000.0 * float(val.get("rms") or 0))], "um")
+        self._build("Identification", "identify", summary, table, plot, obj.IdentificationText)
+
+
+class DiagnosisPanel(_ReportPanel):
+    """``hyperstat diagnose``: is there a gap, which unmodelled effect (ranked), how far it shrinks."""
+
+    def __init__(self, obj):
+        import json
+
+        data = json.loads(obj.Diagnosis)
+        test = data.get("gap_test") or {}
+        p_val = (test.get("validation") or {}).get("p_value")
+        before = data.get("validation_before") or {}
+        selected = ", ".join(str(s.get("effect", s)) if isinstance(s, dict) else str(s)
+                             for s in data.get("selected") or []) or "none"
+        gap = "a significant gap" if data.get("gap_significant") else "no significant gap (residuals at noise level)"
+        summary = (f"<b>{obj.Label}</b>: {gap}; validation p = {p_val if p_val is None else f'{p_val:.2g}'}; "
+                   f"validation RMS before {_um(before.get('rms'))} um; selected effect: {selected}. "
+                   "Effects ranked by blocked cross-validation (CV RMS in um, lower is better).")
+        ranking = data.get("ranking") or []
+        rows = [[r.get("effect", ""), r.get("defect") or "", _um(r.get("cv_rms")),
+                 f"{r.get('criterion', 0):.3g}", r.get("criterion_name", "")] for r in ranking]
+        for name, why in (data.get("not_applicable") or {}).items():
+            rows.append([name, "", "", "", f"not tried: {why}"])
+        table = _table(["effect", "defect", "CV RMS (um)", "criterion", "criterion name"], rows)
+        ceiling = data.get("ceiling") or {}
+        plot = BarPlot("CV RMS per effect", [(r.get("effect", ""), 1000.0 * float(r.get("cv_rms") or 0))
+                                             for r in ranking], "um",
+                       ("rigid", 1000.0 * float(ceiling["cv_rms_rigid"])) if ceiling.get("cv_rms_rigid") else None)
+        self._build("Diagnosis", "diagnose", summary, table, plot, obj.DiagnosisText)
+
+
+def open_identification(obj) -> None:
+    """Show the last identification of a skeleton (table and plot)."""
+    try:
+        show_panel(IdentificationPanel(obj))
+    except Exception as exc:  # noqa: BLE001
+        show_error("Identification", exc)
+
+
+def open_diagnosis(obj) -> None:
+    """Show the last diagnosis of a skeleton (table and plot)."""
+    try:
+        show_panel(DiagnosisPanel(obj))
+    except Exception as exc:  # noqa: BLE001
+        show_error("Diagnosis", exc)

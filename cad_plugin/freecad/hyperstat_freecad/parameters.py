@@ -8,11 +8,12 @@ printed with ``repr`` so that no digit is lost.
 
 from __future__ import annotations
 
+import json
 import math
 
 from .runner import HyperstatWorkbenchError
 
-__all__ = ["PROPERTY_GROUP", "add_parameter_properties", "set_parameter", "current_parameters",
+__all__ = ["PROPERTY_GROUP", "parameter_specs", "add_parameter_properties", "set_parameter", "current_parameters",
            "cli_overrides", "bind_spreadsheet", "expression_of"]
 
 PROPERTY_GROUP = "Template parameters"
@@ -66,10 +67,14 @@ def _read(obj, spec: dict) -> float:
     return float(prop)
 
 
+def parameter_specs(obj) -> list[dict]:
+    """Template parameters of the skeleton (name, default, unit, doc, minimum, maximum)."""
+    text = getattr(obj, "ParameterSpecs", "") or "[]"
+    return json.loads(text)
+
+
 def current_parameters(obj) -> dict[str, float]:
     """Parameter values of the object in the template's units (mm, rad), keyed by name."""
-    from .feature import parameter_specs
-
     return {spec["name"]: _read(obj, spec) for spec in parameter_specs(obj)}
 
 

@@ -44,6 +44,9 @@ __all__ = [
     "run_cli",
     "available_commands",
     "OPTIONAL_COMMANDS",
+    "prepare_command",
+    "interpret",
+    "DEFAULT_TIMEOUT_S",
 ]
 
 PREFERENCES = "User parameter:BaseApp/Preferences/Mod/Hyperstat"
@@ -183,8 +186,40 @@ def _missing(cli: str, sub: str) -> CommandMissing:
     )
 
 
+def prepare_command(arguments: list[str], check_optional: bool = True) -> tuple[list[str], dict[str, str]]:
+    """The full command line and environment of ``hyperstat ARGUMENTS`` (for a synchronous or a Qt run).
+
+    With ``check_optional``, a sub-command of :data:`OPTIONAL_COMMANDS` is first looked up in
+    ``hyperstat --help`` (a blocking call, cached); without it, a missing sub-command is still
+    recognised afterwards by :func:`interpret` from argparse's "invalid choice" message.
+
+    Raises
+    ------
+    CommandMissing, HyperstatWorkbenchError
+        As :func:`run_cli`.
+    """
+    cli = find_cli()
+    sub = str(arguments[0]) if arguments else ""
+    if check_optional and sub in OPTIONAL_COMMANDS and sub not in available_commands(cli):
+        raise _missing(cli, sub)
+    return [cli, *map(str, arguments)], _clean_environment()
+
+
+def interpret(command: list[str], returncode: int, stdout: str, stderr: str) -> CliResult:
+    """A finished run's output, or its failure as one sentence (see :func:`run_cli`)."""
+    cli, sub = command[0], (command[1] if len(command) > 1 else "")
+    if returncode == 0:
+        return CliResult(command, stdout, stderr)
+    message = _error_line(stderr)
+    if "invalid choice" in message and f"'{sub}'" in message:
+        raise _missing(cli, sub)
+    if returncode == 2:
+        raise HyperstatWorkbenchError(message[:1].upper() + message[1:])
+    raise HyperstatWorkbenchError(f"'hyperstat {sub}' failed with exit code {returncode}: {message}")
+
+
 def run_cli(arguments: list[str], timeout: float = DEFAULT_TIMEOUT_S, cwd: str | os.PathLike | None = None) -> CliResult:
-    """Run ``hyperstat ARGUMENTS`` and return its output.
+    """Run ``hyperstat ARGUMENTS`` and return its output (blocking; the GUI uses :mod:`.jobs`).
 
     Raises
     ------
@@ -194,25 +229,14 @@ def run_cli(arguments: list[str], timeout: float = DEFAULT_TIMEOUT_S, cwd: str |
         On any other failure: the executable's own one-line message, or a sentence
         naming the command, its exit code and the last line it printed.
     """
-    cli = find_cli()
-    command = [cli, *map(str, arguments)]
+    command, env = prepare_command(arguments)
     sub = str(arguments[0]) if arguments else ""
-    if sub in OPTIONAL_COMMANDS and sub not in available_commands(cli):
-        raise _missing(cli, sub)
     started = time.monotonic()
     try:
-        proc = subprocess.run(command, capture_output=True, text=True, env=_clean_environment(),
-                              timeout=timeout, cwd=cwd)
+        proc = subprocess.run(command, capture_output=True, text=True, env=env, timeout=timeout, cwd=cwd)
     except subprocess.TimeoutExpired:
         raise HyperstatWorkbenchError(f"'hyperstat {sub}' did not finish within {timeout:g} s and was stopped.") from None
     except OSError as exc:
-        raise HyperstatWorkbenchError(f"{cli} could not be started ({exc.strerror or exc}).") from None
+        raise HyperstatWorkbenchError(f"{command[0]} could not be started ({exc.strerror or exc}).") from None
     _log(f"hyperstat: '{' '.join(command)}' exit {proc.returncode} in {time.monotonic() - started:.1f} s\n")
-    if proc.returncode == 0:
-        return CliResult(command, proc.stdout, proc.stderr)
-    message = _error_line(proc.stderr)
-    if "invalid choice" in message and f"'{sub}'" in message:
-        raise _missing(cli, sub)
-    if proc.returncode == 2:
-        raise HyperstatWorkbenchError(message[:1].upper() + message[1:])
-    raise HyperstatWorkbenchError(f"'hyperstat {sub}' failed with exit code {proc.returncode}: {message}")
+    return interpret(command, proc.returncode, proc.stdout, proc.stderr)

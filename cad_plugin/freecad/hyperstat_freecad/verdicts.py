@@ -10,7 +10,13 @@ import the project's package, so the table is repeated here and guarded by a tes
 
 from __future__ import annotations
 
-__all__ = ["VERDICT_COLORS", "VERDICT_ORDER", "VERDICT_TEXT", "parameter_class", "element_verdicts", "verdict_counts"]
+__all__ = ["VERDICT_COLORS", "VERDICT_ORDER", "VERDICT_TEXT", "TOLERANCE_CLASSES", "parameter_class", "tolerance_class",
+           "element_verdicts", "verdict_counts"]
+
+#: the tolerance classes of the analysis JSON (``tolerances.parameters[name]["class"]``, one vocabulary for the
+#: whole project); "normalisation" and "redundant" are not tolerances
+TOLERANCE_CLASSES = ("assembly condition", "accuracy-critical", "compensable", "non-influent", "normalisation",
+                     "redundant")
 
 #: colour per verdict class (RGB in 0..1), the same as cad_plugin/assembly.py
 VERDICT_COLORS: dict[str, tuple[float, float, float]] = {
@@ -60,3 +66,19 @@ def verdict_counts(analysis: dict) -> dict[str, int]:
     for p in analysis.get("parameters", []):
         counts[parameter_class(p)] += 1
     return counts
+
+
+def tolerance_class(analysis: dict | None, parameter: dict) -> str:
+    """The class to show for a parameter: its tolerance class when the analysis JSON has one
+    (``tolerances.parameters[name]["class"]``, e.g. "assembly condition", "compensable"), else its verdict class.
+
+    >>> tolerance_class({"tolerances": {"parameters": {"a": {"class": "compensable"}}}}, {"name": "a"})
+    'compensable'
+    >>> tolerance_class({}, {"name": "a", "verdict": "forced"})
+    'forced'
+    """
+    table = ((analysis or {}).get("tolerances") or {}).get("parameters") or {}
+    entry = table.get(parameter.get("name")) if isinstance(table, dict) else None
+    if isinstance(entry, dict) and entry.get("class"):
+        return str(entry["class"])
+    return parameter_class(parameter)

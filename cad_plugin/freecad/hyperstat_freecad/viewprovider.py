@@ -1,6 +1,8 @@
 """View provider of the skeleton object: icon, tree children, double-click and context menu.
 
-Units: none.  Saved with the document (``GuiDocument.xml``) like the object's proxy:
+Units: none.  Double-click and the context menu run the workbench's commands by name
+(``FreeCADGui.runCommand``), so that this module, which :mod:`.operations` imports, imports
+neither the commands nor the panels (no import cycle).  Saved with the document (``GuiDocument.xml``) like the object's proxy:
 ``__getstate__/__setstate__`` for FreeCAD 0.20, ``dumps/loads`` for 0.21 and later.
 """
 
@@ -9,6 +11,15 @@ from __future__ import annotations
 from .messages import icon_path
 
 __all__ = ["ViewProviderSkeleton"]
+
+
+def _run_on(obj, command: str) -> None:
+    """Select the skeleton and run a workbench command on it (by name: this module imports no command code)."""
+    import FreeCADGui
+
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(obj)
+    FreeCADGui.runCommand(command)
 
 
 class ViewProviderSkeleton:
@@ -24,27 +35,21 @@ class ViewProviderSkeleton:
         return icon_path("hyperstat")
 
     def doubleClicked(self, vobj) -> bool:
-        from . import panels
-
-        panels.open_parameters(vobj.Object)
+        _run_on(vobj.Object, "Hyperstat_EditParameters")
         return True
 
     def setupContextMenu(self, vobj, menu) -> None:
         from PySide import QtGui
 
-        from . import panels
-        from .messages import guarded
-        from .operations import analyze, rebuild
-
         obj = vobj.Object
-        for text, icon, slot in (
-            ("Edit parameters", "parameters", lambda: panels.open_parameters(obj)),
-            ("Rebuild", "rebuild", lambda: guarded("Rebuild", rebuild, obj)),
-            ("Analyse", "analyze", lambda: guarded("Analyse", analyze, obj) and panels.open_results(obj)),
-            ("Results", "results", lambda: panels.open_results(obj)),
+        for text, icon, command in (
+            ("Edit parameters", "parameters", "Hyperstat_EditParameters"),
+            ("Rebuild", "rebuild", "Hyperstat_Rebuild"),
+            ("Analyse", "analyze", "Hyperstat_Analyze"),
+            ("Results", "results", "Hyperstat_Results"),
         ):
             action = QtGui.QAction(QtGui.QIcon(icon_path(icon)), text, menu)
-            action.triggered.connect(slot)
+            action.triggered.connect(lambda checked=False, c=command: _run_on(obj, c))
             menu.addAction(action)
 
     def onDelete(self, vobj, subelements) -> bool:

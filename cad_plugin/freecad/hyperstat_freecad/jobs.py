@@ -1,0 +1,249 @@
+"""Run an action's steps in the GUI without freezing it: one ``QProcess`` per command-line call.
+
+Units: none (the steps work in mm and rad).
+
+An action of :mod:`.operations` is a generator that yields a :class:`~.operations.Call`
+for each run of ``hyperstat`` and touches the document only after the last one.  A
+:class:`Job` starts each call as a ``QProcess`` and returns to Qt's event loop: FreeCAD
+stays responsive (the 3D view turns, the tree scrolls), a progress bar in the status
+bar (and in the task panel that started the job) names the stage and counts the
+seconds, and *Cancel* stops the process.  When a process ends, the generator resumes
+in the GUI thread with its output, so every document change happens in the GUI thread,
+after the last call, in one undo transaction.
+
+One job at a time (:func:`running`): the workbench's commands that start one are
+greyed out while it runs.
+"""
+
+from __future__ import annotations
+
+import time
+
+from .runner import DEFAULT_TIMEOUT_S, HyperstatWorkbenchError, interpret, prepare_command
+
+__all__ = ["Job", "running", "CURRENT"]
+
+#: the job under way (at most one)
+CURRENT: list = []
+
+
+def running() -> bool:
+    """True while a job runs."""
+    return bool(CURRENT)
+
+
+class _StatusProgress:
+    """A busy progress bar, a label and a Cancel button in FreeCAD's status bar."""
+
+    def __init__(self, job):
+        from PySide import QtGui
+
+        import FreeCADGui
+
+        bar = FreeCADGui.getMainWindow().statusBar()
+        self.widget = QtGui.QWidget()
+        self.widget.setObjectName("HyperstatProgress")
+        layout = QtGui.QHBoxLayout(self.widget)
+        layout.setContentsMargins(0, 0, 0, 0)
+        self.label = QtGui.QLabel()
+        self.bar = QtGui.QProgressBar()
+        self.bar.setRange(0, 0)  # busy: the command line reports no fraction
+        self.bar.setMaximumWidth(160)
+        self.cancel = QtGui.QPushButton("Cancel")
+        self.cancel.setObjectName("HyperstatCancel")
+        self.cancel.clicked.connect(job.cancel)
+        for w in (self.label, self.bar, self.cancel):
+            layout.addWidget(w)
+        bar.addPermanentWidget(self.widget)
+        self.widget.show()
+
+    def update(self, text: str) -> None:
+        self.label.setText(text)
+
+    def close(self) -> None:
+        import FreeCADGui
+
+        FreeCADGui.getMainWindow().statusBar().removeWidget(self.widget)
+        self.widget.deleteLater()
+
+
+class Job:
+    """Drive a step generator with one ``QProcess`` per call (see the module docstring).
+
+    Parameters
+    ----------
+    title : str
+        What the user asked for ("Insert skeleton"), shown with the progress.
+    steps : generator
+        From :mod:`.operations` (``insert_steps``, ``edit_steps``, ``analyze_steps``...).
+    on_done : callable(value)
+        Called in the GUI thread with the generator's return value.
+    on_error : callable(exception)
+        Called with the failure (the generator has seen it first); default: a message box.
+    progress : callable(str), optional
+        Also told each stage (a task panel's own label).
+    on_cancel : callable(), optional
+        Called when the user cancelled (nothing was written to the document).
+    """
+
+    def __init__(self, title: str, steps, on_done, on_error=None, progress=None, on_cancel=None):
+        self.on_cancel = on_cancel
+        self.title = title
+        self.steps = steps
+        self.on_done = on_done
+        self.on_error = on_error
+        self.progress = progress
+        self.process = None
+        self.stage = ""
+        self.started = 0.0
+        self.cancelled = False
+        self.finished = False
+        self._status = None
+        self._ticker = None
+
+    # ------------------------------------------------------------------ public
+    def start(self) -> bool:
+        """Start (False, with a message, if another job runs)."""
+        from PySide import QtCore
+
+        if CURRENT:
+            self._fail(HyperstatWorkbenchError(
+                f"'{CURRENT[0].title}' is still running: wait for it or cancel it first."), to_steps=False)
+            return False
+        CURRENT[:] = [self]
+        self.started = time.monotonic()
+        self._status = _StatusProgress(self)
+        self._ticker = QtCore.QTimer()
+        self._ticker.setInterval(500)
+        self._ticker.timeout.connect(self._tick)
+        self._ticker.start()
+        self._advance(lambda: next(self.steps))
+        return True
+
+    def cancel(self) -> None:
+        """Stop the running process; nothing is written to the document."""
+        if self.finished:
+            return
+        self.cancelled = True
+        if self.process is not None:
+            self.process.kill()  # _finished runs next and closes the job
+        else:
+            self._close()
+
+    # ------------------------------------------------------------------ internals
+    def _tick(self) -> None:
+        text = f"{self.title}: {self.stage} ({time.monotonic() - self.started:.0f} s)"
+        if self._status is not None:
+            self._status.update(text)
+        if self.progress is not None:
+            try:
+                self.progress(text)
+            except RuntimeError:  # the panel was closed (its widgets are gone)
+                self.progress = None
+
+    def _advance(self, resume) -> None:
+        try:
+            call = resume()
+        except StopIteration as stop:
+            self._close()
+            self.on_done(stop.value)
+            return
+        except Exception as exc:  # noqa: BLE001 - every failure becomes a message
+            self._fail(exc, to_steps=False)
+            return
+        self._launch(call)
+
+    def _launch(self, call) -> None:
+        from PySide import QtCore
+
+        self.stage = call.label
+        self._tick()
+        try:
+            command, env = prepare_command(call.arguments, check_optional=False)
+        except Exception as exc:  # noqa: BLE001
+            self._advance(lambda: self.steps.throw(exc))
+            return
+        proc = QtCore.QProcess()
+        qenv = QtCore.QProcessEnvironment()
+        for key, value in env.items():
+            qenv.insert(key, value)
+        proc.setProcessEnvironment(qenv)
+        # PySide2 may pick the one-argument overload of finished: read the status from the process
+        proc.finished.connect(lambda *args, p=proc, c=command: self._finished(p, c, p.exitCode(), p.exitStatus()))
+        proc.errorOccurred.connect(lambda error, p=proc, c=command: self._error(p, c, error))
+        self.process = proc
+        self._command = command
+        self._timeout = QtCore.QTimer()
+        self._timeout.setSingleShot(True)
+        self._timeout.timeout.connect(proc.kill)
+        self._timeout.start(int(DEFAULT_TIMEOUT_S * 1000))
+        self._log(f"hyperstat: starting '{' '.join(command)}'\n")
+        proc.start(command[0], command[1:])
+
+    def _error(self, proc, command, error) -> None:
+        from PySide import QtCore
+
+        if error == QtCore.QProcess.FailedToStart and proc is self.process:
+            self.process = None
+            exc = HyperstatWorkbenchError(f"{command[0]} could not be started ({proc.errorString()}).")
+            self._advance(lambda: self.steps.throw(exc))
+
+    def _finished(self, proc, command, code, status) -> None:
+        from PySide import QtCore
+
+        if proc is not self.process:
+            return
+        self._timeout.stop()
+        self.process = None
+        stdout = bytes(proc.readAllStandardOutput()).decode("utf-8", "replace")
+        stderr = bytes(proc.readAllStandardError()).decode("utf-8", "replace")
+        self._log(f"hyperstat: '{' '.join(command)}' exit {code} after {time.monotonic() - self.started:.1f} s\n")
+        if self.cancelled:
+            self.steps.close()
+            self._close()
+            self._info(f"{self.title}: cancelled; the document is unchanged.")
+            if self.on_cancel is not None:
+                self.on_cancel()
+            return
+        try:
+            if status != QtCore.QProcess.NormalExit:  # killed by the timeout, or crashed
+                raise HyperstatWorkbenchError(
+                    f"'hyperstat {command[1] if len(command) > 1 else ''}' was stopped or crashed "
+                    f"(after {time.monotonic() - self.started:.0f} s).")
+            result = interpret(command, code, stdout, stderr)
+        except Exception as exc:  # noqa: BLE001 - handed to the steps, which record and re-raise it
+            self._advance(lambda: self.steps.throw(exc))
+            return
+        self._advance(lambda: self.steps.send(result))
+
+    def _fail(self, exc, to_steps: bool) -> None:
+        self._close()
+        if self.on_error is not None:
+            self.on_error(exc)
+        else:
+            from .messages import show_error
+
+            show_error(self.title, exc)
+
+    def _close(self) -> None:
+        if self.finished:
+            return
+        self.finished = True
+        if self._ticker is not None:
+            self._ticker.stop()
+        if self._status is not None:
+            self._status.close()
+        if CURRENT and CURRENT[0] is self:
+            CURRENT.clear()
+
+    @staticmethod
+    def _log(text: str) -> None:
+        import FreeCAD
+
+        FreeCAD.Console.PrintLog(text)
+
+    @staticmethod
+    def _info(text: str) -> None:
+        from .messages import show_info
+
+        show_info("Hyperstat", text)
