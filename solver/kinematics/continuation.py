@@ -106,12 +106,12 @@ class ContinuationOptions:
 
     initial_steps: int = 6
     max_step: float = 0.5
-    min_step: float = 1e-5
+    min_step: float = 1e-10
     theta_max: float = 0.25
     max_newton: int = 6
     tol: float = 1e-12
     path_tol: float = 1e-8
-    cond_tol: float = 1e-4
+    cond_tol: float = 1e-8
     branch_fraction: float = 0.25
 
 
