@@ -460,11 +460,16 @@ def continue_nearest(
         # the length scale) is beyond the workspace; following a path to it would crawl to a fold
         # (it finds a closure, on some branch, wherever one is near; the certified path then decides the branch)
         trial = starts.copy()
-        for step in range(1, 7):
-            trial[:, act] = starts[:, act] + (qa[batch] - starts[:, act]) * (step / 6)
-            gn = kin.assemble(trial, xi, max_iter=40 if step == 6 else 12)
-            trial = gn.q
-        closes = gn.residual <= 1e-2 * kin.length_scale
+        trial[:, act] = qa[batch]
+        closes = kin.assemble(trial, xi).residual <= 1e-2 * kin.length_scale  # one jump first (short paths)
+        if not np.all(closes):
+            far = np.nonzero(~closes)[0]
+            trial = starts[far].copy()
+            for step in range(1, 7):
+                trial[:, act] = starts[far][:, act] + (qa[batch][far] - starts[far][:, act]) * (step / 6)
+                gn = kin.assemble(trial, xi, max_iter=40 if step == 6 else 12)
+                trial = gn.q
+            closes[far] = gn.residual <= 1e-2 * kin.length_scale
         qb = starts.copy()
         nb = len(batch)
         z = np.zeros(nb)
