@@ -298,7 +298,7 @@ def _fk_tripteor_out():
     return (lambda: kin.forward(q)), len(q)
 
 
-@bench("closure assembly Tripteor (Kinematics.solve, 6 continuation steps)", unit="configs/s")
+@bench("closure assembly Tripteor (Kinematics.solve, certified adaptive continuation from home)", unit="configs/s")
 def _assembly_tripteor():
     t = _tripteor()
     kin, qa = t["kin"], t["qa"]
@@ -355,6 +355,57 @@ def _select_tripteor():
     candidates = vm.poses(1000, seed=1)
     model = MeasurementModel(mech, analysis, kin)
     return (lambda: select_poses(model, candidates, 107, noise=vm.noise)), None
+
+
+# ---------------------------------------------------------------------------- assembly branches (issue 18)
+_MODEL_FILES: dict = {}
+BRANCH_MODELS = ["slider_crank", "tripteor_x7", "triflex_ii", "hexapod", "crossed_isogram"]
+
+
+def _model_file(name: str) -> str:
+    """A model file (mm, rad) of a template, or of the crossed isogram written from its geometry."""
+    if name not in _MODEL_FILES:
+        import json
+
+        from hyperstat.solver import save_model
+
+        tmp = Path(tempfile.mkdtemp(prefix="hyperstat-bench-"))
+        path = tmp / f"{name}.json"
+        if name == "crossed_isogram":
+            from tests.solver.kinematics.fourbar import fourbar_document
+
+            import numpy as np
+
+            path.write_text(json.dumps(fourbar_document(100.0, 300.0, 100.0, 300.0, -0.2, 1, (-np.pi, 0.0),
+                                                        name=name)))
+        else:
+            save_model(_mech(name), path)
+        _MODEL_FILES[name] = str(path)
+    return _MODEL_FILES[name]
+
+
+for _t in BRANCH_MODELS:
+    for _n in (1, 2):
+        def _make(t=_t, n=_n):
+            def setup():
+                cmd = [sys.executable, "-m", "hyperstat.solver", "analyze", _model_file(t), "--quiet",
+                       "--samples", str(n)]
+                return (lambda: _child(cmd)), None
+            return setup
+        bench(f"analyze command, {_t} model file, --samples {_n} (whole command, new process)")(_make())
+
+
+for _t in BRANCH_MODELS:
+    def _make_sampling(t=_t):
+        def setup():
+            from hyperstat.solver import Kinematics, load_model
+            from hyperstat.solver.kinematics.sampling import sample_configurations
+
+            kin = Kinematics(load_model(_model_file(t)))
+            return (lambda: sample_configurations(kin, 200, seed=0)), 200
+        return setup
+    bench(f"workspace sampling, {_t}: 200 configurations, nearest-neighbour certified continuation",
+          unit="configs/s")(_make_sampling())
 
 
 # ---------------------------------------------------------------------------- accuracy (paper 2)

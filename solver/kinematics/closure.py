@@ -28,6 +28,7 @@ from hyperstat.solver.kinematics.continuation import (
     BranchCertificate,
     ContinuationOptions,
     batched_lstsq,
+    continue_nearest,
     continue_path,
 )
 from hyperstat.solver.kinematics.fastfk import FramePlan
@@ -608,7 +609,9 @@ class Kinematics:
     ) -> AssemblyResult:
         """Assemble at actuated values on the branch of ``start`` (default: home).
 
-        Predictor-corrector continuation (:func:`hyperstat.solver.kinematics.continuation.continue_path`):
+        Predictor-corrector continuation (:func:`hyperstat.solver.kinematics.continuation.continue_path`;
+        more than 8 targets from one start are taken each from the nearest configuration already
+        certified, :func:`~hyperstat.solver.kinematics.continuation.continue_nearest`):
         tangent predictor ``dq_p = -B_p^+ B_a dq_a`` (implicit function theorem on the
         closure, paper 1, eqs. 3, 7, 9), Newton corrector, adaptive steps, and a branch
         certificate per configuration.  **Guarantee**: a configuration with
@@ -643,7 +646,12 @@ class Kinematics:
         qa = np.atleast_2d(np.asarray(q_actuated, dtype=float))
         opt = options or ContinuationOptions(initial_steps=max(int(steps), 1))
         q0 = self.mechanism.home if start is None else np.asarray(start, dtype=float)
-        q, cert = continue_path(self, q0, qa, xi, opt)
+        if len(qa) > 8 and np.ndim(q0) == 1 and (xi is None or np.ndim(xi) == 1):
+            # many targets from one start: each from the nearest configuration already certified
+            # (a chain of certified paths back to the start; shorter paths, fewer steps)
+            q, cert = continue_nearest(self, qa, xi, q0, options)
+        else:
+            q, cert = continue_path(self, q0, qa, xi, opt)
         act = self.mechanism.actuated
         lost = ~cert.certified
         if np.any(lost):  # best effort at the target, flagged as not converged

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["BranchCertificate", "ContinuationOptions", "batched_lstsq", "continue_path"]
+__all__ = ["BranchCertificate", "ContinuationOptions", "batched_lstsq", "continue_nearest", "continue_path"]
 
 
 def batched_lstsq(a: np.ndarray, rhs: np.ndarray, damping: float = 1e-12) -> np.ndarray:
@@ -92,6 +92,10 @@ class ContinuationOptions:
         Largest accepted Newton contraction ``|dq_{k+1}| / |dq_k|``.
     max_newton : int
         Corrector iterations before a step is rejected.
+    max_rejections : int
+        Consecutive rejected steps (the step shrunk 4096-fold) before a configuration is
+        given up ("stalled"): the target is beyond a fold of the workspace, or the corrector
+        cannot follow.
     tol : float
         Corrector convergence on the passive update at the end point (rad).
     path_tol : float
@@ -106,12 +110,13 @@ class ContinuationOptions:
 
     initial_steps: int = 6
     max_step: float = 0.5
-    min_step: float = 1e-5
+    min_step: float = 1e-6
     theta_max: float = 0.25
     max_newton: int = 6
+    max_rejections: int = 12
     tol: float = 1e-12
     path_tol: float = 1e-8
-    cond_tol: float = 1e-4
+    cond_tol: float = 1e-6
     branch_fraction: float = 0.25
 
 
@@ -300,6 +305,7 @@ def continue_path(
     omega = np.zeros(k)  # estimated affine-covariant Lipschitz constant of B_p (last accepted step)
     bcur = np.zeros((k,) + bshape)  # B at the current accepted point (dimensionless, all joints)
     todo = np.ones(k, bool)
+    streak = np.zeros(k, int)  # consecutive rejections
     first = True  # step 0: correct the start onto F = 0 (h = 0), checked like any other step
     while np.any(todo):
         idx = np.nonzero(todo)[0]
@@ -397,7 +403,9 @@ def continue_path(
         rej = ~accept & ~singular
         h[idx[rej]] *= np.where(too_long[rej], np.clip(aim[rej], 0.1, 0.5), 0.5)
         cert.rejected[idx[rej]] += 1
-        stalled = rej & ((h[idx] * length[idx] < opt.min_step) | first)
+        streak[idx[rej]] += 1
+        streak[idx[accept]] = 0
+        stalled = rej & ((h[idx] * length[idx] < opt.min_step) | (streak[idx] >= opt.max_rejections) | first)
         for j in np.nonzero(stalled)[0]:
             i = idx[j]
             cert.certified[i] = False
@@ -408,3 +416,92 @@ def continue_path(
         todo[idx[finished]] = False
         first = False
     return q, cert
+
+
+def continue_nearest(
+    kin,
+    qa_targets: np.ndarray,
+    xi: np.ndarray | None = None,
+    start: np.ndarray | None = None,
+    options: ContinuationOptions | None = None,
+    pool: np.ndarray | None = None,
+) -> tuple[np.ndarray, BranchCertificate]:
+    """Certified configurations at many actuated values, each continued from the nearest one assembled.
+
+    The implementation of :func:`hyperstat.solver.kinematics.sampling.assemble_nearest`
+    (see there); also what :meth:`Kinematics.solve` uses for large batches from one start.
+    """
+    m = kin.mechanism
+    act = m.actuated
+    qa = np.atleast_2d(np.asarray(qa_targets, dtype=float))
+    k = len(qa)
+    q_home = np.asarray(m.home if start is None else start, dtype=float)
+    if xi is not None and np.ndim(xi) != 1:
+        raise ValueError("assemble_nearest takes one defect vector (n_xi,) for every target.")
+    scale = kin.joint_scale[act]
+    options = options or ContinuationOptions(initial_steps=1)
+    q = np.zeros((k, kin.n_q))
+    parts: list = [None] * k
+    q0 = q_home[None, :]  # every path corrects its start first (step 0 of continue_path)
+    pool_q = [q0[0]] + ([] if pool is None else list(np.atleast_2d(np.asarray(pool, dtype=float))))
+    pool_a = [p[act] / scale for p in pool_q]
+    order = np.argsort(np.min(np.linalg.norm((qa / scale)[:, None, :] - np.array(pool_a)[None], axis=2), axis=1),
+                       kind="stable")
+    pos, size = 0, 4 * len(pool_q)
+    while pos < k:
+        batch = order[pos: pos + size]
+        pos += size
+        size *= 4
+        pa = np.array(pool_a)
+        dist = np.linalg.norm((qa[batch] / scale)[:, None, :] - pa[None, :, :], axis=2)
+        near = np.argmin(dist, axis=1)
+        starts = np.array(pool_q)[near]
+        # screen: a target where Gauss-Newton in six equal steps from its neighbour finds no closure (gap above 1 % of
+        # the length scale) is beyond the workspace; following a path to it would crawl to a fold
+        # (it finds a closure, on some branch, wherever one is near; the certified path then decides the branch)
+        trial = starts.copy()
+        trial[:, act] = qa[batch]
+        closes = kin.assemble(trial, xi).residual <= 1e-2 * kin.length_scale  # one jump first (short paths)
+        if not np.all(closes):
+            far = np.nonzero(~closes)[0]
+            trial = starts[far].copy()
+            for step in range(1, 7):
+                trial[:, act] = starts[far][:, act] + (qa[batch][far] - starts[far][:, act]) * (step / 6)
+                gn = kin.assemble(trial, xi, max_iter=40 if step == 6 else 12)
+                trial = gn.q
+            closes[far] = gn.residual <= 1e-2 * kin.length_scale
+        qb = starts.copy()
+        nb = len(batch)
+        z = np.zeros(nb)
+        cb = BranchCertificate(np.zeros(nb, bool),
+                               ["no closure near the nearest assembled configuration (outside the workspace?)"] * nb,
+                               z.copy(), z.copy(), z.copy(), z.copy(), np.zeros(nb, int), np.zeros(nb, int), z.copy(),
+                               z.copy(), options)
+        if np.any(closes):
+            qc, cc = continue_path(kin, starts[closes], qa[batch][closes], xi, options)
+            qb[closes] = qc
+            for j, i in enumerate(np.nonzero(closes)[0]):
+                one = cc.take([j])
+                for attr in ("certified", "min_condition", "min_sigma", "max_contraction", "max_branch_ratio",
+                             "steps", "rejected", "path_length", "end_condition"):
+                    getattr(cb, attr)[i] = getattr(one, attr)[0]
+                cb.reason[i] = one.reason[0]
+        lost = ~cb.certified & closes
+        if np.any(lost) and np.any(near[lost] != 0):  # once more from the start
+            retry = lost & (near != 0)
+            qr, cr = continue_path(kin, q0[0], qa[batch][retry], xi, options)
+            qb[retry] = qr
+            ridx = np.nonzero(retry)[0]
+            for j, i in enumerate(ridx):
+                cb_one = cr.take([j])
+                for attr in ("certified", "min_condition", "min_sigma", "max_contraction", "max_branch_ratio",
+                             "steps", "rejected", "path_length", "end_condition"):
+                    getattr(cb, attr)[i] = getattr(cb_one, attr)[0]
+                cb.reason[i] = cb_one.reason[0]
+        for j, i in enumerate(batch):
+            q[i] = qb[j]
+            parts[i] = cb.take([j])
+            if cb.certified[j]:
+                pool_q.append(qb[j])
+                pool_a.append(qb[j][act] / scale)
+    return q, BranchCertificate.concatenate(parts)

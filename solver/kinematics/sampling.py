@@ -17,7 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hyperstat.solver.kinematics.closure import Kinematics
-from hyperstat.solver.kinematics.continuation import BranchCertificate, ContinuationOptions, continue_path
+from hyperstat.solver.kinematics.continuation import (
+    BranchCertificate,
+    ContinuationOptions,
+    continue_nearest,
+    continue_path,
+)
 from hyperstat.solver.errors import AnalysisError
 
 __all__ = ["ConfigurationSample", "sample_configurations", "passive_conditioning", "continue_to",
@@ -123,51 +128,8 @@ def assemble_nearest(
     certificate : BranchCertificate
         Per target; ``steps`` and ``path_length`` count the path from its neighbour.
     """
-    m = kin.mechanism
-    act = m.actuated
-    qa = np.atleast_2d(np.asarray(qa_targets, dtype=float))
-    k = len(qa)
-    q_home = np.asarray(m.home if start is None else start, dtype=float)
-    if xi is not None and np.ndim(xi) != 1:
-        raise ValueError("assemble_nearest takes one defect vector (n_xi,) for every target.")
-    scale = kin.joint_scale[act]
-    options = options or ContinuationOptions(initial_steps=1)
-    q = np.zeros((k, kin.n_q))
-    parts: list = [None] * k
-    q0 = q_home[None, :]  # every path corrects its start first (step 0 of continue_path)
-    pool_q = [q0[0]] + ([] if pool is None else list(np.atleast_2d(np.asarray(pool, dtype=float))))
-    pool_a = [p[act] / scale for p in pool_q]
-    order = np.argsort(np.min(np.linalg.norm((qa / scale)[:, None, :] - np.array(pool_a)[None], axis=2), axis=1),
-                       kind="stable")
-    pos, size = 0, 4 * len(pool_q)
-    while pos < k:
-        batch = order[pos: pos + size]
-        pos += size
-        size *= 4
-        pa = np.array(pool_a)
-        dist = np.linalg.norm((qa[batch] / scale)[:, None, :] - pa[None, :, :], axis=2)
-        near = np.argmin(dist, axis=1)
-        starts = np.array(pool_q)[near]
-        qb, cb = continue_path(kin, starts, qa[batch], xi, options)
-        lost = ~cb.certified
-        if np.any(lost) and np.any(near[lost] != 0):  # once more from the start
-            retry = lost & (near != 0)
-            qr, cr = continue_path(kin, q0[0], qa[batch][retry], xi, options)
-            qb[retry] = qr
-            ridx = np.nonzero(retry)[0]
-            for j, i in enumerate(ridx):
-                cb_one = cr.take([j])
-                for attr in ("certified", "min_condition", "min_sigma", "max_contraction", "max_branch_ratio",
-                             "steps", "rejected", "path_length"):
-                    getattr(cb, attr)[i] = getattr(cb_one, attr)[0]
-                cb.reason[i] = cb_one.reason[0]
-        for j, i in enumerate(batch):
-            q[i] = qb[j]
-            parts[i] = cb.take([j])
-            if cb.certified[j]:
-                pool_q.append(qb[j])
-                pool_a.append(qb[j][act] / scale)
-    return q, BranchCertificate.concatenate(parts)
+    return continue_nearest(kin, qa_targets, xi, start, options, pool)
+
 
 def passive_conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
     """Inverse condition number of the scaled passive Jacobian ``B_s`` per configuration.
