@@ -14,9 +14,8 @@ __all__ = ["VERDICT_COLORS", "VERDICT_ORDER", "VERDICT_TEXT", "TOLERANCE_CLASSES
            "element_verdicts", "verdict_counts"]
 
 #: the tolerance classes of the analysis JSON (``tolerances.parameters[name]["class"]``, one vocabulary for the
-#: whole project); "normalisation" and "redundant" are not tolerances
-TOLERANCE_CLASSES = ("assembly condition", "accuracy-critical", "compensable", "non-influent", "normalisation",
-                     "redundant")
+#: whole project, hyperstat.solver.tolerances.classification.CLASSES); "normalisation" is not a tolerance
+TOLERANCE_CLASSES = ("assembly", "accuracy-critical", "compensable", "non-influent", "normalisation")
 
 #: colour per verdict class (RGB in 0..1), the same as cad_plugin/assembly.py
 VERDICT_COLORS: dict[str, tuple[float, float, float]] = {
@@ -70,7 +69,7 @@ def verdict_counts(analysis: dict) -> dict[str, int]:
 
 def tolerance_class(analysis: dict | None, parameter: dict) -> str:
     """The class to show for a parameter: its tolerance class when the analysis JSON has one
-    (``tolerances.parameters[name]["class"]``, e.g. "assembly condition", "compensable"), else its verdict class.
+    (``tolerances.parameters[name]["class"]``, e.g. "assembly", "compensable"), else its verdict class.
 
     >>> tolerance_class({"tolerances": {"parameters": {"a": {"class": "compensable"}}}}, {"name": "a"})
     'compensable'

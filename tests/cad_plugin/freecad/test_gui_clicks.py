@@ -97,7 +97,7 @@ def _hue_pixels(png: str, colour) -> int:
     return int(((distance < 0.03) & (view[..., 1] > 0.5) & (view[..., 2] > 0.3)).sum())
 
 
-def test_insert_ok_does_not_block_and_opens_the_results(clicks, tripteor_analysis):
+def test_insert_ok_does_not_block_and_opens_the_results(clicks, tripteor, tripteor_analysis):
     steps = _steps(clicks)
     # the click on OK returned while the job ran: same panel, busy, nothing in the document yet
     after = steps["after_ok"]
@@ -114,6 +114,15 @@ def test_insert_ok_does_not_block_and_opens_the_results(clicks, tripteor_analysi
     assert [row[0] for row in insert["table"]] == [p["name"] for p in want["parameters"]]
     assert [row[2] for row in insert["table"]] == [tolerance_class(state["analysis"], p)
                                                    for p in state["analysis"]["parameters"]]
+    # the panel's counts per tolerance class are the analysis's, computed here in-process by the one
+    # classification module (a second path: no CLI, no FreeCAD)
+    from collections import Counter
+
+    from hyperstat.solver.tolerances.classification import classify
+
+    classes_here = classify(tripteor, tripteor_analysis).to_dict()["parameters"]
+    assert Counter(row[2] for row in insert["table"]) == Counter(classes_here[p["name"]]["class"]
+                                                                 for p in want["parameters"])
     classes = element_verdicts(want)
     assert set(state["spheres"]) == set(classes)
     for element, sphere in state["spheres"].items():

@@ -38,7 +38,14 @@ def test_coincident_spheres_never_touch_and_lone_ones_stay(n):
 def test_tolerance_class_is_read_when_present_and_falls_back_to_the_verdict():
     forced = {"name": "dK41", "verdict": "forced"}
     free = {"name": "db21", "verdict": "free", "influential": True}
-    analysis = {"tolerances": {"parameters": {"dK41": {"class": "assembly condition"}}}}
-    assert tolerance_class(analysis, forced) == "assembly condition" and "assembly condition" in TOLERANCE_CLASSES
+    analysis = {"tolerances": {"parameters": {"dK41": {"class": "assembly"}}}}
+    assert tolerance_class(analysis, forced) == "assembly" and "assembly" in TOLERANCE_CLASSES
     assert tolerance_class(analysis, free) == parameter_class(free) == "free-influential"
     assert tolerance_class(None, forced) == "forced"
+
+
+def test_the_workbench_speaks_the_classification_vocabulary():
+    """FreeCAD cannot import the package, so the words are repeated there: guarded here."""
+    from hyperstat.solver.tolerances.classification import CLASSES
+
+    assert set(TOLERANCE_CLASSES) == set(CLASSES) | {"normalisation"}
