@@ -33,6 +33,7 @@ def _ranges(specs: list | None) -> dict:
 
 def _accuracy_inputs(args: argparse.Namespace, progress):
     from hyperstat.solver.tolerances.accuracy import sample_workspace
+    from hyperstat.solver.tolerances.workspace import workspace_of
 
     progress.next("stationarity analysis")
     mech, provenance, kin, result = analysis_of(args)
@@ -42,14 +43,23 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
     if unknown:
         raise HyperstatError(f"--range: '{unknown[0]}' is not an actuated joint of '{mech.name}' "
                              f"({', '.join(sorted(actuated))}).")
+    if args.configurations_workspace < 1:
+        raise HyperstatError(f"--workspace-configurations must be at least 1, got {args.configurations_workspace}.")
+    ws = workspace_of(mech, ranges)
     progress.next("workspace sampling")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        q = sample_workspace(mech, args.configurations_workspace, seed=args.seed, ranges=ranges, kinematics=kin)
+        q = sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws)
     if len(q) == 0:
-        raise HyperstatError(f"no configuration of '{mech.name}' assembles in the actuated ranges.")
+        raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
+    args.workspace_used = ws
     over = result.overconstraint > 0
     return mech, provenance, kin, (result if over else None), q, over
+
+
+def _workspace_doc(mech, ws) -> dict:
+    return {"source": ws.source, "declared_ranges": {k: list(v) for k, v in ws.declared.items()},
+            "actuated_box": {mech.joints[i].name: [float(ws.lower[i]), float(ws.upper[i])] for i in mech.actuated}}
 
 
 def _fixed(specs: list | None) -> dict:
@@ -67,15 +77,42 @@ def _fixed(specs: list | None) -> dict:
 
 def _cmd_accuracy(args: argparse.Namespace) -> int:
     from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate, compensable
+    from hyperstat.solver.tolerances.worst_case import refine_extremes
 
-    with stages(args, ["stationarity analysis", "workspace sampling", "accuracy maps"]) as progress:
+    names = ["stationarity analysis", "workspace sampling", "accuracy maps"] + ([] if args.no_refine else
+                                                                               ["worst cases"])
+    with stages(args, names) as progress:
         mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress)
         progress.next("accuracy maps")
         maps = accuracy_maps(mech, q, analysis, kinematics=kin)
-        allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed))
+        extremes = {}
+        if not args.no_refine:
+            progress.next("worst cases")
+            extremes = refine_extremes(mech, maps, analysis, kinematics=kin, workspace=args.workspace_used,
+                                       kinds=("max", "min") if args.refine_minima else ("max",))
+        # the refined maximum plus its stated tolerance: an upper bound of the coefficient, so the
+        # allocated tolerances are conservative when the tolerance estimate holds
+        maxima = {name: e.value + (e.tolerance if math.isfinite(e.tolerance) else 0.0)
+                  for (name, kind), e in extremes.items() if kind == "max"}
+        allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed),
+                              maxima=maxima)
         comp = compensable(q[: min(len(q), 200)], mech, analysis, kinematics=kin)
+    coefficients = maps.summary()
+    for name, v in coefficients.items():
+        v["sampled_min"], v["sampled_max"] = v["min"], v["max"]
+        for kind in ("min", "max"):
+            if (name, kind) in extremes:
+                v[kind] = extremes[(name, kind)].value
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
-           "configurations": len(q), "coefficients": maps.summary(), "coefficient_units": maps.units,
+           "workspace": _workspace_doc(mech, args.workspace_used),
+           "configurations": len(q), "coefficients": coefficients, "coefficient_units": maps.units,
+           "extremes": {name: {kind: extremes[(name, kind)].as_dict() for kind in ("max", "min")
+                               if (name, kind) in extremes} for name in coefficients},
+           "extremes_method": "sampled only (--no-refine)" if args.no_refine else (
+               "sampled, then the best samples refined by bounded local optimisation (SLSQP) over the joint "
+               "variables with the closures as constraints and the workspace ranges as bounds; the allocation "
+               "uses the refined maxima" + ("" if args.refine_minima else "; the minima are sampled only "
+                                            "(--refine-minima refines them)")),
            "groups": maps.groups, "allocation": allocation,
            "per_parameter": {n: {k: {"max": float(v.max()), "mean": float(v.mean())} for k, v in d.items()}
                              for n, d in maps.per_parameter.items()},
@@ -96,10 +133,15 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
         sys.stdout.write(f"Accuracy coefficients of '{mech.name}' over {len(q)} configurations "
-                         f"({doc['geometric_errors']}):\n")
+                         f"({doc['geometric_errors']}); workspace: {args.workspace_used.source}:\n")
         for name, v in doc["coefficients"].items():
-            sys.stdout.write(f"  {name:<11} min {v['min']:.6g}  mean {v['mean']:.6g}  max {v['max']:.6g}  "
+            sys.stdout.write(f"  {name:<11} min {v['min']:.9g}  mean {v['mean']:.6g}  max {v['max']:.9g}  "
                              f"[{maps.units[name]}]\n")
+            for kind in ("max", "min"):
+                e = extremes.get((name, kind))
+                if e is not None and e.location != "constant":
+                    sys.stdout.write(f"      {kind} {e.value:.9g} (sampled {e.sampled:.6g}, tolerance {e.tolerance:.2g}): "
+                                     f"{e.where()}\n")
         for cls, c in allocation["classes"].items():
             if c["tolerance"] is not None:
                 sys.stdout.write(f"  class {cls}: tolerance {c['tolerance']:.6g} {c['unit']} per parameter"
@@ -162,6 +204,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--workspace-configurations", dest="configurations_workspace", type=int, default=2000,
                        help="configurations sampled over the workspace (default 2000)")
         p.add_argument("--orientation-accuracy", type=float, metavar="RAD", help="required |dphi|max (rad)")
+        if name == "accuracy":
+            p.add_argument("--no-refine", action="store_true",
+                           help="report the sampled extremes only (no local optimisation of the worst cases)")
+            p.add_argument("--refine-minima", action="store_true",
+                           help="also refine the minima (slower: a largest singular value is not smooth at its "
+                                "minima; the allocation uses only the maxima)")
         p.add_argument("--position-accuracy", type=float, metavar="MM", help="required ||dO_p||max (mm)")
         common_options(p)
         if name == "accuracy":
