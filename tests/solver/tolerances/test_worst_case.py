@@ -123,7 +123,7 @@ def test_nearest_neighbour_sampler_finds_the_reachable_set_on_the_papers_branch(
     missed = (margin > 1e-6) & ~ok
     assert missed.sum() <= 0.005 * (margin > 1e-6).sum()
     st = kin.evaluate(q[ok], None, jacobians=False)
-    assert kin.residual_norm(st.residual).max() < 1e-9
+    assert kin.residual_norm(st.residual).max() < 1e-7 * kin.length_scale  # Kinematics.assemble's test
     t3, t7 = elbows(triflex, kin, q[ok])
     assert np.all(t3 <= np.pi + 1e-9) and np.all(t7 <= np.pi + 1e-9)
     np.testing.assert_allclose(q[ok][:, triflex.actuated], qa[ok])  # actuated values held
