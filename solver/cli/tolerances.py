@@ -176,8 +176,10 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
             res = monte_carlo(mech, q, tol, args.samples, args.distribution, args.seed, analysis, kin)
     summary = res.summary(args.orientation_accuracy, args.position_accuracy)
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
+           "workspace": _workspace_doc(mech, args.workspace_used),
            "geometric_errors": "admissible influential defects only (the forced ones are assembly conditions)"
-           if over else "every defect parameter of the model", **summary}
+           if over else "every defect parameter of the model", **summary,
+           "worst_samples": _worst_samples(mech, kin, q, res)}
     if args.json:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
@@ -189,9 +191,36 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
                          f"position {summary['worst_over_bound']['position']:.3f}\n"
                          "  main contributors: " + ", ".join(f"{c['parameter']} ({100 * c['position_share']:.0f} %)"
                                                            for c in summary["contributors"][:5]) + "\n")
+        for kind, w in doc["worst_samples"].items():
+            at = ", ".join(f"{k}={v:.6g}" for k, v in w["actuated"].items())
+            sys.stdout.write(f"  largest {kind} error {w['value']:.4g} {w['unit']} (sample {w['sample']}) at {at} "
+                             f"(O_p = {', '.join(f'{v:.4g}' for v in w['position_mm'])} mm)\n")
+        if summary["not_assembled"]:
+            sys.stdout.write(f"  {summary['not_assembled']} samples did not assemble with their defects (near the "
+                             "workspace's singular boundary a defect can leave a leg too short): left out\n")
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
     return 0
+
+
+def _worst_samples(mech, kin, q, res) -> dict:
+    """Where the largest orientation and position errors of the Monte Carlo samples occur (sample i uses q[i mod K])."""
+    import numpy as np
+
+    out = {}
+    ok = np.nonzero(res.converged)[0]
+    if not len(ok):
+        return out
+    for kind, values, unit in (("orientation", res.orientation, "rad"), ("position", res.position, "mm")):
+        i = int(ok[np.argmax(values[ok])])
+        qi = q[i % len(q)]
+        pose = kin.evaluate(qi[None], None, jacobians=False).output_pose[0]
+        out[kind] = {"value": float(values[i]), "unit": unit, "sample": i, "configuration_index": i % len(q),
+                     "actuated": {mech.joints[j].name: float(qi[j]) for j in mech.actuated},
+                     "position_mm": [float(v) for v in pose[:3, 3]],
+                     "over_linear_bound": float(values[i] / max((res.orientation_bound if kind == "orientation"
+                                                                 else res.position_bound)[i], 1e-300))}
+    return out
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
