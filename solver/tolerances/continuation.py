@@ -112,7 +112,7 @@ def _newton(kin: Kinematics, q: np.ndarray, max_iter: int = 8, tol: float | None
             except np.linalg.LinAlgError:  # a singular configuration in the chunk: the damped path
                 inv = None
         if inv is None:
-            inv = batched_lstsq(bp, np.broadcast_to(np.eye(bp.shape[1]), bp.shape).copy())
+            inv = batched_lstsq(bp, np.broadcast_to(np.eye(bp.shape[1]), (len(bp), bp.shape[1], bp.shape[1])).copy())
         return r, np.sqrt(np.einsum("ij,ij->i", r, r)), inv, -inv @ jac[:, :, act]
 
     def work(s: int) -> None:

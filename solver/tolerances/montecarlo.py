@@ -150,14 +150,16 @@ def monte_carlo(mechanism: Mechanism, configurations: np.ndarray, tolerances: di
         m = len(dg)
         idx = (np.arange(s, s + m)) % n_cfg
         xi = dg @ matrix.T
-        ok, real_pose = chord.assemble(configurations, idx, xi, dg, df)
+        lin = k_g[idx] @ dg[:, :, None] + k_a[idx] @ df[:, :, None]
+        # re-assembled until the closure residual is a millionth of the sample's first-order error
+        size = np.linalg.norm(lin[:, 3:, 0], axis=1) + kin.length_scale * np.linalg.norm(lin[:, :3, 0], axis=1)
+        ok, real_pose = chord.assemble(configurations, idx, xi, dg, df, tol=1e-6 * size)
         r_nom = nominal.output_pose[idx]
         r_err = np.swapaxes(r_nom[:, :3, :3], 1, 2) @ real_pose[:, :3, :3]
         sl = slice(s, s + m)
         out["orientation"][sl] = np.linalg.norm(so3_log(r_err), axis=1)
         out["position"][sl] = np.linalg.norm(real_pose[:, :3, 3] - r_nom[:, :3, 3], axis=1)
         converged[sl] = ok
-        lin = k_g[idx] @ dg[:, :, None] + k_a[idx] @ df[:, :, None]
         out["orientation_linear"][sl] = np.linalg.norm(lin[:, :3, 0], axis=1)
         out["position_linear"][sl] = np.linalg.norm(lin[:, 3:, 0], axis=1)
         bound_r = np.zeros(m)
@@ -218,14 +220,19 @@ class _Chord:
         if len(self.pas) and len(m.closures):
             b = nominal.closure_q * self.w[None, :, None]
             bp = b[:, :, self.pas]
-            eye = np.broadcast_to(np.eye(bp.shape[1]), bp.shape).copy()
+            eye = np.broadcast_to(np.eye(bp.shape[1]), (len(bp), bp.shape[1], bp.shape[1])).copy()
             self.solve = batched_lstsq(bp, eye)  # (K, n_p, 6L): B_p^+ with the scaled rows
             self.g_xi = self.solve @ (nominal.closure_xi * self.w[None, :, None]) @ matrix  # per unit dg
             self.g_a = self.solve @ b[:, :, self.act]
 
     def assemble(self, configurations: np.ndarray, idx: np.ndarray, xi: np.ndarray, dg: np.ndarray,
-                 df: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Assembled output poses (K, 4, 4) of the samples (configuration ``idx``, defects ``xi``, actuator errors ``df``)."""
+                 df: np.ndarray, tol: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Assembled output poses (K, 4, 4) of the samples (configuration ``idx``, defects ``xi``, actuator errors ``df``).
+
+        ``tol`` (K,): closure residual (mm, rotations times the length scale) at which a sample
+        is done, between 1e-14 and 1e-7 length scales (the test of :meth:`Kinematics.assemble`);
+        default 1e-10 length scales.
+        """
         kin, act, pas = self.kin, self.act, self.pas
         q = configurations[idx].copy()
         q[:, act] += df
@@ -235,14 +242,16 @@ class _Chord:
             st = kin.evaluate(q, xi, jacobians=False)
             return np.ones(len(q), dtype=bool), st.output_pose
         q[:, pas] -= np.einsum("kpg,kg->kp", self.g_xi[idx], dg) + np.einsum("kpa,ka->kp", self.g_a[idx], df)
-        tol, accept = 1e-10 * kin.length_scale, 1e-7 * kin.length_scale
+        accept = 1e-7 * kin.length_scale
+        tol = np.full(len(q), 1e-10 * kin.length_scale) if tol is None else np.clip(
+            tol, 1e-14 * kin.length_scale, accept)
         live = np.arange(len(q))
         prev = np.full(len(q), np.inf)
         for it in range(self.max_iter + 1):
             st = kin.evaluate(q[live], xi[live], jacobians=False)
             r = st.residual * self.w
             rn = np.sqrt(np.einsum("ij,ij->i", r, r))
-            done = (rn <= tol) | ((rn <= accept) & ((rn > 0.5 * prev) | (it == self.max_iter)))
+            done = (rn <= tol[live]) | ((rn <= accept) & ((rn > 0.5 * prev) | (it == self.max_iter)))
             pose[live[done]] = st.output_pose[done]
             ok[live[done]] = True
             keep = ~done & (it < self.max_iter)

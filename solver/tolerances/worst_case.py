@@ -252,7 +252,7 @@ def refine_extremes(mechanism: Mechanism, maps: AccuracyMaps, analysis=None, kin
             f = f or _Coefficient(kin, analysis, name)
             order = np.argsort(-sign * values)
             chosen: list[int] = []
-            n_starts = starts if kind == "max" else 1  # the allocation uses the maxima; minima: one start
+            n_starts = starts
             for i in order:  # the best samples, at least 5 % of the box apart in actuated values
                 if all(np.linalg.norm((q_all[i, act] - q_all[j, act]) / scale[act] / box) > 0.05 for j in chosen):
                     chosen.append(int(i))

@@ -182,3 +182,15 @@ def test_accuracy_command_gives_the_papers_numbers_with_no_flags(tmp_path):
     assert where["supremum_on_boundary"] and where["location"] == "boundary"
     assert doc["extremes"]["epsilon_gR"]["max"]["location"] == "interior"
     assert "supremum on the boundary" in proc.stdout and "interior at" in proc.stdout
+
+
+def test_sampler_on_an_over_constrained_mechanism_lands_where_continuation_from_home_does(tripteor):
+    """Tripteor X7 (more closure rows than passive joints: the least-squares path): the nearest-neighbour
+    sampler gives the configurations of Kinematics.solve from home, draw for draw (a second method)."""
+    kin = Kinematics(tripteor)
+    q = sample_workspace(tripteor, 300, seed=0, kinematics=kin)
+    lo, hi = tripteor.ranges[tripteor.actuated].T
+    qa = lo + (hi - lo) * np.random.default_rng(0).random((300, len(lo)))  # the sampler's draws
+    ref = kin.solve(qa, steps=6)
+    assert ref.converged.all() and len(q) == 300
+    np.testing.assert_allclose(q, ref.q, atol=1e-8)
