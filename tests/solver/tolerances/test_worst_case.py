@@ -194,3 +194,21 @@ def test_sampler_on_an_over_constrained_mechanism_lands_where_continuation_from_
     ref = kin.solve(qa, steps=6)
     assert ref.converged.all() and len(q) == 300
     np.testing.assert_allclose(q, ref.q, atol=1e-8)
+
+
+def test_template_loader_passes_the_workspace_through_and_rejects_a_bad_one(tmp_path):
+    """The declaration reaches the mechanism and survives a model file; a bad one is one clear sentence."""
+    from hyperstat.cad_plugin.templates import build_template
+    from hyperstat.solver.errors import TemplateError
+    from hyperstat.solver.kinematics.modelfile import load_model, save_model
+
+    mech = build_template(TEMPLATES / "triflex_ii.py", {"length_unit": 2.0}).mechanism()
+    again = load_model(save_model(mech, tmp_path / "triflex.json"))
+    ws, ws2 = workspace_of(mech), workspace_of(again)
+    np.testing.assert_allclose(ws2.lower, ws.lower)
+    np.testing.assert_allclose(ws.upper[mech.joint_index["1"]], 2.0 * R_PRRU)  # scales with the length unit
+    source = (TEMPLATES / "slider_crank.py").read_text()
+    bad = tmp_path / "bad_workspace.py"
+    bad.write_text(source + "\n\ndef workspace(p):\n    return [1, 2]\n")
+    with pytest.raises(TemplateError, match=r"workspace\(\) must return"):
+        build_template(bad)
