@@ -96,7 +96,7 @@ def build_template(path: str | Path, overrides: list[str] | dict[str, Any] | Non
     cls = template_parameters(module)
     try:
         values = dict(overrides) if isinstance(overrides, dict) else parse_overrides(overrides, cls)
-        make_parameters(cls, dict(values))  # validates names and bounds with clear messages
+        params = make_parameters(cls, dict(values))  # validates names and bounds with clear messages
     except TemplateError as exc:
         raise TemplateError(f"{path.name}: {exc}") from None
     try:
@@ -118,4 +118,27 @@ def build_template(path: str | Path, overrides: list[str] | dict[str, Any] | Non
         except HyperstatError as exc:
             raise TemplateError(f"{path}: TOLERANCING: {exc}") from None
         skeleton.metadata.setdefault("tolerancing", dict(declared))
+    if callable(getattr(module, "workspace", None)):
+        skeleton.metadata["workspace"] = _workspace(module, params, path)
     return skeleton
+
+
+def _workspace(module: ModuleType, params: Any, path: Path) -> dict:
+    """The template's ``workspace(p)`` declaration (the ranges the machine is used over), JSON-ready.
+
+    See :mod:`hyperstat.solver.tolerances.workspace`; the joint names are checked when the
+    workspace is used, against the built mechanism.
+    """
+    try:
+        declared = module.workspace(params)
+    except Exception as exc:  # noqa: BLE001 - a template is user code
+        line = _user_line(exc, path)
+        raise TemplateError(f"{path}: workspace() failed{line}: {exc.__class__.__name__}: {exc}.") from None
+    if not isinstance(declared, dict) or not isinstance(declared.get("ranges"), dict):
+        raise TemplateError(f"{path}: workspace() must return {{'ranges': {{joint: (lo, hi)}}, 'note': ...}}, "
+                            f"got {type(declared).__name__}.")
+    try:
+        ranges = {str(k): [float(v[0]), float(v[1])] for k, v in declared["ranges"].items()}
+    except (TypeError, ValueError, IndexError):
+        raise TemplateError(f"{path}: workspace() ranges must map joint names to (lo, hi) numbers.") from None
+    return {"ranges": ranges, "note": str(declared.get("note", ""))}

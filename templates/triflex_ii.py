@@ -164,6 +164,40 @@ def build(**overrides: float) -> Skeleton:
     return sk
 
 
+def workspace(p: Parameters) -> dict:
+    """The workspace of paper 2, section 5.3: the whole intersection of the three cylinders, elbows in [0, pi].
+
+    Actuated ranges: the bounding box of the cylinders' intersection (``d1 = z``,
+    ``d5 = x``, ``d10 = y + d_s``): the PRRR leg keeps ``O_p`` within ``a2 + a3`` of the
+    axis through ``(a_p, 0)`` parallel to ``z_b``, the PRRU leg within ``a6 + a7`` of the
+    line through ``(0, d_p - a_b, 0)`` parallel to ``x_b``, the PRRS leg within
+    ``a11 + a12`` of ``y_b``.  Passive ranges: the elbow angles ``theta3`` (from ``i2`` to
+    ``i3`` about ``z_b``) and ``theta7`` (from ``u6`` to ``u7`` about ``x_b``) in
+    ``[0, pi]``, the branch of the paper's Figs. 5-6; joint values count from home, so
+    the range of joint 3 is ``[-theta3_home, pi - theta3_home]``.  Lengths in mm, angles in rad.
+    """
+    s = p.length_unit
+    ex, ey, ez = np.eye(3)
+    r_rrr, r_rru, r_rrs = s * (p.a2 + p.a3), s * (p.a6 + p.a7), s * (p.a11 + p.a12)
+    y_rru = s * (p.d_p - p.a_b)
+    op = s * np.array([p.home_x, p.home_y, p.home_z])
+    a3, a1 = op - s * p.a_p * ex, op - s * p.d_p * ey
+    o1, o5 = np.array([0.0, 0.0, a3[2]]), np.array([a1[0], -s * p.a_b, 0.0])
+    o2, o6 = _elbow(o1, a3, s * p.a2, s * p.a3, ez), _elbow(o5, a1, s * p.a6, s * p.a7, ex)
+
+    def angle(u: np.ndarray, v: np.ndarray, n: np.ndarray) -> float:
+        return math.atan2(float(np.dot(np.cross(u, v), n)), float(np.dot(u, v)))
+
+    theta3 = angle(o2 - o1, a3 - o2, ez)
+    theta7 = angle(o6 - o5, a1 - o6, ex)
+    z = min(r_rru, r_rrs)
+    x = (max(s * p.a_p - r_rrr, -r_rrs), min(s * p.a_p + r_rrr, r_rrs))
+    y = (max(-r_rrr, y_rru - r_rru), min(r_rrr, y_rru + r_rru))
+    return {"ranges": {"1": (-z, z), "5": x, "10": (y[0] + s * p.d_s, y[1] + s * p.d_s),
+                       "3": (-theta3, math.pi - theta3), "7": (-theta7, math.pi - theta7)},
+            "note": "paper 2, section 5.3: the whole cylinder intersection, elbows theta3 and theta7 in [0, pi]"}
+
+
 if "show_object" in globals():  # CQ-editor
     from hyperstat.cad_plugin.assembly import build_assembly
 

@@ -33,6 +33,7 @@ def _ranges(specs: list | None) -> dict:
 
 def _accuracy_inputs(args: argparse.Namespace, progress):
     from hyperstat.solver.tolerances.accuracy import sample_workspace
+    from hyperstat.solver.tolerances.workspace import workspace_of
 
     progress.next("stationarity analysis")
     mech, provenance, kin, result = analysis_of(args)
@@ -42,12 +43,16 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
     if unknown:
         raise HyperstatError(f"--range: '{unknown[0]}' is not an actuated joint of '{mech.name}' "
                              f"({', '.join(sorted(actuated))}).")
+    if args.configurations_workspace < 1:
+        raise HyperstatError(f"--workspace-configurations must be at least 1, got {args.configurations_workspace}.")
+    ws = workspace_of(mech, ranges)
     progress.next("workspace sampling")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        q = sample_workspace(mech, args.configurations_workspace, seed=args.seed, ranges=ranges, kinematics=kin)
+        q = sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws)
     if len(q) == 0:
-        raise HyperstatError(f"no configuration of '{mech.name}' assembles in the actuated ranges.")
+        raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
+    args.workspace_used = ws
     over = result.overconstraint > 0
     args._stationarity = result  # the tolerance classes need it whatever the over-constraint
     return mech, provenance, kin, (result if over else None), q, over
@@ -71,6 +76,11 @@ def _tolerance_lines(tol: dict) -> str:
     return format_tolerances(tol)
 
 
+def _workspace_doc(mech, ws) -> dict:
+    return {"source": ws.source, "declared_ranges": {k: list(v) for k, v in ws.declared.items()},
+            "actuated_box": {mech.joints[i].name: [float(ws.lower[i]), float(ws.upper[i])] for i in mech.actuated}}
+
+
 def _fixed(specs: list | None) -> dict:
     out = {}
     for spec in specs or []:
@@ -86,16 +96,43 @@ def _fixed(specs: list | None) -> dict:
 
 def _cmd_accuracy(args: argparse.Namespace) -> int:
     from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate
+    from hyperstat.solver.tolerances.worst_case import refine_extremes
 
-    with stages(args, ["stationarity analysis", "workspace sampling", "accuracy maps", "tolerances"]) as progress:
+    names = ["stationarity analysis", "workspace sampling", "accuracy maps"] + ([] if args.no_refine else
+                                                                               ["worst cases"]) + ["tolerances"]
+    with stages(args, names) as progress:
         mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress)
         progress.next("accuracy maps")
         maps = accuracy_maps(mech, q, analysis, kinematics=kin)
-        allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed))
+        extremes = {}
+        if not args.no_refine:
+            progress.next("worst cases")
+            extremes = refine_extremes(mech, maps, analysis, kinematics=kin, workspace=args.workspace_used,
+                                       kinds=("max", "min") if args.refine_minima else ("max",))
+        # the refined maximum plus its stated tolerance: an upper bound of the coefficient, so the
+        # allocated tolerances are conservative when the tolerance estimate holds
+        maxima = {name: e.value + (e.tolerance if math.isfinite(e.tolerance) else 0.0)
+                  for (name, kind), e in extremes.items() if kind == "max"}
+        allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed),
+                              maxima=maxima)
         progress.next("tolerances")
         tolerances = _tolerances(args, mech, kin, q).to_dict()
+    coefficients = maps.summary()
+    for name, v in coefficients.items():
+        v["sampled_min"], v["sampled_max"] = v["min"], v["max"]
+        for kind in ("min", "max"):
+            if (name, kind) in extremes:
+                v[kind] = extremes[(name, kind)].value
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
-           "configurations": len(q), "coefficients": maps.summary(), "coefficient_units": maps.units,
+           "workspace": _workspace_doc(mech, args.workspace_used),
+           "configurations": len(q), "coefficients": coefficients, "coefficient_units": maps.units,
+           "extremes": {name: {kind: extremes[(name, kind)].as_dict() for kind in ("max", "min")
+                               if (name, kind) in extremes} for name in coefficients},
+           "extremes_method": "sampled only (--no-refine)" if args.no_refine else (
+               "sampled, then the best samples refined by bounded local optimisation (SLSQP) over the joint "
+               "variables with the closures as constraints and the workspace ranges as bounds; the allocation "
+               "uses the refined maxima" + ("" if args.refine_minima else "; the minima are sampled only "
+                                            "(--refine-minima refines them)")),
            "groups": maps.groups, "allocation": allocation,
            "per_parameter": {n: {k: {"max": float(v.max()), "mean": float(v.mean())} for k, v in d.items()}
                              for n, d in maps.per_parameter.items()},
@@ -116,10 +153,15 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
         sys.stdout.write(f"Accuracy coefficients of '{mech.name}' over {len(q)} configurations "
-                         f"({doc['geometric_errors']}):\n")
+                         f"({doc['geometric_errors']}); workspace: {args.workspace_used.source}:\n")
         for name, v in doc["coefficients"].items():
-            sys.stdout.write(f"  {name:<11} min {v['min']:.6g}  mean {v['mean']:.6g}  max {v['max']:.6g}  "
+            sys.stdout.write(f"  {name:<11} min {v['min']:.9g}  mean {v['mean']:.6g}  max {v['max']:.9g}  "
                              f"[{maps.units[name]}]\n")
+            for kind in ("max", "min"):
+                e = extremes.get((name, kind))
+                if e is not None and e.location != "constant":
+                    sys.stdout.write(f"      {kind} {e.value:.9g} (sampled {e.sampled:.6g}, tolerance {e.tolerance:.2g}): "
+                                     f"{e.where()}\n")
         for cls, c in allocation["classes"].items():
             if c["tolerance"] is not None:
                 sys.stdout.write(f"  class {cls}: tolerance {c['tolerance']:.6g} {c['unit']} per parameter"
@@ -170,11 +212,21 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
                                                 args.position_accuracy, args.orientation_accuracy)
                 drawn = "every accuracy tolerance at its value (hyperstat accuracy)"
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
+           "workspace": _workspace_doc(mech, args.workspace_used),
            "drawn": drawn, "tolerance_counts": cl.counts(), **summary}
+    if uniform:
+        doc["worst_samples"] = _worst_samples(mech, kin, q, res)
     if args.json:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
         sys.stdout.write(format_montecarlo(doc))
+        for kind, w in doc.get("worst_samples", {}).items():
+            at = ", ".join(f"{k}={v:.6g}" for k, v in w["actuated"].items())
+            sys.stdout.write(f"  largest {kind} error {w['value']:.4g} {w['unit']} (sample {w['sample']}) at {at} "
+                             f"(O_p = {', '.join(f'{v:.4g}' for v in w['position_mm'])} mm)\n")
+        if doc.get("not_assembled"):
+            sys.stdout.write(f"  {doc['not_assembled']} samples did not assemble with their defects (near the "
+                             "workspace's singular boundary a defect can leave a leg too short): left out\n")
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
     return 0
@@ -226,6 +278,26 @@ def format_montecarlo(doc: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _worst_samples(mech, kin, q, res) -> dict:
+    """Where the largest orientation and position errors of the Monte Carlo samples occur (sample i uses q[i mod K])."""
+    import numpy as np
+
+    out = {}
+    ok = np.nonzero(res.converged)[0]
+    if not len(ok):
+        return out
+    for kind, values, unit in (("orientation", res.orientation, "rad"), ("position", res.position, "mm")):
+        i = int(ok[np.argmax(values[ok])])
+        qi = q[i % len(q)]
+        pose = kin.evaluate(qi[None], None, jacobians=False).output_pose[0]
+        out[kind] = {"value": float(values[i]), "unit": unit, "sample": i, "configuration_index": i % len(q),
+                     "actuated": {mech.joints[j].name: float(qi[j]) for j in mech.actuated},
+                     "position_mm": [float(v) for v in pose[:3, 3]],
+                     "over_linear_bound": float(values[i] / max((res.orientation_bound if kind == "orientation"
+                                                                 else res.position_bound)[i], 1e-300))}
+    return out
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Add this stage's sub-commands to the ``hyperstat`` parser."""
     for name, helptext in (("accuracy", "accuracy coefficients (paper 2) over the workspace, tolerance allocation"),
@@ -239,6 +311,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                        help="spec: required |dphi|max (rad), overrides the template's")
         p.add_argument("--position-accuracy", type=float, metavar="MM",
                        help="spec: required ||dO_p||max (mm), overrides the template's")
+        if name == "accuracy":
+            p.add_argument("--no-refine", action="store_true",
+                           help="report the sampled extremes only (no local optimisation of the worst cases)")
+            p.add_argument("--refine-minima", action="store_true",
+                           help="also refine the minima (slower: a largest singular value is not smooth at its "
+                                "minima; the allocation uses only the maxima)")
         common_options(p)
         if name == "accuracy":
             p.add_argument("--map", metavar="J1,J2", help="map the coefficients over a grid of two actuated joints")

@@ -34,6 +34,8 @@ import numpy as np
 
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
+from hyperstat.solver.tolerances.continuation import assemble_from_nearest
+from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
 
 __all__ = ["COEFFICIENT_NAMES", "AccuracyMaps", "accuracy_maps", "allocate", "compensable", "grid_slice", "report_section",
            "sample_workspace", "weighted_allocation", "geometric_parameters", "largest_singular_value",
@@ -226,30 +228,36 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
 
 # ---------------------------------------------------------------------------- workspace
 def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict | None = None,
-                     kinematics: Kinematics | None = None, steps: int = 6) -> np.ndarray:
-    """Assembled configurations with actuated values uniform in their ranges (continuation from home).
+                     kinematics: Kinematics | None = None, steps: int = 6, workspace: Workspace | None = None) -> np.ndarray:
+    """Assembled configurations with actuated values uniform in the workspace's actuated box.
+
+    The box and the assembly branch come from the workspace (:func:`workspace_of`: the
+    model's joint ranges, the template's declaration, then ``ranges``).  The first samples
+    are assembled by continuation from home, the others from the nearest configuration
+    already assembled with a first-order predictor
+    (:func:`hyperstat.solver.tolerances.continuation.assemble_from_nearest`); samples
+    that do not assemble (outside the reachable set) or leave the declared passive ranges
+    (another assembly branch) are left out.
 
     Parameters
     ----------
     ranges : dict, optional
-        Actuated joint name -> (lo, hi) replacing the model's range (e.g. the whole workspace).
+        Joint name -> (lo, hi) replacing the declared or model range.
+    workspace : Workspace, optional
+        Use this workspace instead of building one from ``mechanism`` and ``ranges``.
 
     Returns
     -------
     ndarray, (K, n_q)
-        The configurations that assembled (K <= n).
+        The configurations that assembled (K <= n), in draw order.
     """
     kin = kinematics or Kinematics(mechanism)
-    act = mechanism.actuated
-    lo, hi = mechanism.ranges[act].T.copy()
-    for a, i in enumerate(act):
-        name = mechanism.joints[i].name
-        if ranges and name in ranges:
-            lo[a], hi[a] = ranges[name]
+    ws = workspace or workspace_of(mechanism, ranges)
+    lo, hi = ws.actuated_box(mechanism)
     rng = np.random.default_rng(seed)
-    qa = lo + (hi - lo) * rng.random((n, len(act)))
-    res = kin.solve(qa, steps=steps)
-    return res.q[res.converged]
+    qa = lo + (hi - lo) * rng.random((n, len(lo)))
+    q, ok = assemble_from_nearest(kin, qa, mechanism.home, inside=ws.inside, steps=steps)
+    return q[ok]
 
 
 def grid_slice(mechanism: Mechanism, axes: tuple, fixed: dict | None = None, n: int = 41,
@@ -311,7 +319,7 @@ def compensable(maps_q: np.ndarray, mechanism: Mechanism, analysis=None, kinemat
 
 
 def allocate(maps: AccuracyMaps, orientation_max: float | None = None, position_max: float | None = None,
-             fixed: dict | None = None, weights: dict | None = None) -> dict:
+             fixed: dict | None = None, weights: dict | None = None, maxima: dict | None = None) -> dict:
     """Tolerances per class (equal allocation, paper 2 eqs. 19, 30-31) and weighted per parameter.
 
     Parameters
@@ -325,6 +333,11 @@ def allocate(maps: AccuracyMaps, orientation_max: float | None = None, position_
         the actuation accuracy; the other classes share what is left.
     weights : dict, optional
         Parameter -> cost weight for the weighted allocation (cost ~ weight / tolerance).
+    maxima : dict, optional
+        Coefficient name -> its maximum over the workspace found by optimisation
+        (:func:`hyperstat.solver.tolerances.worst_case.refine_extremes`); the larger of it
+        and the sampled maximum is used, so the tolerances are never looser than the
+        sample's.
 
     Returns
     -------
@@ -335,6 +348,9 @@ def allocate(maps: AccuracyMaps, orientation_max: float | None = None, position_
         and ``weighted`` per-parameter tolerances when weights are given.
     """
     c = {k: float(v.max()) for k, v in maps.coefficients.items()}
+    for k, v in (maxima or {}).items():
+        if k in c and v is not None and np.isfinite(v):
+            c[k] = max(c[k], float(v))
     fixed = dict(fixed or {})
     counts = {k: len(v) for k, v in maps.groups.items()}
     classes = [k for k in ("fP", "fR", "gP", "gR") if counts[k]]
