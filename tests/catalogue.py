@@ -281,8 +281,12 @@ def markdown(rows: list) -> str:
 
 
 def clean(message: str, tmp: Path) -> str:
-    """The message with the temporary directory replaced by ``TMP``."""
+    """The message with the temporary directory replaced by ``TMP``, and a measured distance (which
+    differs in its last digits between runs of the identification behind it) by ``D``."""
+    import re
+
     text = message.strip().replace(str(tmp) + "/", "TMP/").replace(str(tmp), "TMP")
+    text = re.sub(r"is \d\.\d+e-\d+ mm from the file's", "is D mm from the file's", text)
     return text.replace(str(ROOT) + "/", "").replace("|", "\\|")
 
 
