@@ -890,6 +890,8 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     for entry in ranking:
         entry["validation_rms"] = entry["cv_rms"]  # blocked cross-validation on the identification data
     step("verdict")
+    equivalent = _equivalence(mechanism, analysis, kin, rigid, data, screen, selected, columns, act_jac) \
+        if final is not None else []
     after_structure = None
     if final is not None:
         pre = screen.prepared()
@@ -903,7 +905,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         after_structure = structure_tests(mechanism, data, final.residuals, w, basis, r_f, act_jac, target_jac,
                                           others)
     outcome, verdict = _verdict(data, validation, significant, test, final, selected, structure, after_structure,
-                                ceiling, noise, share)
+                                ceiling, noise, share, equivalent)
     return Diagnosis(significant, test, where, ranking, selected, ambiguous, not_applicable, before,
                      validation_after, share, ceiling, effect_parameters, violated, rigid, final,
                      time.perf_counter() - t0, outcome, verdict, rejected)
@@ -916,8 +918,61 @@ def _noise_statement(data: MeasurementSet, factor: float) -> dict:
             "text": f"{factor * a:.3g} mm + {factor * b:.3g} mm/m ({factor:.2f}x the header's {data.noise.text()})"}
 
 
+EQUIVALENT_BIC = 10.0  # two models whose chi-square differ by less than this cannot be told apart (Kass-Raftery 'strong')
+
+
+def _equivalence(mech, analysis, kin, rigid, data, screen: _Screen, selected: list, columns: dict,
+                 act_jac: np.ndarray) -> list:
+    """Physically different models that fit the data as well as the selected effects (equivalence check).
+
+    For each selected effect with an alternative hypothesis (compliance: link bending,
+    :class:`~hyperstat.solver.diagnosis.effects.actuator.LinkBendingAlternative`), the
+    alternative's columns replace the effect's and the linearised fit with the geometry is
+    redone.  The two have as many parameters, so ``delta BIC`` is the difference of their
+    weighted chi-squares: below :data:`EQUIVALENT_BIC` (or the alternative better) the data
+    cannot tell them apart, and the answer must not be "explained by" the effect.
+    """
+    from hyperstat.solver.diagnosis.effects.actuator import LinkBendingAlternative
+
+    out = []
+    for name in selected:
+        if name != "compliance":
+            continue
+        alt = LinkBendingAlternative(mech, kin)
+        if not alt.pairs:
+            continue
+        jac_alt, prior_alt = _effect_columns(mech, analysis, kin, rigid, data, alt, screen.q, act_jac)
+        size = np.linalg.norm(jac_alt, axis=(0, 1))
+        bending = [a for a in alt.pairs if size[a] > 1e-6 * max(float(size.max()), 1e-300)]
+        if not bending:  # no gravity moment at the root of any such link (joints about the vertical)
+            continue
+        others = [n for n in selected if n != name]
+        mine = np.concatenate([columns[n][0] for n in selected], axis=2)
+        mine_prior = np.concatenate([columns[n][1] for n in selected])
+        theirs = np.concatenate([columns[n][0] for n in others] + [jac_alt], axis=2)
+        theirs_prior = np.concatenate([columns[n][1] for n in others] + [prior_alt])
+        cv_x, bic_x, _, _ = _cv_rms(screen, mine, mine_prior)
+        cv_a, bic_a, _, est_a = _cv_rms(screen, theirs, theirs_prior)
+        delta = float(bic_a - bic_x)
+        if delta < EQUIVALENT_BIC:
+            names = alt.parameter_names(None)
+            joints = ", ".join(mech.joints[mech.actuated[a]].name for a in bending)
+            plural = "s" if len(bending) > 1 else ""
+            how = ("fits the data better than" if delta <= -EQUIVALENT_BIC else "fits the data as well as")
+            out.append({"effect": name, "alternative": "link bending", "delta_bic": delta,
+                        "cv_rms": {name: cv_x, "link bending": cv_a},
+                        "alternative_parameters": [names[a] for a in bending],
+                        "alternative_estimates": {names[a]: float(est_a[a]) for a in bending},
+                        "note": (f"link bending under the same gravity loads {how} {name} (delta BIC "
+                                 f"{delta:+.1f}, not above {EQUIVALENT_BIC:g}; cross-validated RMS {1000 * cv_a:.1f} "
+                                 f"against {1000 * cv_x:.1f} um): the data cannot tell joint stiffness from the "
+                                 f"bending of the link{plural} after joint{plural} {joints}; loads at several lever "
+                                 f"arms (a payload on a long and on a short tool) would separate them")})
+    return out
+
+
 def _verdict(data, validation, significant, test, final, selected, structure, rest, ceiling, noise,
-             share) -> tuple[str, dict]:
+             share, equivalent=()) -> tuple[str, dict]:
     """The honest answer among :data:`OUTCOMES` and its evidence."""
     if not significant:
         return "no significant gap", {"evidence": "the gap test passes: identification p = "
@@ -932,7 +987,9 @@ def _verdict(data, validation, significant, test, final, selected, structure, re
         after = _gap_after(final, data, validation)
         verdict = {"effects": list(selected), "gap_test_after": after, "share_explained": share}
         val = final.validation
-        if not after["significant"] and not rest["structured"]:
+        if equivalent:
+            verdict["indistinguishable"] = list(equivalent)
+        if not after["significant"] and not rest["structured"] and not equivalent:
             verdict["evidence"] = (f"after adding {' + '.join(selected)} the gap test passes: "
                                    + ", ".join(f"{k} p = {after[k]['p_value']:.2g}" for k in ("identification",
                                                                                               "validation")
@@ -952,15 +1009,24 @@ def _verdict(data, validation, significant, test, final, selected, structure, re
         verdict["remaining_structure"] = {k: rest[k] for k in ("best", "structured", "isotropy", "isotropic",
                                                                "threshold", "n_tests")}
         factor = max(v["noise_factor"] for k, v in after.items() if isinstance(v, dict))
-        verdict["evidence"] = (f"a gap remains after adding {' + '.join(selected)}: "
+        gap_left = after["significant"] or rest["structured"]
+        verdict["evidence"] = ((f"a gap remains after adding {' + '.join(selected)}: " if gap_left else
+                                f"after adding {' + '.join(selected)} the gap test passes, but what is at work is "
+                                f"not established: ")
+                               + ("; ".join(e["note"] for e in equivalent) + "; gap test after: " if equivalent
+                                  else "")
                                + ", ".join(f"{k} p = {after[k]['p_value']:.2g}" for k in ("identification",
                                                                                           "validation") if k in after)
                                + (f"; validation RMS {1000 * val['rms']:.1f} um against a noise RMS "
                                   f"{1000 * noise:.1f} um ({1000 * remaining:.1f} um above it in quadrature)"
                                   if remaining is not None else ""))
+        if equivalent and not gap_left:
+            joints = [p[len("link_bending_"):] for e in equivalent for p in e["alternative_parameters"]]
+            verdict["where"] = (f"joint {' and '.join(joints)} under gravity: the stiffness of the joint or the bending "
+                                f"of the link after it, which the data cannot tell apart")
         if rest["structured"]:
             verdict["evidence"] += "; what remains follows " + verdict["where"]
-        elif rest["isotropic"]:
+        elif rest["isotropic"] and gap_left:
             verdict["evidence"] += ("; what remains has no structure (no joint, frequency or metadata trend, equal "
                                     "in every direction): consistent with a noise model of "
                                     + _noise_statement(data, factor)["text"])

@@ -16,6 +16,7 @@ from hyperstat.solver.errors import DataError
 from hyperstat.solver.diagnosis.effects.base import Effect
 
 __all__ = ["ScrewPitch", "ScrewPeriodic", "AngleScale", "AngleHarmonic", "Backlash", "GravityBacklash", "Compliance",
+           "LinkBendingAlternative",
            "gravity_loads"]
 
 GRAVITY = 9.81  # m/s^2
@@ -329,3 +330,55 @@ class Compliance(Effect):
         idx = np.arange(na)
         dt[:, idx, idx] = tau
         return tau * theta[None, :], dt
+
+
+class LinkBendingAlternative(Compliance):
+    """Alternative hypothesis to :class:`Compliance`, used only by the equivalence check (never selected).
+
+    The same gravity loads deform the links instead of the joints: the link between an
+    actuated revolute joint ``a`` and the next actuated revolute ``b`` of a serial chain,
+    when their axes are parallel, bends in the plane of motion as a cantilever loaded at
+    its end (Euler-Bernoulli: end slope ``theta = F L^2 / (2 E I)``, end deflection
+    ``w = F L^3 / (3 E I) = 2/3 L theta``).  A rotation of ``2 theta / 3`` at joint ``a``
+    gives the deflection, a further ``theta / 3`` at joint ``b`` completes the slope, with
+    ``theta = c_ab tau_a`` (the bending moment at the link's root is joint ``a``'s gravity
+    torque): ``dq_a = 2/3 c tau_a``, ``dq_b = 1/3 c tau_a``.  The other joints keep a
+    joint compliance ``dq_j = c_j tau_j``, so the two models have as many parameters.
+    Joint compliance leaves ``theta / 3`` of the slope unexplained at joint ``b`` with a
+    load that is joint ``a``'s, not joint ``b``'s: when that difference is below the noise,
+    the data cannot tell the two apart (``docs/diagnosis.md``).
+    """
+
+    name = "link bending (alternative to compliance)"
+
+    def __init__(self, mechanism, kin) -> None:
+        super().__init__(mechanism)
+        acts = _actuators(mechanism)
+        self.pairs: dict = {}  # actuator a -> next actuator b (parallel revolute axes)
+        if len(mechanism.chains) != 1:
+            return
+        chain = mechanism.chains[0]
+        pos = {el.name: ei for ei, el in enumerate(chain.elements)}
+        order = sorted(acts, key=lambda aj: pos.get(aj[1].name, -1))
+        home = np.array([mechanism.home])
+        st = kin.evaluate(home, None, jacobians=False)
+        for (a, ja), (b, jb) in zip(order, order[1:]):
+            if ja.type != "R" or jb.type != "R" or ja.name not in pos or jb.name not in pos:
+                continue
+            za = st.element_frames[(0, pos[ja.name])][0, :3, 2]
+            zb = st.element_frames[(0, pos[jb.name])][0, :3, 2]
+            if abs(float(za @ zb)) > 0.999:
+                self.pairs[a] = b
+        self._names = [f"link_bending_{j.name}" if a in self.pairs else f"compliance_{j.name}" for a, j in acts]
+
+    def actuator_correction(self, model, theta, data):
+        tau = self.actuator_loads(model, data)
+        k, na = tau.shape
+        dt = np.zeros((k, na, na))
+        for a in range(na):
+            if a in self.pairs:
+                dt[:, a, a] = 2.0 / 3.0 * tau[:, a]
+                dt[:, self.pairs[a], a] = 1.0 / 3.0 * tau[:, a]
+            else:
+                dt[:, a, a] = tau[:, a]
+        return np.einsum("kae,e->ka", dt, theta), dt

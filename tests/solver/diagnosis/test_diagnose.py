@@ -36,10 +36,13 @@ def test_tripteor_withheld_effect(tripteor, tripteor_analysis, tripteor_kin, cas
     assert r.magnitude_found == pytest.approx(r.magnitude_true, rel=0.3)
 
 
-@pytest.mark.parametrize("seed", [1, 3])
+@pytest.mark.parametrize("seed", [3])
 def test_violated_forced_defect_is_named(tripteor, tripteor_analysis, tripteor_kin, seed):
     # seed 3: dc13 (a length) explains the gap as well as dK13 by cross-validation, with a
-    # violation 18x its realistic magnitude against 7x: the tie is reported and broken by size
+    # violation 18x its realistic magnitude against 7x: the tie is reported and broken by size.
+    # (Seed 1, the same assertions on a campaign without the tie, took 20-25 s of CPU in the
+    # nonlinear fit's assembly continuation; it is one of the 3 violated-constraint seeds
+    # `hyperstat validate-diagnosis` runs, see docs/diagnosis.md.)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         r = run_case(tripteor, tripteor_analysis, tripteor_kin, ("violated-constraint",), seed=seed, violated="dK13")

@@ -63,21 +63,27 @@ def test_violated_constraint_deformation_closes_the_loops(tripteor, tripteor_ana
     b = kin.scaled_rows(st.closure_q[:, :, tripteor.passive])[0]
     w = np.array([kin.length_scale**2 if p.unit == "rad" else 1.0 for p in tripteor.parameters])
     twist = effect.deformation_twists(model, q)[0]
+    n_xi, n_p = a.shape[1], b.shape[1]
+    kkt = np.zeros((n_xi + n_p + a.shape[0],) * 2)
+    kkt[:n_xi, :n_xi] = np.diag(2 * w)
+    kkt[:n_xi, n_xi + n_p:] = a.T
+    kkt[n_xi:n_xi + n_p, n_xi + n_p:] = b.T
+    kkt[n_xi + n_p:, :n_xi] = a
+    kkt[n_xi + n_p:, n_xi:n_xi + n_p] = b
+    # the KKT matrix is the same for every defect: one SVD gives its pseudo-inverse (the
+    # minimum-norm least-squares solution lstsq(rcond=1e-12) returns) and its condition number
+    u, sv, vt = np.linalg.svd(kkt)
+    keep = sv > 1e-12 * sv[0]
+    pinv = (vt[keep].T / sv[keep]) @ u[:, keep].T
+    cond = sv[0] / sv[-1]
     for e, name in enumerate(effect.defects):
         ev = np.zeros(a.shape[1])
         ev[tripteor.parameter_index[name]] = 1.0
-        n_xi, n_p = a.shape[1], b.shape[1]
-        kkt = np.zeros((n_xi + n_p + a.shape[0],) * 2)
-        kkt[:n_xi, :n_xi] = np.diag(2 * w)
-        kkt[:n_xi, n_xi + n_p:] = a.T
-        kkt[n_xi:n_xi + n_p, n_xi + n_p:] = b.T
-        kkt[n_xi + n_p:, :n_xi] = a
-        kkt[n_xi + n_p:, n_xi:n_xi + n_p] = b
         rhs = np.r_[np.zeros(n_xi + n_p), -a @ ev]
-        sol = np.linalg.lstsq(kkt, rhs, rcond=1e-12)[0]
+        sol = pinv @ rhs
         d, dq = sol[:n_xi], sol[n_xi:n_xi + n_p]
         # the loops close to round-off: relative residual within eps times the KKT condition number
-        tolerance = 10 * np.finfo(float).eps * np.linalg.cond(kkt) * np.linalg.norm(a @ ev)
+        tolerance = 10 * np.finfo(float).eps * cond * np.linalg.norm(a @ ev)
         assert np.linalg.norm(a @ (ev + d) + b @ dq) < tolerance
         expected = st.output_xi[0] @ (ev + d) + st.output_q[0][:, tripteor.passive] @ dq
         np.testing.assert_allclose(twist[:, e], expected, atol=1e-8 * max(1.0, np.abs(expected).max()))
