@@ -131,7 +131,9 @@ def _cmd_check_controller(args: argparse.Namespace) -> int:
                          f"reference model: forward {res['forward_mm']:.2g} mm / {res['forward_rad']:.2g} rad, "
                          f"inverse {res['inverse_mm']:.2g} mm / {res['inverse_rad']:.2g} rad"
                          + (f" ({res['inverse_other_branch']} on another inverse solution with the same pose)"
-                            if res["inverse_other_branch"] else "") + "\n")
+                            if res["inverse_other_branch"] else "")
+                         + (f"; {res['effect_vectors']} effect vectors (tool point with the machine effects): "
+                            f"{res['effects_mm']:.2g} mm" if res.get("effect_vectors") else "") + "\n")
     return 0
 
 

@@ -38,13 +38,17 @@ from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.modelfile import _schema_message, mechanism_from_dict, mechanism_to_dict
 
 __all__ = ["FORMAT", "VERSION", "controller_document", "write_controller", "read_controller", "content_hash",
-           "file_sha256", "ControllerModel", "MACHINE_EFFECTS", "build_test_vectors", "check_test_vectors",
+           "file_sha256", "ControllerModel", "MACHINE_EFFECTS", "build_test_vectors", "build_effect_vectors",
+           "check_test_vectors",
            "check_controller", "TEST_VECTOR_TOLERANCE"]
 
 FORMAT = "hyperstat-controller"
 #: version 2 adds the test vectors (version 1 had none)
 VERSION = 2
-MACHINE_EFFECTS = ("compliance", "violated-constraint", "thermal", "screw-pitch", "screw-periodic", "backlash")
+MACHINE_EFFECTS = ("compliance", "violated-constraint", "thermal", "screw-pitch", "screw-periodic", "backlash",
+                   "backlash-gravity", "angle-scale", "angle-harmonic-1", "angle-harmonic-2")
+#: metadata columns the effect vectors carry, per pose (temperature degC, payload kg, approach direction +-1)
+EFFECT_VECTOR_COUNT = 12
 
 
 @lru_cache(maxsize=1)
@@ -101,6 +105,31 @@ def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int
     vectors = [{"actuated": q[k, act].tolist(), "joints": q[k].tolist(), "position": pose[k, :3, 3].tolist(),
                 "rotation": pose[k, :3, :3].tolist(), "tool_point": tool[k].tolist()} for k in range(len(q))]
     return {"tolerance": dict(TEST_VECTOR_TOLERANCE), "seed": seed, "vectors": vectors}
+
+
+def build_effect_vectors(doc: dict, count: int = EFFECT_VECTOR_COUNT, seed: int = 1) -> list:
+    """Test vectors of the machine effects: actuated values with per-pose metadata and the tool point.
+
+    The actuated values are those of the first ``count`` rigid test vectors; the metadata
+    a machine effect reads is drawn (seeded): ``temperature`` uniform in 15-30 degC,
+    ``payload`` in {0, 5, 10} kg, ``dir<joint>`` = +-1 per actuated joint.  The tool point
+    (base frame, mm) is the reference model's (:class:`ControllerModel`) with every
+    effect of ``doc`` applied: compliance (gravity loads of the declared link masses and
+    the payload), backlash (approach side), gravity-side backlash, angle scale and
+    harmonics, thermal expansion, screw errors, a violated constraint.  A port that
+    applies the effects must reproduce it within the file's tolerance.
+    """
+    model = ControllerModel(doc)
+    vec = doc["test_vectors"]["vectors"][:count]
+    qa = np.array([v["actuated"] for v in vec], dtype=float)
+    rng = np.random.default_rng(seed)
+    meta = {"temperature": np.round(15.0 + 15.0 * rng.random(len(qa)), 3),
+            "payload": rng.choice([0.0, 5.0, 10.0], len(qa))}
+    for i in model.mechanism.actuated:
+        meta[f"dir{model.mechanism.joints[i].name}"] = rng.choice([-1.0, 1.0], len(qa))
+    point, _ = model.forward(qa, meta)
+    return [{"actuated": qa[k].tolist(), "metadata": {n: float(v[k]) for n, v in meta.items()},
+             "tool_point": point[k].tolist()} for k in range(len(qa))]
 
 
 def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dict:
@@ -161,16 +190,50 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
         e2 = np.maximum(np.linalg.norm(pose2[:, :3, 3] - pos[off], axis=1), np.linalg.norm(p2 - tool[off], axis=1))
         r2 = np.linalg.norm(so3_log(pose2[:, :3, :3] @ np.transpose(rot[off], (0, 2, 1))), axis=1)
         for i, k in enumerate(off):
+            if e2[i] <= tol_mm and r2[i] <= tol_rad or len(vec) < 2:
+                continue
+            # Newton from home stalled (a serial 6R arm far from home): start again from the other
+            # vectors' actuated values (never from this vector's own), keep the first that reaches the pose
+            others = np.delete(np.arange(len(vec)), k)
+            tries = model.inverse(np.repeat(wanted[k:k + 1], len(others), axis=0), q_start=qa[others])
+            pt, pose_t = model.forward(tries, with_effects=False)
+            et = np.maximum(np.linalg.norm(pose_t[:, :3, 3] - pos[k], axis=1), np.linalg.norm(pt - tool[k], axis=1))
+            rt = np.linalg.norm(so3_log(pose_t[:, :3, :3] @ rot[k].T), axis=1)
+            good = np.flatnonzero((et <= tol_mm) & (rt <= tol_rad))
+            if len(good):
+                back[k], e2[i], r2[i] = tries[good[0]], et[good[0]], rt[good[0]]
+                e_inv[k] = np.abs(back[k] - qa[k])
+                if np.all(e_inv[k] <= tol_inv):
+                    continue
             if not (e2[i] <= tol_mm and r2[i] <= tol_rad):
                 j = int(np.argmax(e_inv[k] / tol_inv))
                 unit = "mm" if lin[j] else "rad"
                 raise DataError(f"controller file: test vector {k}: the reference inverse model gives actuated value "
                                 f"{j} {e_inv[k, j]:.3g} {unit} from the file's (tolerance {tol_inv[j]:g} {unit}), and "
                                 f"its pose misses the file's by {e2[i]:.3g} mm.")
+        off = np.flatnonzero(~np.all(e_inv <= tol_inv, axis=1))  # after the restarts
         branch = len(off)
     same = np.setdiff1d(np.arange(len(vec)), off)
     e_same = e_inv[same] if len(same) else np.zeros((1, len(lin)))
+    e_eff = 0.0
+    ev = tv.get("effect_vectors") or []
+    if ev:
+        qe = np.array([v["actuated"] for v in ev], dtype=float)
+        keys = sorted({k for v in ev for k in v["metadata"]})
+        missing = [(k, n) for k, v in enumerate(ev) for n in keys if n not in v["metadata"]]
+        if missing:
+            raise DataError(f"controller file: effect vector {missing[0][0]} has no metadata '{missing[0][1]}'.")
+        meta = {n: np.array([v["metadata"][n] for v in ev], dtype=float) for n in keys}
+        point_e, _ = model.forward(qe, meta)
+        err_e = np.linalg.norm(point_e - np.array([v["tool_point"] for v in ev], dtype=float), axis=1)
+        k = int(np.argmax(err_e))
+        if not err_e[k] <= tol_mm:
+            raise DataError(f"controller file: effect vector {k}: the reference model's tool point with the machine "
+                            f"effects ({', '.join(e['effect'] for e in doc['effects'])}) is {err_e[k]:.3g} mm from "
+                            f"the file's (tolerance {tol_mm:g} mm).")
+        e_eff = float(err_e.max())
     return {"count": len(vec), "forward_mm": float(e_pos.max()), "forward_rad": float(e_rot.max()),
+            "effect_vectors": len(ev), "effects_mm": e_eff,
             "inverse_mm": float(e_same[:, lin].max()) if lin.any() else 0.0,
             "inverse_rad": float(e_same[:, ~lin].max()) if (~lin).any() else 0.0,
             "inverse_other_branch": int(branch)}
@@ -238,6 +301,8 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
                              "parameters": {n: {"class": e["class"], "tolerance_id": e["tolerance_id"]}
                                             for n, e in tolerances["parameters"].items()}}
     doc = json.loads(dumps_json(doc))  # plain JSON types, as a reader will see them
+    if exported:
+        doc["test_vectors"]["effect_vectors"] = json.loads(dumps_json(build_effect_vectors(doc)))
     doc["sha256"] = content_hash(doc)
     return doc
 
@@ -347,7 +412,7 @@ class ControllerModel:
         return point, pose
 
     def inverse(self, pose: np.ndarray, q_start: np.ndarray | None = None, tol: float = 1e-12,
-                max_iter: int = 30) -> np.ndarray:
+                max_iter: int = 60) -> np.ndarray:
         """Actuated values that bring the output frame to ``pose`` (least squares over its 6 components).
 
         Effects are not inverted (the rigid identified geometry only).
@@ -366,6 +431,7 @@ class ControllerModel:
         qa = (np.broadcast_to(self.mechanism.home[act], (len(pose), len(act))) if q_start is None
               else np.atleast_2d(q_start)).astype(float).copy()
         lc = self.kin.length_scale
+        self._lin = np.array([self.mechanism.joints[i].type == "P" for i in act])
         for _ in range(max_iter):
             res = self.kin.solve(qa, self.xi)
             st = self.kin.evaluate(res.q, self.xi, jacobians=True)
@@ -385,6 +451,10 @@ class ControllerModel:
             jac = k_a.copy()
             jac[:, :3] *= lc
             step = batched_lstsq(jac, err[:, :, None])[..., 0]
+            # damped: at most 0.3 (rad, or 0.3 length scales) per iteration, so that Newton from home on a
+            # 6R arm does not leap to another turn of a joint (full steps once near)
+            big = np.max(np.abs(step) / np.where(self._lin, lc, 1.0), axis=1, keepdims=True)
+            step = step * np.minimum(1.0, 0.3 / np.maximum(big, 1e-300))
             qa = qa + step
             if np.max(np.abs(step)) < tol * max(1.0, lc):
                 break

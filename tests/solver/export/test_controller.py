@@ -156,3 +156,67 @@ def test_check_controller_re_evaluates_the_vectors(exported, tmp_path, capsys):
     assert main(["check-controller", str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "test vector" in err and "tolerance" in err
+
+
+@pytest.fixture(scope="module")
+def exported_serial(tmp_path_factory):
+    """A serial 6R arm with declared link masses, identified with the revolute effects of issue 20."""
+    from hyperstat.solver.analysis.stationarity import analyze
+    from hyperstat.solver.kinematics.modelfile import load_model
+
+    from tests.solver.diagnosis import independent_generator as gen
+
+    mech = load_model(gen.ARM_6R)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        analysis = analyze(mech, n_configurations=24, seed=0)
+    names = ("angle-scale", "angle-harmonic-1", "angle-harmonic-2", "backlash-gravity", "compliance")
+    truth = tuple(make_effect(n, mech, analysis).draw_truth(np.random.default_rng(i)) for i, n in enumerate(names))
+    vm = VirtualMachine.random(mech, analysis, seed=0, effects=truth)
+    q = vm.poses(50, seed=1)
+    meta = workshop_metadata(mech, 50, seed=2)
+    data = vm.measure(q[:40], seed=3, metadata={k: v[:40] for k, v in meta.items()})
+    val = vm.measure(q[40:], seed=4, prefix="V", metadata={k: v[40:] for k, v in meta.items()})
+    effects = tuple(make_effect(n, mech, analysis, data) for n in names)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify(mech, analysis, data, val, effects=effects)
+    doc = controller_document(mech, res, effects, {"source": "arm_6r.skel.json"}, ())
+    out = write_controller(tmp_path_factory.mktemp("ctl6r") / "arm.json", doc)
+    return out, res, val
+
+
+def test_revolute_and_gravity_effects_go_into_the_controller(exported_serial):
+    """Angle scale, harmonics, gravity-side backlash and compliance over the links: exported, and the
+    reference model built from the file alone gives the identification model's tool point (a second
+    code path: MeasurementModel.predict) at the validation poses with their metadata, within 1e-9 mm."""
+    path, res, val = exported_serial
+    doc = read_controller(path)
+    assert [e["effect"] for e in doc["effects"]] == ["angle-scale", "angle-harmonic-1", "angle-harmonic-2",
+                                                      "backlash-gravity", "compliance"]
+    model = ControllerModel(doc)
+    point, _ = model.forward(val.q, val.metadata)
+    assert np.abs(point - res.model.predict(res.theta, val).world).max() < 1e-9
+    # the effects move the point (else the comparison above proves nothing about them)
+    rigid, _ = model.forward(val.q, with_effects=False)
+    assert np.abs(point - rigid).max() > 1e-3
+    ev = doc["test_vectors"]["effect_vectors"]
+    assert len(ev) >= 8 and {"temperature", "payload"} <= set(ev[0]["metadata"])
+    assert check_controller(path)["effect_vectors"] == len(ev)
+
+
+def test_check_controller_re_evaluates_the_effect_vectors(exported_serial, tmp_path, capsys):
+    """An effect parameter changed with the hash recomputed passes the hash and the rigid vectors, not the
+    effect vectors."""
+    path, _, _ = exported_serial
+    doc = json.loads(path.read_text())
+    eff = next(e for e in doc["effects"] if e["effect"] == "angle-harmonic-1")
+    name = next(iter(eff["parameters"]))
+    eff["parameters"][name] += 1e-5  # rad: about 10 um at a 1 m reach
+    doc["sha256"] = content_hash(doc)
+    bad = tmp_path / "arm.json"
+    bad.write_text(json.dumps(doc))
+    read_controller(bad)
+    assert main(["check-controller", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "effect vector" in err and "angle-harmonic-1" in err
