@@ -13,7 +13,7 @@ import numpy as np
 
 from hyperstat.solver.atomic import write_bytes
 
-__all__ = ["write_diagnosis_plots", "diagnosis_figures"]
+__all__ = ["write_diagnosis_plots", "diagnosis_figures", "revolute_spectra_figure", "answered_frequency"]
 
 
 def diagnosis_figures(diag, data) -> dict:
@@ -52,10 +52,14 @@ def diagnosis_figures(diag, data) -> dict:
         for s in diag.where["spectra"]:
             ax.plot(s["periods_mm"], s["power"], label=f"q{s['joint']}")
         ax.set_xlabel("period along the actuator travel (mm)")
-        ax.set_ylabel("Lomb-Scargle power")
+        ax.set_ylabel("share of the residual variance")
+        ax.set_title("Periodic error per screw (harmonic regression)")
         ax.legend()
         fig.tight_layout()
         out["spectra.png"] = fig
+    rspectra = diag.where.get("revolute_spectra") or []
+    if rspectra:
+        out["spectra_revolute.png"] = revolute_spectra_figure(diag, rspectra, plt)
     if diag.validation_before:
         fig, ax = plt.subplots(figsize=(5, 3))
         labels = ["before"] + (["after"] if diag.validation_after else [])
@@ -77,6 +81,41 @@ def diagnosis_figures(diag, data) -> dict:
         plt.close(fig)
         pngs[name] = buf.getvalue()
     return pngs
+
+
+def answered_frequency(diag) -> tuple[str, float] | None:
+    """(joint, cycles per revolution) the diagnosis's answer points at, when its 'where' is a revolute frequency."""
+    for block in (diag.verdict.get("remaining_structure"), diag.verdict.get("structure")):
+        best = (block or {}).get("best") or {}
+        if (block or {}).get("structured") and "cycles_per_revolution" in best:
+            return str(best["joint"]), float(best["cycles_per_revolution"])
+    return None
+
+
+def revolute_spectra_figure(diag, rspectra: list, plt):
+    """One panel per revolute joint: share of the rigid residual variance a harmonic error of that joint
+    explains, against its frequency in cycles per revolution (the structure tests' spectrum, F-tested).
+
+    The peak of each joint is marked with its p-value; the frequency the diagnosis's answer names
+    ("unexplained" or "partly explained", see :func:`answered_frequency`) is drawn as a red line.
+    """
+    n = len(rspectra)
+    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.0), squeeze=False, sharey=True)
+    named = answered_frequency(diag)
+    for ax, sp in zip(axes[0], rspectra):
+        ax.plot(sp["cycles_per_revolution"], sp["share"], marker=".", ms=3)
+        ax.plot([sp["peak_cycles_per_revolution"]], [sp["peak_share"]], "o", mfc="none", color="k")
+        ax.annotate(f"p = {sp['peak_p_value']:.1g}", (sp["peak_cycles_per_revolution"], sp["peak_share"]),
+                    textcoords="offset points", xytext=(4, 4), fontsize=7)
+        if named is not None and named[0] == str(sp["joint"]):
+            ax.axvline(named[1], color="r", lw=1.0, label=f"answer: {named[1]:g} /rev")
+            ax.legend(fontsize=7)
+        ax.set_title(f"joint {sp['joint']}")
+        ax.set_xlabel("cycles per revolution")
+    axes[0, 0].set_ylabel("share of the residual variance")
+    fig.suptitle(f"Residual spectrum per revolute joint ({diag.outcome})")
+    fig.tight_layout()
+    return fig
 
 
 def write_diagnosis_plots(diag, data, directory: str | Path) -> list[Path]:

@@ -263,7 +263,10 @@ def render_html(doc: dict, images: dict) -> str:
         if b:
             out.append(f"<p>Validation RMS before {_um(b['rms'])} &micro;m"
                        + (f", after {_um(a['rms'])} &micro;m" if a else "") + ".</p>")
-        for name in ("before_after.png", "residuals_vs_joints.png"):
+        if diag.get("outcome"):
+            out.append(f"<p>The answer: <b>{e(diag['outcome'])}</b>"
+                       + (f": {e(diag['verdict'].get('evidence', ''))}" if diag.get("verdict") else "") + "</p>")
+        for name in ("before_after.png", "residuals_vs_joints.png", "spectra_revolute.png"):
             if name in images:
                 out.append(_img(images[name], name))
     else:

@@ -94,6 +94,55 @@ def test_unexplained_names_joint_and_frequency(arm_model):
     d, truth, _, _ = _diagnose(arm_model, gen.ARM_6R, "angle-harmonic-3")
     assert d.gap_significant and d.outcome == "unexplained" and d.selected == []
     assert f"3 cycles per revolution of joint {truth['joint']}" in d.verdict["where"]
+    # the plots show the spectrum per revolute joint, with the answer's frequency on the right joint
+    from hyperstat.cad_plugin.plots import answered_frequency, revolute_spectra_figure
+
+    assert answered_frequency(d) == (truth["joint"], 3.0)
+    spectra = {s["joint"]: s for s in d.where["revolute_spectra"]}
+    assert spectra[truth["joint"]]["peak_cycles_per_revolution"] == 3.0
+    assert len(spectra) == sum(j.type == "R" for j in (arm_model[0].joints[i] for i in arm_model[0].actuated))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = revolute_spectra_figure(d, d.where["revolute_spectra"], plt)
+    panel = next(ax for ax in fig.axes if ax.get_title() == f"joint {truth['joint']}")
+    assert [line.get_xdata()[0] for line in panel.lines if line.get_color() == "r"] == [3.0]  # the answer's line
+    assert len(fig.axes) == len(spectra)
+    plt.close(fig)
+
+
+def test_joint_compliance_and_link_bending_that_the_data_cannot_tell_apart(arm_model):
+    """6R upper arm bending under its weight (out of the library): compliance fits it within the noise, but so
+    does link bending; the answer is not "explained by compliance" and names the alternative."""
+    d, truth, _, _ = _diagnose(arm_model, gen.ARM_6R, "link-bending")
+    assert d.selected == ["compliance"] and d.outcome == "partly explained"
+    assert not d.verdict["gap_test_after"]["significant"]  # the fit is within the noise...
+    eq = d.verdict["indistinguishable"]
+    assert eq[0]["alternative"] == "link bending" and eq[0]["delta_bic"] < 10.0  # ...and so is the alternative
+    assert eq[0]["alternative_parameters"] == [f"link_bending_{truth['joint']}"]
+    assert "cannot tell joint stiffness from the bending" in d.verdict["evidence"]
+    assert f"joint {truth['joint']}" in d.verdict["where"]
+
+
+def test_link_bending_alternative_is_the_cantilever_split(arm_model):
+    """Euler-Bernoulli cantilever loaded at its end: deflection 2/3 L theta, so joint a turns 2/3 theta and the
+    next parallel joint 1/3 theta, with theta = c tau_a (joint a's gravity torque)."""
+    from hyperstat.solver.calibration.identify import MeasurementModel
+    from hyperstat.solver.diagnosis.effects import gravity_loads
+    from hyperstat.solver.diagnosis.effects.actuator import LinkBendingAlternative
+
+    mech, analysis, kin = arm_model
+    alt = LinkBendingAlternative(mech, kin)
+    assert alt.pairs == {1: 2}  # shoulder and elbow axes are parallel; no other consecutive pair is
+    data = parse_measurements(gen.campaign(gen.ARM_6R, "none", 0)[0], mech, "id.csv")
+    tau = gravity_loads(mech, kin, data.q, data.metadata["payload"])
+    _, dt = alt.actuator_correction(MeasurementModel(mech, analysis, kin), np.zeros(6), data)
+    np.testing.assert_allclose(dt[:, 1, 1], 2.0 / 3.0 * tau[:, 1])
+    np.testing.assert_allclose(dt[:, 2, 1], 1.0 / 3.0 * tau[:, 1])
+    np.testing.assert_allclose(dt[:, 2, 2], tau[:, 2])  # the elbow keeps a joint compliance
+    assert np.abs(tau[:, 1]).max() > 1e5
 
 
 def test_unexplained_coupling_names_both_joints(scara_model):
