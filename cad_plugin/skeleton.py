@@ -24,7 +24,11 @@ import numpy as np
 from hyperstat.solver.kinematics.build import MechanismBuilder
 from hyperstat.solver.kinematics.model import Mechanism
 
-__all__ = ["Skeleton", "Link"]
+__all__ = ["Skeleton", "Link", "MATERIALS"]
+
+#: densities (kg/m^3) of common structural materials, by name (:meth:`Skeleton.material`)
+MATERIALS = {"steel": 7850.0, "stainless steel": 8000.0, "cast iron": 7200.0, "aluminium": 2700.0,
+             "titanium": 4500.0, "carbon fibre composite": 1600.0}
 
 
 @dataclass
@@ -34,6 +38,7 @@ class Link:
     name: str
     points: tuple
     radius: float
+    body: str | None = None  # the joint whose moving body this link is part of (for its mass)
 
 
 class Skeleton(MechanismBuilder):
@@ -58,13 +63,33 @@ class Skeleton(MechanismBuilder):
         super().__init__(name, base=base, description=description)
         self.links: list[Link] = []
         self._mechanism: Mechanism | None = None
+        self.material_name: str | None = None
+        self.material_density: float | None = None  # kg/m^3
         self.marker_size = float(marker_size)
         if parameters is not None:
             self.metadata["parameters"] = dataclasses.asdict(parameters)
 
-    def link(self, name: str, points: Sequence[Any], radius: float = 5.0) -> None:
-        """Declare a link as bars through ``points``: joint / frame names or (x, y, z) in mm."""
-        self.links.append(Link(name, tuple(points), float(radius)))
+    def link(self, name: str, points: Sequence[Any], radius: float = 5.0, body: str | None = None) -> None:
+        """Declare a link as bars through ``points``: joint / frame names or (x, y, z) in mm.
+
+        ``body`` names the joint whose moving body the link is part of; with a declared
+        :meth:`material`, its mass and centre of mass come from the solid
+        (:mod:`hyperstat.cad_plugin.masses`).
+        """
+        self.links.append(Link(name, tuple(points), float(radius), body))
+
+    def material(self, name: str, density_kg_m3: float | None = None) -> None:
+        """Declare the links' material: a name of :data:`MATERIALS` or a density (kg/m^3)."""
+        from hyperstat.solver.errors import TemplateError
+
+        if density_kg_m3 is None:
+            if name not in MATERIALS:
+                raise TemplateError(f"material '{name}' has no known density; give density_kg_m3 or one of "
+                                    f"{', '.join(MATERIALS)}.")
+            density_kg_m3 = MATERIALS[name]
+        if not float(density_kg_m3) > 0.0:
+            raise TemplateError(f"material '{name}': density_kg_m3 must be > 0, got {density_kg_m3}.")
+        self.material_name, self.material_density = name, float(density_kg_m3)
 
     def point(self, ref: Any) -> np.ndarray:
         """World position of a joint, fixed transform or frame name, or of a coordinate triple."""

@@ -109,6 +109,13 @@ def build_template(path: str | Path, overrides: list[str] | dict[str, Any] | Non
     if not isinstance(skeleton, Skeleton):
         raise TemplateError(f"{path}: build() must return a hyperstat.cad_plugin.skeleton.Skeleton, got {type(skeleton).__name__}.")
     skeleton.metadata.setdefault("template", path.name)
+    if any(link.body is not None for link in skeleton.links):  # link masses from the CadQuery solids
+        from hyperstat.cad_plugin.masses import apply_link_masses
+
+        try:
+            apply_link_masses(skeleton)
+        except HyperstatError as exc:
+            raise TemplateError(f"{path}: {exc}") from None
     declared = getattr(module, "TOLERANCING", None)
     if declared is not None:  # task, measurements, spec, clearances (hyperstat.solver.tolerances.declaration)
         from hyperstat.solver.tolerances.declaration import parse_declaration
