@@ -56,8 +56,10 @@ def test_scara_suite_rates(scara, scara_analysis):
     kin = Kinematics(scara)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        # one seed per case (a second seed repeated the same statements at twice the time; the rates over
+        # 3 seeds are validate-diagnosis's, docs/diagnosis.md)
         results = [run_case(scara, scara_analysis, kin, case, seed, None)
-                   for case in [(), ("thermal",), ("backlash",), ("thermal", "backlash")] for seed in (0, 1)]
+                   for case in [(), ("thermal",), ("backlash",), ("thermal", "backlash")] for seed in (0,)]
     s = summarize(results)
     assert s["false_alarm"] == 0.0
     assert s["right_effect_first"] == 1.0 and s["after_within_1.3x_noise"] == 1.0
