@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hyperstat.cad_plugin.cli import main
-from tests.solver.calibration.test_robot_calibration import DH_YAML, Campaign
+from tests.solver.calibration.fanuc_like import DH_YAML, Campaign
 
 
 @pytest.fixture(scope="module")
