@@ -101,12 +101,17 @@ def test_joint_map_applied_when_reading(robot, tmp_path):
     np.testing.assert_allclose(data.q[::3], q, atol=1e-12)
 
 
-def test_rank_and_estimates_do_not_depend_on_the_target_prior(robot, tmp_path):
+@pytest.mark.parametrize("seed", [7, 100])
+def test_rank_and_estimates_do_not_depend_on_the_target_prior(robot, tmp_path, seed):
     """Same data with and without '# target' priors (+-8 mm off): same rank, same base set, same
-    estimates within their std.  Without a prior the targets start on the wrist axis, where the
-    rotation about it is invisible; the set is decided again at the solution."""
+    estimates within their std.  Without a prior the targets would start on the wrist axis, where
+    the rotation about it is invisible: the start registers the tracker and the targets on the
+    nominal model first (the prior only starts that descent), and the set is decided again at the
+    solution.  Seed 100 gave rank 31 without the prior and 33 with it before the registration
+    (two wrist directions, seen only at the solution, were held back by the nested chi-square
+    test)."""
     mech, analysis = robot
-    c = Campaign(7)
+    c = Campaign(seed)
     q = c.poses(40)
     state = c.rng.bit_generator.state
     with_prior = tmp_path / "with.csv"
@@ -117,7 +122,7 @@ def test_rank_and_estimates_do_not_depend_on_the_target_prior(robot, tmp_path):
     a = identify(mech, analysis, read_measurements(with_prior, mech))
     b = identify(mech, analysis, read_measurements(without, mech))
     assert a.rank == b.rank and a.base == b.base
-    assert b.base_rounds[0] <= b.base_rounds[-1]  # the start may see less; the solution decides
+    assert a.base_rounds == b.base_rounds and a.held_back is None and b.held_back is None
     ea, eb = a.estimates(), b.estimates()
     std = {p["name"]: p["std"] for p in a.parameters if p["identifiable"]}
     for name in a.base:
