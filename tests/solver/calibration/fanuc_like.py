@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 __all__ = ["NOMINAL", "LIMITS_DEG", "TARGETS", "J6_OFFSET_DEG", "NOISE_A", "NOISE_B", "DH_YAML",
-           "Campaign", "noise_rms", "dh_matrix", "rotvec", "quaternion"]
+           "Campaign", "noise_rms", "dh_matrix", "rotvec", "quaternion", "write_campaign"]
 
 # nominal table: a, alpha (deg), d, theta (deg); FANUC R-2000iC-like proportions (mm)
 NOMINAL = [(312.0, -90.0, 670.0, 0.0), (1075.0, 0.0, 0.0, -90.0), (225.0, -90.0, 0.0, 0.0),
@@ -161,3 +161,25 @@ def noise_rms(data) -> float:
     """3-D noise RMS the generator used (mm), from the measured distances."""
     s = NOISE_A + NOISE_B * np.linalg.norm(data.position, axis=1) / 1000.0
     return float(np.sqrt(np.mean(3 * s**2)))
+
+
+def write_campaign(out: str, seed: int = 21, poses: int = 50, validation: int = 30) -> list:
+    """Write the files of the workflow in ``docs/identification.md`` into ``out``: the DH table with its
+    joint map (``fanuc_like.dh.yaml``), ``meas.csv`` and ``meas.validation.csv`` (3 SMRs, m, deg)."""
+    from pathlib import Path
+
+    d = Path(out)
+    d.mkdir(parents=True, exist_ok=True)
+    c = Campaign(seed)
+    files = {"fanuc_like.dh.yaml": DH_YAML, "meas.csv": c.csv(c.poses(poses), "P"),
+             "meas.validation.csv": c.csv(c.poses(validation), "V")}
+    for name, text in files.items():
+        (d / name).write_text(text)
+    return [str(d / name) for name in files]
+
+
+if __name__ == "__main__":  # python -m tests.solver.calibration.fanuc_like OUT_DIR
+    import sys
+
+    for path in write_campaign(sys.argv[1] if len(sys.argv) > 1 else "."):
+        print(f"wrote {path}")
