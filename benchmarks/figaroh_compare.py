@@ -39,8 +39,8 @@ Compared, per campaign and seed:
   ``initialize``, ``solve``), in one process, BLAS limited to one thread for both tools
   (``identify`` does so itself; a 2-thread OpenBLAS on these small matrices burns CPU spinning).
 
-Run: ``PYTHONPATH=<worktree>/.shim .venv/bin/python benchmarks/figaroh_compare.py [--seeds 3] [--markdown out.md]``
-(needs the ``bench`` extra: ``pip install figaroh``).  ``docs/identification.md`` quotes its output.
+Run: ``.venv/bin/python benchmarks/figaroh_compare.py [--seeds 3] [--markdown out/figaroh.md]`` after
+``make bench`` (the ``bench`` extra installs ``figaroh``).  ``docs/identification.md`` quotes its output.
 """
 
 from __future__ import annotations
@@ -352,6 +352,7 @@ def main(argv: list | None = None) -> int:
                 print(line, flush=True)
                 rows.append(line)
     if args.markdown:
+        Path(args.markdown).parent.mkdir(parents=True, exist_ok=True)
         Path(args.markdown).write_text("\n".join(rows) + "\n")
     return 0
 
