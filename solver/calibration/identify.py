@@ -25,6 +25,7 @@ weighted by the tracker noise model when the data state it.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
@@ -37,7 +38,7 @@ from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
 
-__all__ = ["MeasurementModel", "Prediction", "IdentificationResult", "identify", "error_stats", "kabsch",
+__all__ = ["MeasurementModel", "Prediction", "IdentificationResult", "identify", "error_stats", "kabsch", "register_targets",
            "observability_indices"]
 
 TRACKER_NAMES = ["tracker_rx", "tracker_ry", "tracker_rz", "tracker_x", "tracker_y", "tracker_z"]
@@ -336,6 +337,40 @@ def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarr
     d = np.sign(np.linalg.det(vt.T @ u.T))
     r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
     return r, ct - r @ cs
+
+
+def register_targets(model: MeasurementModel, theta: np.ndarray, data: MeasurementSet, q: np.ndarray,
+                     r: np.ndarray, t: np.ndarray, iterations: int = 100) -> tuple[np.ndarray, np.ndarray]:
+    """Tracker frame and target offsets of the nominal model, whatever the prior: the starting guess.
+
+    Block coordinate descent on ``sum |R_trk^T (o_k + R_k p_target(k) - t_trk) - m_k|^2`` with the
+    nominal geometry (output poses ``R_k, o_k`` fixed): the tracker frame by Kabsch, then each
+    target offset in closed form, ``p = mean_k R_k^T (R_trk m_k + t_trk - o_k)`` over its
+    observations.  Every step lowers the cost, so the prior (or its absence: targets at the
+    output origin, on the wrist axis of a 6R) only starts the descent; the identifiable set
+    chosen at the start then no longer depends on it (issue 21).  ``theta``'s target offsets
+    are overwritten; returns the tracker rotation and origin in the base frame.
+    """
+    st = model.kin.evaluate(q, model.defects(theta), jacobians=False)
+    rot, org = st.output_pose[:, :3, :3], st.output_pose[:, :3, 3]
+    tidx = model._target_index(data)
+    offsets = theta[model.sl_target].reshape(-1, 3).copy()
+    for _ in range(iterations):
+        measured_world = data.position @ r.T + t
+        local = np.einsum("kji,kj->ki", rot, measured_world - org)  # R_k^T (w_k - o_k)
+        new = offsets.copy()
+        for ti in range(len(offsets)):
+            rows = tidx == ti
+            if rows.any():
+                new[ti] = local[rows].mean(axis=0)
+        world = org + np.einsum("kij,kj->ki", rot, new[tidx])
+        r, t = kabsch(data.position, world)
+        step = float(np.abs(new - offsets).max())
+        offsets = new
+        if step < 1e-9 * max(model.kin.length_scale, 1.0):
+            break
+    theta[model.sl_target] = offsets.ravel()
+    return r, t
 
 
 def error_stats(error: np.ndarray) -> dict:
@@ -740,6 +775,26 @@ def _unidentifiable(model: MeasurementModel, js: np.ndarray, base: list, visible
     return out
 
 
+def _one_blas_thread(func):
+    """Run ``func`` with BLAS limited to one thread.
+
+    The fit's matrices are small (hundreds to a few thousand rows, tens of columns): a
+    multi-threaded OpenBLAS spends more time synchronising than computing, and on a loaded
+    machine its spinning threads cost far more (measured: lstsq + svd of a 450 x 41 matrix,
+    4.7 ms CPU with one thread, 234 ms with two, while other processes used both cores).
+    """
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1, user_api="blas"):
+            return func(*args, **kwargs)
+
+    return wrapper
+
+
+@_one_blas_thread
 def identify(
     mechanism: Mechanism,
     analysis: StationarityResult,
@@ -819,6 +874,8 @@ def identify(
         # rigid registration of the tracker frame on the nominal model (Kabsch), then refine
         nominal_pred = model.predict(theta, data)
         r, t = kabsch(data.position, nominal_pred.world)
+        if not model.effects:
+            r, t = register_targets(model, theta, data, nominal_pred.q, r, t)
         theta[model.sl_tracker] = np.r_[so3_log(r), t]
         q_start = nominal_pred.q
         if oriented:  # target rotations from the first observation of each target

@@ -39,8 +39,7 @@ from hyperstat.solver.kinematics.modelfile import _schema_message, mechanism_fro
 
 __all__ = ["FORMAT", "VERSION", "controller_document", "write_controller", "read_controller", "content_hash",
            "file_sha256", "ControllerModel", "MACHINE_EFFECTS", "build_test_vectors", "build_effect_vectors",
-           "check_test_vectors",
-           "check_controller", "TEST_VECTOR_TOLERANCE"]
+           "check_test_vectors", "check_controller", "TEST_VECTOR_TOLERANCE", "target_offsets", "target_points"]
 
 FORMAT = "hyperstat-controller"
 #: version 2 adds the test vectors (version 1 had none)
@@ -75,7 +74,7 @@ TEST_VECTOR_TOLERANCE = {"length_mm": 1e-9, "angle_rad": 1e-9}
 
 
 def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int = TEST_VECTOR_COUNT,
-                 seed: int = 0) -> dict:
+                 seed: int = 0, targets: dict | None = None) -> dict:
     """Configurations across the workspace with their poses, for checking a port of the model.
 
     The actuated values are drawn uniformly in the middle 80 % of every actuated joint's
@@ -90,7 +89,9 @@ def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int
     dict
         ``tolerance`` (``length_mm``, ``angle_rad``), ``seed`` and ``vectors``: per vector
         ``actuated`` (rad / mm, model order), ``joints`` (every joint, the assembled
-        configuration), ``position`` (mm), ``rotation`` (3 x 3, rows) and ``tool_point`` (mm).
+        configuration), ``position`` (mm), ``rotation`` (3 x 3, rows) and ``tool_point`` (mm);
+        with ``targets`` (name -> offset in the output frame, mm), also ``targets``: name ->
+        the target's position in the base frame (mm).
     """
     kin = Kinematics(mechanism)
     act = mechanism.actuated
@@ -104,6 +105,10 @@ def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int
     tool = pose[:, :3, 3] + pose[:, :3, :3] @ np.asarray(target, dtype=float)
     vectors = [{"actuated": q[k, act].tolist(), "joints": q[k].tolist(), "position": pose[k, :3, 3].tolist(),
                 "rotation": pose[k, :3, :3].tolist(), "tool_point": tool[k].tolist()} for k in range(len(q))]
+    if targets:
+        points = target_points(pose, targets)
+        for k, v in enumerate(vectors):
+            v["targets"] = {name: p[k].tolist() for name, p in points.items()}
     return {"tolerance": dict(TEST_VECTOR_TOLERANCE), "seed": seed, "vectors": vectors}
 
 
@@ -168,6 +173,7 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
     tool = np.array([v["tool_point"] for v in vec], dtype=float)
     point, pose = model.forward(qa, with_effects=False)
     e_pos = np.maximum(np.linalg.norm(pose[:, :3, 3] - pos, axis=1), np.linalg.norm(point - tool, axis=1))
+    _check_target_points(doc, model, pose, tol_mm)
     e_rot = np.linalg.norm(so3_log(pose[:, :3, :3] @ np.transpose(rot, (0, 2, 1))), axis=1)
     wanted = np.tile(np.eye(4), (len(vec), 1, 1))
     wanted[:, :3, :3], wanted[:, :3, 3] = rot, pos
@@ -264,6 +270,9 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
     theta = identification.theta
     xi = model.defects(theta)
     names = [p.name for p in mechanism.parameters]
+    targets = target_offsets(identification)
+    # several targets: the tool point is the output frame's origin, the targets are named offsets in it
+    tool_point = np.zeros(3) if targets else theta[model.sl_target]
     exported = []
     for eff, sl in zip(model.effects, model._effect_slices):
         if eff.name not in MACHINE_EFFECTS:
@@ -288,14 +297,16 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
         "mechanism": mechanism.name,
         "model": mechanism_to_dict(mechanism),
         "defects": {n: float(v) for n, v in zip(names, xi)},
-        "target": [float(v) for v in theta[model.sl_target]],
+        "target": [float(v) for v in tool_point],
         "identified": identified,
         "effects": exported,
         "statistics": json.loads(dumps_json(stats)),
         "provenance": {"source": dict(source or {}),
                        "data": [{"file": Path(f).name, "sha256": file_sha256(f)} for f in data_files]},
-        "test_vectors": build_test_vectors(mechanism, xi, theta[model.sl_target]),
+        "test_vectors": build_test_vectors(mechanism, xi, tool_point, targets=targets),
     }
+    if targets:
+        doc["targets"] = targets
     if tolerances is not None:
         doc["tolerances"] = {"counts": dict(tolerances["counts"]), "task": list(tolerances.get("task", [])),
                              "parameters": {n: {"class": e["class"], "tolerance_id": e["tolerance_id"]}
@@ -369,6 +380,8 @@ class ControllerModel:
             raise DataError(f"controller file: defect '{missing[0]}' of the model has no value.")
         self.xi = np.array([doc["defects"][n] for n in names])
         self.target = np.array(doc["target"], dtype=float)
+        self.targets = {name: np.array(v, dtype=float) for name, v in doc.get("targets", {}).items()}
+        self._linear = np.array([self.mechanism.joints[i].type == "P" for i in self.mechanism.actuated])
         self.effects = []
         for e in doc["effects"]:
             eff = make_effect(e["effect"], self.mechanism, None, None, **dict(e["options"]))
@@ -412,10 +425,14 @@ class ControllerModel:
         return point, pose
 
     def inverse(self, pose: np.ndarray, q_start: np.ndarray | None = None, tol: float = 1e-12,
-                max_iter: int = 60) -> np.ndarray:
+                max_iter: int = 60, restarts: int = 16) -> np.ndarray:
         """Actuated values that bring the output frame to ``pose`` (least squares over its 6 components).
 
-        Effects are not inverted (the rigid identified geometry only).
+        Effects are not inverted (the rigid identified geometry only).  Newton (Gauss-Newton on
+        the pose error, steps capped at 0.3 rad / 0.3 length scales) from ``q_start`` or home;
+        a pose it does not reach (a serial arm far from home can stall in a local minimum) is
+        retried from up to ``restarts`` seeded starts inside the joint ranges, never from the
+        answer.
 
         Parameters
         ----------
@@ -424,24 +441,42 @@ class ControllerModel:
         q_start : ndarray, (K, n_actuated), optional
             Initial guess (default: home).
         """
-        from hyperstat.solver.kinematics.frames import so3_log
-
         pose = np.asarray(pose, dtype=float).reshape(-1, 4, 4)
         act = self.mechanism.actuated
         qa = (np.broadcast_to(self.mechanism.home[act], (len(pose), len(act))) if q_start is None
               else np.atleast_2d(q_start)).astype(float).copy()
+        qa, miss = self._newton(pose, qa, tol, max_iter)
         lc = self.kin.length_scale
-        self._lin = np.array([self.mechanism.joints[i].type == "P" for i in act])
-        for _ in range(max_iter):
+        lo, hi = self.mechanism.ranges[act].T
+        rng = np.random.default_rng(0)
+        for _ in range(restarts):
+            out = np.flatnonzero(~(miss <= 1e-9 * max(1.0, lc)))
+            if not len(out):
+                break
+            start = lo + (hi - lo) * (0.1 + 0.8 * rng.random((len(out), len(act))))
+            q2, m2 = self._newton(pose[out], start, tol, max_iter)
+            better = m2 < miss[out]
+            qa[out[better]], miss[out[better]] = q2[better], m2[better]
+        return qa
+
+    def _newton(self, pose: np.ndarray, qa: np.ndarray, tol: float, max_iter: int) -> tuple[np.ndarray, np.ndarray]:
+        """Capped Newton iterations from ``qa``: (actuated values, remaining pose error per pose, mm-equivalent)."""
+        from hyperstat.solver.kinematics.closure import batched_lstsq
+        from hyperstat.solver.kinematics.frames import so3_log
+
+        act = self.mechanism.actuated
+        lc = self.kin.length_scale
+        qa = qa.copy()
+        for it in range(max_iter + 1):
             res = self.kin.solve(qa, self.xi)
             st = self.kin.evaluate(res.q, self.xi, jacobians=True)
             cur = st.output_pose
             rot_err = so3_log(pose[:, :3, :3] @ np.transpose(cur[:, :3, :3], (0, 2, 1)))
             pos_err = pose[:, :3, 3] - cur[:, :3, 3]
             err = np.concatenate([rot_err * lc, pos_err], axis=1)
+            if it == max_iter:
+                break
             passive = self.mechanism.passive
-            from hyperstat.solver.kinematics.closure import batched_lstsq
-
             if len(passive) and len(self.mechanism.closures):
                 b = self.kin.scaled_rows(st.closure_q[:, :, passive])
                 dp = batched_lstsq(b, self.kin.scaled_rows(st.closure_q[:, :, act]))
@@ -451,14 +486,64 @@ class ControllerModel:
             jac = k_a.copy()
             jac[:, :3] *= lc
             step = batched_lstsq(jac, err[:, :, None])[..., 0]
-            # damped: at most 0.3 (rad, or 0.3 length scales) per iteration, so that Newton from home on a
-            # 6R arm does not leap to another turn of a joint (full steps once near)
-            big = np.max(np.abs(step) / np.where(self._lin, lc, 1.0), axis=1, keepdims=True)
-            step = step * np.minimum(1.0, 0.3 / np.maximum(big, 1e-300))
+            step = _capped(step, self._linear, lc)
             qa = qa + step
             if np.max(np.abs(step)) < tol * max(1.0, lc):
+                res = self.kin.solve(qa, self.xi)
+                cur = self.kin.evaluate(res.q, self.xi, jacobians=False).output_pose
+                rot_err = so3_log(pose[:, :3, :3] @ np.transpose(cur[:, :3, :3], (0, 2, 1)))
+                err = np.concatenate([rot_err * lc, pose[:, :3, 3] - cur[:, :3, 3]], axis=1)
                 break
-        return qa
+        return qa, np.linalg.norm(err, axis=1)
+
+
+def _capped(step: np.ndarray, linear: np.ndarray, length_scale: float, cap: float = 0.3) -> np.ndarray:
+    """Newton steps (K, n_actuated) scaled down per pose so that no revolute joint turns by more than
+    ``cap`` rad and no prismatic one moves by more than ``cap`` length scales: from home, an
+    undamped step of a 6R arm can overshoot by turns and diverge (found on a FANUC-like file)."""
+    size = np.max(np.abs(step) / np.where(linear, cap * length_scale, cap), axis=1, initial=0.0)
+    return step / np.maximum(size, 1.0)[:, None]
+
+
+def target_offsets(identification) -> dict | None:
+    """Named target offsets (output frame, mm) of an identification with several targets, else None.
+
+    Several SMRs on one tool are one geometry and one offset per target (issue 21): the
+    controller file then keeps the output frame's origin as its tool point (``target`` is zero)
+    and lists the identified offsets by name (``targets``).  The tool frame's own defects are
+    held at their prior there (the offsets absorb them), so the tool point is where the model
+    puts the tool frame; the SMRs are where they were measured.
+    """
+    model = identification.model
+    if len(model.targets) < 2:
+        return None
+    offsets = np.asarray(identification.theta[model.sl_target], dtype=float).reshape(-1, 3)
+    return {str(name): [float(v) for v in off] for name, off in zip(model.targets, offsets)}
+
+
+def target_points(pose: np.ndarray, targets: dict) -> dict:
+    """Base-frame positions (mm) of named targets at output poses ``pose`` (K, 4, 4): name -> (K, 3)."""
+    return {name: pose[:, :3, 3] + pose[:, :3, :3] @ np.asarray(off, dtype=float) for name, off in targets.items()}
+
+
+def _check_target_points(doc: dict, model: "ControllerModel", pose: np.ndarray, tol_mm: float) -> None:
+    """The test vectors' target positions re-evaluated from the file's offsets (several targets only)."""
+    vec = doc["test_vectors"]["vectors"]
+    if not model.targets:
+        if any("targets" in v for v in vec):
+            raise DataError("controller file: test vectors list target positions, but the file has no 'targets'.")
+        return
+    points = target_points(pose, model.targets)
+    for k, v in enumerate(vec):
+        given = v.get("targets", {})
+        if set(given) != set(points):
+            raise DataError(f"controller file: test vector {k} lists targets {sorted(given)}, the file's 'targets' "
+                            f"are {sorted(points)}.")
+        for name, p in points.items():
+            err = float(np.linalg.norm(p[k] - np.asarray(given[name], dtype=float)))
+            if not err <= tol_mm:
+                raise DataError(f"controller file: test vector {k}: target '{name}' is {err:.3g} mm from the file's "
+                                f"(tolerance {tol_mm:g} mm).")
 
 
 def check_controller(path: str | os.PathLike) -> dict:

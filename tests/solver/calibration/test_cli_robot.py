@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 
 import numpy as np
 import pytest
 
 from hyperstat.cad_plugin.cli import main
-from tests.solver.calibration.test_robot_calibration import DH_YAML, Campaign
+from tests.solver.calibration.fanuc_like import DH_YAML, NOMINAL, Campaign, dh_matrix
 
 
 @pytest.fixture(scope="module")
@@ -105,3 +106,65 @@ def test_joint_map_option_overrides_the_models(workflow, tmp_path, capsys):
     assert main(["identify", str(model), str(data), "--joint-map", str(raw)]) == 0
     out = capsys.readouterr().out
     assert "warning: ABSURD FIT: sigma = " in out and "q3 = J3 + J2" in out
+
+
+def test_controller_file_with_three_targets(workflow, tmp_path, capsys):
+    """export-controller on the 3-SMR campaign: one tool point (the output frame's origin) and the
+    three named target offsets; check-controller re-evaluates every target point of the test
+    vectors; the exported points reproduce the *true* robot's geometry (the generator's DH
+    product) to the calibration's accuracy, checked on frame-free distances between SMRs at two
+    configurations; a target offset edited after export (hash recomputed) is refused by name."""
+    import hashlib
+
+    from hyperstat.solver.export.controller import content_hash
+
+    t = workflow
+    model = tmp_path / "m.skel.json"
+    assert main(["import-robot", str(t / "fanuc_like.dh.yaml"), "--out", str(model), "--quiet"]) == 0
+    out = tmp_path / "machine.json"
+    assert main(["export-controller", str(model), str(t / "meas.csv"), "--validation", str(t / "meas.validation.csv"),
+                 "--out", str(out), "--quiet"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["target"] == [0.0, 0.0, 0.0] and set(doc["targets"]) == {"SMR1", "SMR2", "SMR3"}
+    # the offsets are the identification's (same data, same deterministic fit)
+    assert main(["identify", str(model), str(t / "meas.csv"), "--json", str(tmp_path / "id.json"), "--quiet"]) == 0
+    est = {p["name"]: p["estimate"] for p in json.loads((tmp_path / "id.json").read_text())["parameters"]}
+    for name, off in doc["targets"].items():
+        assert np.allclose(off, [est[f"target_{name}_{a}"] for a in "xyz"], atol=1e-9)
+    assert main(["check-controller", str(out)]) == 0
+    assert "test vectors re-evaluated" in capsys.readouterr().out
+    # against the truth: distances between target points at two configurations do not depend on the
+    # base frame (which the tracker frame absorbs); the generator's true robot gives them too
+    c = Campaign(21)
+    vec = doc["test_vectors"]["vectors"]
+    true, nominal = {}, {}
+    for k, v in enumerate(vec):
+        q = np.array(v["actuated"])
+        f = c.flange(q)
+        n = np.eye(4)
+        for (a, al, d, th), qi in zip(NOMINAL, q):
+            n = n @ dh_matrix(math.radians(th) + qi, d, a, math.radians(al))
+        for name, off in doc["targets"].items():
+            true[k, name] = f[:3, :3] @ c.targets[name] + f[:3, 3]
+            nominal[k, name] = n[:3, :3] @ np.array(off) + n[:3, 3]
+    errors, nominal_errors = [], []
+    for k in range(len(vec)):
+        j = (k + 1) % len(vec)
+        for a, b in (("SMR1", "SMR2"), ("SMR2", "SMR3"), ("SMR3", "SMR1")):
+            d_true = np.linalg.norm(true[k, a] - true[j, b])
+            errors.append(abs(np.linalg.norm(np.subtract(vec[k]["targets"][a], vec[j]["targets"][b])) - d_true))
+            nominal_errors.append(abs(np.linalg.norm(nominal[k, a] - nominal[j, b]) - d_true))
+    # mm: each point carries the calibration's prediction error (noise 3-D RMS about 0.054 mm here,
+    # 150 observations for 33 parameters), a distance two of them
+    assert max(errors) < 0.1, max(errors)
+    assert np.median(errors) < 0.05
+    assert np.median(nominal_errors) > 10 * np.median(errors)  # the nominal geometry is far off
+    # an offset edited after export, hash recomputed: the test vectors no longer match, named
+    doc["targets"]["SMR2"][0] += 0.01
+    doc["sha256"] = content_hash(doc)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    assert main(["check-controller", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "target 'SMR2' is 0.01 mm from the file's" in err
+    assert hashlib.sha256(out.read_bytes()).hexdigest() != hashlib.sha256(bad.read_bytes()).hexdigest()

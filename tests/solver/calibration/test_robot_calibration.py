@@ -2,7 +2,7 @@
 
 Units: lengths in mm, angles in rad in the code; the files use deg and m where stated.
 
-The campaign is simulated here by a generator that shares no code with hyperstat (not
+The campaign is simulated by the generator of :mod:`tests.solver.calibration.fanuc_like`, which shares no code with hyperstat (not
 with :mod:`hyperstat.solver.calibration.virtual` either): its own standard-DH forward
 kinematics ``T_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i)`` on a *true* table
 (the nominal one perturbed), its own tracker frame, three targets (SMRs) on the tool,
@@ -25,151 +25,8 @@ from hyperstat.solver.calibration.identify import identify
 from hyperstat.solver.calibration.measurements import read_measurements
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.robot_import import import_robot
-
-# nominal table: a, alpha (deg), d, theta (deg); FANUC R-2000iC-like proportions (mm)
-NOMINAL = [(312.0, -90.0, 670.0, 0.0), (1075.0, 0.0, 0.0, -90.0), (225.0, -90.0, 0.0, 0.0),
-           (0.0, 90.0, 1280.0, 0.0), (0.0, -90.0, 0.0, 0.0), (0.0, 0.0, 215.0, 0.0)]
-LIMITS_DEG = [(-180, 180), (-60, 75), (-70, 70), (-180, 180), (-120, 120), (-180, 180)]
-TARGETS = {"SMR1": (110.0, 0.0, 60.0), "SMR2": (-70.0, 95.0, 45.0), "SMR3": (10.0, -85.0, 130.0)}
-J6_OFFSET_DEG = 0.5
-NOISE_A, NOISE_B = 0.010, 0.005  # 1-sigma per axis: mm + mm per m of distance
-
-DH_YAML = """\
-format: hyperstat-dh
-version: 1
-name: fanuc_like
-convention: dh
-units: {length: mm, angle: deg}
-joints:
-""" + "".join(
-    f"  - {{name: \"{i + 1}\", type: R, a: {a}, alpha: {al}, d: {d}, theta: {th}, min: {lo}, max: {hi}}}\n"
-    for i, ((a, al, d, th), (lo, hi)) in enumerate(zip(NOMINAL, LIMITS_DEG))) + f"""\
-joint_map:
-  units: {{angle: deg}}
-  joints:
-    "1": {{J1: 1}}
-    "2": {{J2: -1}}
-    "3": {{J3: 1, J2: 1}}
-    "4": {{J4: -1}}
-    "5": {{J5: 1}}
-    "6": {{J6: 1, offset: {J6_OFFSET_DEG}}}
-"""
-
-
-# ---------------------------------------------------------------------- independent generator
-def _dh(theta: float, d: float, a: float, alpha: float) -> np.ndarray:
-    ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
-    return np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0, sa, ca, d], [0, 0, 0, 1]])
-
-
-def _rotvec(w: np.ndarray) -> np.ndarray:
-    t = float(np.linalg.norm(w))
-    k = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / t
-    return np.eye(3) + math.sin(t) * k + (1 - math.cos(t)) * k @ k
-
-
-def _quaternion(r: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method)."""
-    tr = np.trace(r)
-    if tr > 0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        return np.array([0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s])
-    i = int(np.argmax(np.diag(r)))
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = 2.0 * math.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
-    out = np.zeros(4)
-    out[0] = (r[k, j] - r[j, k]) / s
-    out[1 + i] = 0.25 * s
-    out[1 + j] = (r[j, i] + r[i, j]) / s
-    out[1 + k] = (r[k, i] + r[i, k]) / s
-    return out
-
-
-class Campaign:
-    """The true robot, tracker and targets, and the measurements they give."""
-
-    def __init__(self, seed: int, errors: float = 1.0, noise: tuple = (NOISE_A, NOISE_B)) -> None:
-        rng = np.random.default_rng(seed)
-        self.rng = rng
-        self.noise = noise
-        e = errors
-        self.table = [(a + e * rng.uniform(-0.5, 0.5), math.radians(al) + e * rng.uniform(-1e-3, 1e-3),
-                       d + e * rng.uniform(-0.5, 0.5), math.radians(th) + e * rng.uniform(-1e-3, 1e-3))
-                      for a, al, d, th in NOMINAL]
-        tool = np.eye(4)
-        tool[:3, :3] = _rotvec(e * rng.uniform(-2e-3, 2e-3, 3) + 1e-9)
-        tool[:3, 3] = e * rng.uniform(-0.3, 0.3, 3)
-        self.tool = tool
-        self.targets = {k: np.array(v) + rng.uniform(-0.2, 0.2, 3) for k, v in TARGETS.items()}
-        self.target_rot = {k: _rotvec(rng.uniform(-0.5, 0.5, 3)) for k in TARGETS}
-        self.tracker_r = _rotvec(np.array([0.05, -0.1, 0.6]))
-        self.tracker_t = np.array([3200.0, -1400.0, -300.0])
-
-    def flange(self, q: np.ndarray) -> np.ndarray:
-        t = np.eye(4)
-        for (a, al, d, th), qi in zip(self.table, q):
-            t = t @ _dh(th + qi, d, a, al)
-        return t @ self.tool
-
-    def poses(self, n: int) -> np.ndarray:
-        lo, hi = np.radians(np.array(LIMITS_DEG, float)).T
-        return lo + 0.8 * (hi - lo) * (0.5 + (self.rng.random((n, 6)) - 0.5))
-
-    def measure(self, q: np.ndarray, target: str) -> np.ndarray:
-        f = self.flange(q)
-        world = f[:3, :3] @ self.targets[target] + f[:3, 3]
-        p = self.tracker_r.T @ (world - self.tracker_t)
-        sigma = self.noise[0] + self.noise[1] * np.linalg.norm(p) / 1000.0
-        return p + self.rng.normal(0.0, sigma, 3)
-
-    def measure_pose(self, q: np.ndarray, target: str, sigma_rad: float) -> tuple[np.ndarray, np.ndarray]:
-        """Position (mm) and orientation quaternion (w, x, y, z) of a 6-D target in the tracker frame."""
-        f = self.flange(q)
-        r = self.tracker_r.T @ f[:3, :3] @ self.target_rot[target]
-        r = _rotvec(self.rng.normal(0.0, sigma_rad, 3)) @ r
-        return self.measure(q, target), _quaternion(r)
-
-    @staticmethod
-    def controller(q: np.ndarray) -> np.ndarray:
-        """FANUC-like controller readings (deg) of model joints q (rad): the inverse of the joint map."""
-        qd = np.degrees(q)
-        j2 = -qd[1]
-        return np.array([qd[0], j2, qd[2] - j2, -qd[3], qd[4], qd[5] - J6_OFFSET_DEG])
-
-    def csv(self, q: np.ndarray, prefix: str, priors: bool = True, stacked: bool = False,
-            metres: bool = True, only: tuple | None = None) -> str:
-        targets = {k: v for k, v in TARGETS.items() if only is None or k in only}
-        unit = "m" if metres else "mm"
-        f = 1e-3 if metres else 1.0
-        lines = ["# hyperstat measurements, version 1", "# mechanism: fanuc_like",
-                 f"# noise: {self.noise[0]} mm + {self.noise[1]} mm/m"]
-        if priors:
-            lines += [f"# target {k}: " + " ".join(f"{v + 8 * s:.1f}" for v, s in zip(c, (1, -1, 1)))
-                      for k, c in targets.items()]
-        cols = ["pose"] + [f"J{i}[deg]" for i in range(1, 7)]
-        if stacked:
-            cols += [f"x[{unit}]", f"y[{unit}]", f"z[{unit}]"]
-        else:
-            cols += [f"{a}_{k}[{unit}]" for k in targets for a in "xyz"]
-        lines.append(",".join(cols))
-        for i, qi in enumerate(q):
-            jc = self.controller(qi)
-            if stacked:  # one row per SMR, as if they were one target (readings differ by encoder jitter)
-                for k in targets:
-                    jitter = jc + self.rng.normal(0.0, 1e-4, 6)
-                    lines.append(",".join([f"{prefix}{i + 1}{k}"] + [repr(float(v)) for v in jitter]
-                                          + [f"{v * f:.10f}" for v in self.measure(qi, k)]))
-            else:
-                vals = [v * f for k in targets for v in self.measure(qi, k)]
-                lines.append(",".join([f"{prefix}{i + 1}"] + [repr(float(v)) for v in jc] + [f"{v:.10f}" for v in vals]))
-        return "\n".join(lines) + "\n"
-
-
-def noise_rms(data) -> float:
-    """3-D noise RMS the generator used (mm), from the measured distances."""
-    s = NOISE_A + NOISE_B * np.linalg.norm(data.position, axis=1) / 1000.0
-    return float(np.sqrt(np.mean(3 * s**2)))
-
+from tests.solver.calibration.fanuc_like import (DH_YAML, J6_OFFSET_DEG, NOISE_A, NOISE_B, NOMINAL, TARGETS, Campaign,
+                                                  dh_matrix, noise_rms)
 
 # ---------------------------------------------------------------------- fixtures
 @pytest.fixture(scope="module")
@@ -204,7 +61,7 @@ def test_dh_import_matches_the_generators_forward_kinematics(robot):
     for k in range(20):
         t = np.eye(4)
         for (a, al, d, th), qi in zip(NOMINAL, q[k]):
-            t = t @ _dh(math.radians(th) + qi, d, a, math.radians(al))
+            t = t @ dh_matrix(math.radians(th) + qi, d, a, math.radians(al))
         assert np.abs(t - pose[k]).max() < 1e-9
 
 
@@ -244,12 +101,17 @@ def test_joint_map_applied_when_reading(robot, tmp_path):
     np.testing.assert_allclose(data.q[::3], q, atol=1e-12)
 
 
-def test_rank_and_estimates_do_not_depend_on_the_target_prior(robot, tmp_path):
+@pytest.mark.parametrize("seed", [7, 100])
+def test_rank_and_estimates_do_not_depend_on_the_target_prior(robot, tmp_path, seed):
     """Same data with and without '# target' priors (+-8 mm off): same rank, same base set, same
-    estimates within their std.  Without a prior the targets start on the wrist axis, where the
-    rotation about it is invisible; the set is decided again at the solution."""
+    estimates within their std.  Without a prior the targets would start on the wrist axis, where
+    the rotation about it is invisible: the start registers the tracker and the targets on the
+    nominal model first (the prior only starts that descent), and the set is decided again at the
+    solution.  Seed 100 gave rank 31 without the prior and 33 with it before the registration
+    (two wrist directions, seen only at the solution, were held back by the nested chi-square
+    test)."""
     mech, analysis = robot
-    c = Campaign(7)
+    c = Campaign(seed)
     q = c.poses(40)
     state = c.rng.bit_generator.state
     with_prior = tmp_path / "with.csv"
@@ -260,7 +122,7 @@ def test_rank_and_estimates_do_not_depend_on_the_target_prior(robot, tmp_path):
     a = identify(mech, analysis, read_measurements(with_prior, mech))
     b = identify(mech, analysis, read_measurements(without, mech))
     assert a.rank == b.rank and a.base == b.base
-    assert b.base_rounds[0] <= b.base_rounds[-1]  # the start may see less; the solution decides
+    assert a.base_rounds == b.base_rounds and a.held_back is None and b.held_back is None
     ea, eb = a.estimates(), b.estimates()
     std = {p["name"]: p["std"] for p in a.parameters if p["identifiable"]}
     for name in a.base:
@@ -376,7 +238,7 @@ def test_corrected_dh_table_follows_the_calibrated_model(robot, calibrated, tmp_
     for k in range(len(q)):
         t = back.base.copy()
         for j, qi in zip(back.joints, q[k]):
-            t = t @ _dh(j.theta + qi, j.d, j.a, j.alpha)
+            t = t @ dh_matrix(j.theta + qi, j.d, j.a, j.alpha)
         t = t @ back.tool
         assert np.linalg.norm(t[:3, 3] - ours[k, :3, 3]) < table["max_deviation_mm"] * 1.5 + 1e-6
 
