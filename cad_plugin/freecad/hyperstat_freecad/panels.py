@@ -333,7 +333,8 @@ class ParametersPanel(_JobPanel):
 
 class _NonModal:
     """A panel that only shows results: while it is open, the workbench's and FreeCAD's commands stay
-    available (FreeCAD greys out document-changing commands while a task panel forbids it)."""
+    available (FreeCAD greys out document-changing commands while a task panel forbids it). Its one
+    button is Close."""
 
     def isAllowedAlterDocument(self) -> bool:
         return True
@@ -342,6 +343,19 @@ class _NonModal:
         return True
 
     def isAllowedAlterSelection(self) -> bool:
+        return True
+
+    def getStandardButtons(self) -> int:
+        from PySide import QtGui
+
+        return int(QtGui.QDialogButtonBox.Close)
+
+    def accept(self) -> bool:
+        _close()
+        return True
+
+    def reject(self) -> bool:
+        _close()
         return True
 
 
@@ -428,19 +442,6 @@ class ResultsPanel(_NonModal):
             if sphere is not None:
                 FreeCADGui.Selection.addSelection(sphere)
 
-    def getStandardButtons(self) -> int:
-        from PySide import QtGui
-
-        return int(QtGui.QDialogButtonBox.Close)
-
-    def accept(self) -> bool:
-        _close()
-        return True
-
-    def reject(self) -> bool:
-        _close()
-        return True
-
 
 def _fit_dock(widget, min_height: int) -> None:
     """Let a wide widget shrink to FreeCAD's default dock width (it scrolls instead of widening the panel)."""
@@ -479,19 +480,6 @@ class TextPanel(_NonModal):
         self.text.setFont(QtGui.QFont("Monospace"))
         self.text.setPlainText(text)
         layout.addWidget(self.text)
-
-    def getStandardButtons(self) -> int:
-        from PySide import QtGui
-
-        return int(QtGui.QDialogButtonBox.Close)
-
-    def accept(self) -> bool:
-        _close()
-        return True
-
-    def reject(self) -> bool:
-        _close()
-        return True
 
 
 def open_parameters(obj) -> None:
@@ -606,19 +594,6 @@ class _ReportPanel(_NonModal):
         toggle.toggled.connect(self.text.setVisible)
         layout.addWidget(toggle)
         layout.addWidget(self.text)
-
-    def getStandardButtons(self) -> int:
-        from PySide import QtGui
-
-        return int(QtGui.QDialogButtonBox.Close)
-
-    def accept(self) -> bool:
-        _close()
-        return True
-
-    def reject(self) -> bool:
-        _close()
-        return True
 
 
 def _um(value) -> str:
