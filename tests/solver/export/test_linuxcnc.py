@@ -21,13 +21,6 @@ from hyperstat.solver.export.linuxcnc import genhexkins_parameters, hal_lines, s
 from tests.conftest import TEMPLATES
 
 
-@pytest.fixture(scope="module")
-def hexapod():
-    from hyperstat.cad_plugin.templates import build_template
-
-    return build_template(TEMPLATES / "hexapod.py").mechanism()
-
-
 def test_strut_lengths_match_the_model(hexapod):
     params = genhexkins_parameters(hexapod)
     kin = Kinematics(hexapod)
@@ -75,48 +68,28 @@ def test_genhexkins_loads_our_parameters(hexapod):
                 assert read[f"genhexkins.{kind}.{n}.{axis}"] == pytest.approx(v, rel=1e-5, abs=1e-9)  # halcmd prints 6 digits
 
 
-@pytest.fixture(scope="module")
-def identified_hexapod_file(hexapod, tmp_path_factory):
-    """Controller file of an identified hexapod (virtual machine with random defects, seed 0)."""
-    import warnings
-
-    from hyperstat.solver.analysis.stationarity import analyze
-    from hyperstat.solver.calibration.identify import identify
-    from hyperstat.solver.calibration.virtual import VirtualMachine
-    from hyperstat.solver.export.controller import controller_document, write_controller
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        analysis = analyze(hexapod, n_configurations=24, seed=0)
-        vm = VirtualMachine.random(hexapod, analysis, seed=0)
-        q = vm.poses(60, seed=1)
-        res = identify(hexapod, analysis, vm.measure(q[:40], seed=3), vm.measure(q[40:], seed=4, prefix="V"))
-    path = tmp_path_factory.mktemp("hexid") / "machine.json"
-    return write_controller(path, controller_document(hexapod, res, (), {"source": "hexapod.py"}))
-
-
-def test_hexapod_export_refuses_an_unrepresentable_identified_model(identified_hexapod_file, tmp_path, capsys):
+def test_hexapod_export_refuses_an_unrepresentable_identified_model(identified_hexapod_controller, tmp_path, capsys):
     """Random U-joint / axis defects: genhexkins' joint-centre model misses them by far more than the noise."""
     from hyperstat.solver.cli import main
     from hyperstat.solver.export.controller import ControllerModel, read_controller
 
-    doc = read_controller(identified_hexapod_file)
+    doc = read_controller(identified_hexapod_controller)
     model = ControllerModel(doc)
     params = genhexkins_parameters(model.mechanism, model.xi)
     noise = doc["statistics"]["noise_rms"]
     assert params["max_strut_difference_mm"] > 100 * noise  # the premise: not representable
     hal = tmp_path / "hex.hal"
-    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(hal)]) == 2
+    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_controller), "--hal", str(hal)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "cannot represent" in err and "noise floor" in err
     assert not hal.exists()  # nothing half-written
     # the user's threshold decides: above the difference, the export goes through (and says the difference)
     limit = 2 * params["max_strut_difference_mm"]
-    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(hal),
+    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_controller), "--hal", str(hal),
                  "--max-error", str(limit)]) == 0
     assert hal.is_file() and "largest strut-length difference" in capsys.readouterr().out
     # and below it, refused again, naming the option
-    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_file), "--hal", str(tmp_path / "b.hal"),
+    assert main(["export-linuxcnc", "--controller", str(identified_hexapod_controller), "--hal", str(tmp_path / "b.hal"),
                  "--max-error", str(params["max_strut_difference_mm"] / 2)]) == 2
     assert "--max-error" in capsys.readouterr().err
 

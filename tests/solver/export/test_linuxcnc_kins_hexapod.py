@@ -12,7 +12,6 @@ kinematics, the reference forward pose.  One LinuxCNC start for the module.
 
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 import pytest
@@ -22,35 +21,15 @@ from hyperstat.solver.export.controller import ControllerModel, read_controller
 from hyperstat.solver.export.linuxcnc import genhexkins_parameters
 from hyperstat.solver.export.linuxcnc_sim import build_component, remove_component, run_moves
 
-from tests.conftest import TEMPLATES
 
 N_POSES = 20
 
 
 @pytest.fixture(scope="module")
-def machine_file(tmp_path_factory):
-    from hyperstat.cad_plugin.templates import build_template
-    from hyperstat.solver.analysis.stationarity import analyze
-    from hyperstat.solver.calibration.identify import identify
-    from hyperstat.solver.calibration.virtual import VirtualMachine
-    from hyperstat.solver.export.controller import controller_document, write_controller
-
-    hexapod = build_template(TEMPLATES / "hexapod.py").mechanism()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        analysis = analyze(hexapod, n_configurations=24, seed=0)
-        vm = VirtualMachine.random(hexapod, analysis, seed=0)
-        q = vm.poses(60, seed=1)
-        res = identify(hexapod, analysis, vm.measure(q[:40], seed=3), vm.measure(q[40:], seed=4, prefix="V"))
-    path = tmp_path_factory.mktemp("hexkins") / "machine.json"
-    return write_controller(path, controller_document(hexapod, res, (), {"source": "hexapod.py"}))
-
-
-@pytest.fixture(scope="module")
-def run(machine_file, tmp_path_factory):
+def run(identified_hexapod_controller, tmp_path_factory):
     out = tmp_path_factory.mktemp("kins")
-    assert main(["export-linuxcnc-kins", "--controller", str(machine_file), "--out", str(out), "--quiet"]) == 0
-    model = ControllerModel(read_controller(machine_file))
+    assert main(["export-linuxcnc-kins", "--controller", str(identified_hexapod_controller), "--out", str(out), "--quiet"]) == 0
+    model = ControllerModel(read_controller(identified_hexapod_controller))
     mech = model.mechanism
     lo, hi = mech.ranges[mech.actuated].T
     qa = lo + (hi - lo) * (0.2 + 0.6 * np.random.default_rng(11).random((N_POSES, 6)))
