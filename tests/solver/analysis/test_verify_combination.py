@@ -169,3 +169,20 @@ def test_a_relation_that_does_not_exist_is_caught():
     # every other check confirmed, but the isogram's exact closure of a random admissible vector (first
     # order: test_combinations_are_confirmed_at_every_configuration)
     assert all(c.confirmed for c in checks if c.subject != "da1 - db2 = 0" and c.kind != EXACT)
+
+
+def test_analyze_verify_reports_the_exact_closure_in_text_and_json(tmp_path, capsys):
+    import json
+
+    from hyperstat.solver.cli import main
+    from tests.solver.kinematics.fourbar import write_fourbar
+
+    path = write_fourbar(tmp_path / "crank_rocker.json", *CRANK_ROCKER, 0.5, +1, (-np.pi, np.pi), name="cr")
+    out = tmp_path / "cr.analysis.json"
+    assert main(["analyze", str(path), "--verify", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    line = next(t for t in text.splitlines() if EXACT in t)
+    assert "confirmed" in line and "after the smallest correction" in line and "second order" in line
+    entry = next(v for v in json.loads(out.read_text())["verification"] if v["kind"] == EXACT)
+    assert entry["confirmed"] and entry["residual"] < 1e-12 * 100.0
+    assert 8 < entry["correction"] / entry["correction_small"] < 12 and entry["uncorrected"] > 1e3 * entry["residual"]
