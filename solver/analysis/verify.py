@@ -205,6 +205,14 @@ def closing_correction(
     -------
     Correction
     """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):  # small dense problems: see verify()
+        return _closing_correction(kin, q0, xi, max_iter)
+
+
+def _closing_correction(kin: Kinematics, q0: np.ndarray, xi: np.ndarray, max_iter: int) -> Correction:
+    """Body of :func:`closing_correction`."""
     passive = kin.mechanism.passive
     scale = kin.parameter_scale
     jscale = kin.joint_scale[passive]
@@ -212,9 +220,12 @@ def closing_correction(
     c = np.zeros_like(u)
     q = kin.assemble(q0.copy(), xi).q
     it = 0
-    for it in range(1, max_iter + 1):
+    while it < max_iter:
         st = kin.evaluate(q, (u + c) * scale)
         r = _dimensionless_residual(kin, st.residual)
+        if float(np.max(np.abs(r), initial=0.0)) < 1e-14:  # closed to round-off (dimensionless): no step
+            break
+        it += 1
         a = kin.dimensionless(st.closure_xi, scale)
         if len(passive):
             b = kin.dimensionless(st.closure_q[:, :, passive], jscale)
@@ -226,7 +237,7 @@ def closing_correction(
         m = (proj @ a).reshape(-1, a.shape[2])
         rhs = (proj @ r[..., None]).reshape(-1)
         w, sv, vt = np.linalg.svd(m, full_matrices=False)
-        keep = int(np.sum(sv > 1e-8 * sv[0]))
+        keep = int(np.sum(sv > 1e-8 * sv[0])) if sv.size and sv[0] > 0 else 0  # no constraint left: c stays
         target = m @ c - rhs
         c_new = vt[:keep].T @ ((w[:, :keep].T @ target) / sv[:keep])
         dc = c_new - c
@@ -237,8 +248,8 @@ def closing_correction(
             step = float(np.max(np.abs(dq)))
         else:
             step = 0.0
-        step = max(step, float(np.max(np.abs(dc))))
-        if step < 1e-14 or float(np.max(np.abs(r))) < 1e-14:  # closed to round-off (dimensionless)
+        step = max(step, float(np.max(np.abs(dc), initial=0.0)))
+        if step < 1e-14:  # nothing left to move
             break
     fixed = (u + c) * scale
     final = kin.assemble(q0.copy(), fixed, tol=1e-13, max_iter=60)

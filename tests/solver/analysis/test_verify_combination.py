@@ -127,6 +127,22 @@ def test_a_bennett_twist_with_unequal_opposite_links_needs_a_first_order_correct
             assert not check.confirmed and 0.8 < ratio < 1.25 and check.correction > 1e-2
 
 
+@pytest.mark.parametrize("template", ["tripteor_x7", "five_bar", "hexapod", "triflex_ii", "scara"])
+def test_every_template_closes_exactly_after_at_most_a_second_order_correction(template):
+    import hyperstat as hs
+
+    m = hs.load(template)
+    kin = Kinematics(m)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = analyze(m, kinematics=kin)
+    check = next(c for c in combination_checks(m, res, kinematics=kin) if c.kind == EXACT)
+    assert check.confirmed, check.note
+    assert check.residual < 1e-12 * kin.length_scale and check.residual_small < 1e-12 * kin.length_scale
+    # second order (tenfold smaller at a tenth of the defect) or none at all (no over-constraint left)
+    assert check.correction < 1e-9 or 8 < check.correction / check.correction_small < 12
+
+
 @pytest.mark.parametrize("template", ["slider_crank"])
 def test_a_planar_mechanism_admissible_combination_assembles_as_it_is(template):
     import hyperstat as hs
