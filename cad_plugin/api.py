@@ -17,15 +17,17 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hyperstat.solver.analysis.stationarity import StationarityResult
-from hyperstat.solver.calibration.identify import IdentificationResult
-from hyperstat.solver.calibration.measurements import MeasurementSet, read_measurements
-from hyperstat.solver.diagnosis.diagnose import Diagnosis
 from hyperstat.solver.errors import HyperstatError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
+
+if TYPE_CHECKING:  # imported where used: the identification and the diagnosis pull in scipy's optimisers
+    from hyperstat.solver.calibration.identify import IdentificationResult
+    from hyperstat.solver.calibration.measurements import MeasurementSet
+    from hyperstat.solver.diagnosis.diagnose import Diagnosis
 
 __all__ = ["load", "analyze", "accuracy", "identify", "diagnose", "report", "template_path"]
 
@@ -192,6 +194,8 @@ def accuracy(mechanism: Mechanism, analysis: StationarityResult | None = None, c
 
 
 def _measurements(data: MeasurementSet | str | Path | None, mechanism: Mechanism) -> MeasurementSet | None:
+    from hyperstat.solver.calibration.measurements import MeasurementSet, read_measurements
+
     if data is None or isinstance(data, MeasurementSet):
         return data
     return read_measurements(data, mechanism)
