@@ -521,6 +521,11 @@ def exact_closure_check(
         Kind ``"combination admissible, closed exactly"``: ``residual`` (mm) after the
         correction, ``correction`` and ``correction_small`` (``|c| / |u|``), ``uncorrected``
         (mm, the closure residual of the plain least-squares re-assembly).
+
+    Raises
+    ------
+    ValueError
+        If ``direction`` is zero.
     """
     scale = kin.parameter_scale
     lc = kin.length_scale
@@ -531,6 +536,8 @@ def exact_closure_check(
         limits.append(realistic[0] / np.max(np.abs(phys[~is_length])))
     if np.any(is_length) and np.max(np.abs(phys[is_length])) > 0:
         limits.append(realistic[1] / np.max(np.abs(phys[is_length])))
+    if not limits:
+        raise ValueError("exact_closure_check: the direction is zero.")
     xi = phys * min(limits)
     size = float(np.max(np.abs(xi / scale)))
     uncorrected = reassembly_residual(kin, q0, xi)[0]
