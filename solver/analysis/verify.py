@@ -34,7 +34,10 @@ made **in combination**, at *every* analysed configuration (:func:`combination_c
   defect (``|c| ~ |u|^2``).  That is what "admissible" claims: the admissible subspace is the
   tangent space of a real family of assemblable mechanisms, and a random point of it lies
   within ``O(|u|^2)`` of that family.  A direction that only looks admissible (a forced
-  one in the basis) needs a first-order correction and is caught;
+  one in the basis) needs a first-order correction and is caught; so does an admissible
+  subspace that is the span of several families meeting at the nominal geometry (an
+  isogram: planar four-bars of any link lengths, and Bennett linkages, which need equal
+  opposite links), where each family assembles but not every combination;
 * for each relation, the same vector plus a component that violates only that relation
   does not re-assemble: its residual is first order and matches the linear prediction.
 """
@@ -186,7 +189,7 @@ def closing_correction(
     spherical and the Bennett modes: the direction that separates the two families gets a
     singular value of the order of the defect), and the correction must be allowed to use it.
     The iteration converges quadratically when the defects are near a real family of
-    assemblable mechanisms; ``|c|`` is then the distance to that family, of second order in
+    assemblable mechanisms; ``|c|`` is then about the distance to that family, of second order in
     ``|u|`` when ``u`` lies in the admissible subspace (its tangent space), of first order when
     ``u`` has a forced part.
 
