@@ -6,9 +6,9 @@ A report spends a good part of its time drawing: the skeleton views (pyvista / V
 diagnosis plots (matplotlib), each with its library's import.  Neither depends on what the
 command computes next, so on a machine with a free core they are drawn by a forked child
 while the parent verifies, diagnoses and allocates.  The result is the same bytes as drawing
-in-process: if fork is not available (Windows, macOS' default), ``HYPERSTAT_NO_FORK`` is set,
-or the child fails or hangs, :meth:`Background.result` draws in-process, so an error is
-raised exactly as without the child.
+in-process: off Linux (fork without exec is unsafe with macOS' system libraries, Windows has
+no fork), with ``HYPERSTAT_NO_FORK`` set, or when the child fails or hangs,
+:meth:`Background.result` draws in-process, so an error is raised exactly as without the child.
 """
 
 from __future__ import annotations
@@ -55,8 +55,8 @@ class Background:
         self._fn, self._args = fn, args
         self._proc = None
         self._path = None
-        if os.environ.get("HYPERSTAT_NO_FORK") or sys.platform == "win32":
-            return
+        if os.environ.get("HYPERSTAT_NO_FORK") or not sys.platform.startswith("linux"):
+            return  # fork without exec is not safe with macOS' system libraries; Windows has none
         import multiprocessing
 
         try:
