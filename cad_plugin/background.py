@@ -77,8 +77,8 @@ class Background:
         except OSError:  # pragma: no cover - no process left: do it in-process later
             self._proc = None
 
-    def result(self, timeout: float = 600.0) -> Any:
-        """The child's result; ``fn(*args)`` in-process if there is no child or it failed."""
+    def result(self, timeout: float = 180.0) -> Any:
+        """The child's result; ``fn(*args)`` in-process if there is no child, it failed, or it ran past ``timeout`` s."""
         if self._proc is not None:
             self._proc.join(timeout)
             if self._proc.is_alive():  # pragma: no cover - a hung child: kill it and do the work here
