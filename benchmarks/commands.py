@@ -11,9 +11,18 @@ what else runs.
 
 ``make demo`` is timed as the commands of its recipe, read from the Makefile (the
 ``setup`` prerequisite, which only checks the installed venv, is left out).  The data of
-the report come from ``hyperstat simulate`` run once before the timed runs.
+the report and of the diagnosis come from ``hyperstat simulate`` run once before the timed
+runs.  The commands run as an installed ``hyperstat`` does: compiled bytecode is allowed
+(``PYTHONDONTWRITEBYTECODE`` is removed from their environment) and one untimed run of
+``hyperstat --version`` before the table writes it, so that "cold" means a new process with
+its imports, not a first compilation of the sources.
 
-Usage::
+Rows: the four goals of issue 24 (accuracy over 100,000 Triflex-II configurations, Monte
+Carlo with 100,000 samples, the Tripteor report with data, ``make demo``), ``hyperstat
+analyze`` on every bundled template (two independent samples, the default) and ``hyperstat
+diagnose`` on the Tripteor (goal of issue 20: 5 s).
+
+Usage (the whole table, 3 runs per row: about 6 minutes of CPU on 2 idle cores)::
 
     .venv/bin/python benchmarks/commands.py [--repeat 3] [--markdown out/commands.md] [--only accuracy]
 """
@@ -35,13 +44,21 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "hyperstat.cad_plugin.cli"]
 
-#: name -> (goal in s, description); the goals of issue 24
+#: the bundled templates timed by ``hyperstat analyze`` (the Makefile's TEMPLATE_NAMES)
+TEMPLATES = ("slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar")
+
+#: name -> (goal in s or None, description); the goals of issue 24 (and issue 20 for diagnose)
 GOALS = {
     "accuracy": (5.0, "hyperstat accuracy, Triflex-II, 100,000 configurations (refined worst cases)"),
     "montecarlo": (5.0, "hyperstat montecarlo, Triflex-II, 100,000 samples"),
     "report": (8.0, "hyperstat report, Tripteor X7 with data, cold"),
     "demo": (15.0, "make demo after set-up (simulate + report + export-controller)"),
+    "diagnose": (5.0, "hyperstat diagnose, Tripteor X7, 107 + 30 points"),
+    **{f"analyze-{t}": (None, f"hyperstat analyze templates/{t}.py (2 samples)") for t in TEMPLATES},
 }
+
+#: the environment of the timed commands: bytecode written and read, as in an installed package
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
 def _demo_commands(out: Path) -> list[list[str]]:
@@ -73,6 +90,9 @@ def _commands(work: Path) -> dict:
                           "--validation", str(data / "measurements.validation.csv"),
                           "--hypotheses", str(t / "tripteor_x7.hypotheses.yaml"), "--out", str(work / "report")]],
         "demo": _demo_commands(work / "demo"),
+        "diagnose": [CLI + ["diagnose", str(t / "tripteor_x7.py"), str(data / "measurements.csv"),
+                            "--validation", str(data / "measurements.validation.csv"), "--quiet"]],
+        **{f"analyze-{n}": [CLI + ["analyze", str(t / f"{n}.py"), "--quiet"]] for n in TEMPLATES},
     }
 
 
@@ -81,7 +101,7 @@ def _run(cmds: list[list[str]]) -> tuple[float, float]:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     for cmd in cmds:
-        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=ENV)
         if proc.returncode != 0:
             raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
     wall = time.perf_counter() - t0
@@ -97,11 +117,13 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     names = args.only or list(GOALS)
     rows = []
+    started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="hyperstat-bench-") as tmp:
         work = Path(tmp)
         cmds = _commands(work)
         (work / "demo").mkdir()  # the recipe's 'mkdir -p out/demo'
-        if "report" in names:  # the data of the report, once, not timed
+        _run([CLI + ["--version"]])  # writes the bytecode, as an installation has it (not timed)
+        if {"report", "diagnose"} & set(names):  # the data of the report and the diagnosis, once, not timed
             (work / "data").mkdir()
             _run([CLI + ["simulate", str(ROOT / "templates" / "tripteor_x7.py"), "--effect", "backlash",
                          "--out", str(work / "data" / "measurements.csv"), "--truth", str(work / "data" / "truth.json"),
@@ -116,15 +138,20 @@ def main(argv: list[str] | None = None) -> int:
             goal, what = GOALS[name]
             med = statistics.median(walls)
             rows.append((what, med, min(walls), max(walls), statistics.median(cpus), load, goal))
-            print(f"{what}: median {med:.2f} s (range {min(walls):.2f}-{max(walls):.2f}), CPU {statistics.median(cpus):.2f} s, "
-                  f"load {load:.1f}, goal < {goal:g} s: {'met' if med < goal else 'NOT met'}", flush=True)
+            verdict = "" if goal is None else f", goal < {goal:g} s: {'met' if med < goal else 'NOT met'}"
+            print(f"{what}: median {med:.2f} s (range {min(walls):.2f}-{max(walls):.2f}), CPU "
+                  f"{statistics.median(cpus):.2f} s, load {load:.1f}{verdict}", flush=True)
     cores = os.cpu_count()
+    total = time.perf_counter() - started
     lines = [f"Whole commands, new process each, median of {args.repeat} (wall-clock s); {cores} cores; "
-             "load = 1-minute load average before the runs.", "",
-             "| command | median (s) | range (s) | CPU user+sys (s) | load | goal (s) | |", "|---|---|---|---|---|---|---|"]
+             "load = 1-minute load average before the runs; CPU = user + system of the command and its "
+             f"children (median). Generated by `python benchmarks/commands.py` in {total:.0f} s.", "",
+             "| command | median (s) | range (s) | CPU user+sys (s) | load | goal (s) | |",
+             "|---|---|---|---|---|---|---|"]
     for what, med, lo, hi, cpu, load, goal in rows:
-        lines.append(f"| {what} | {med:.2f} | {lo:.2f}-{hi:.2f} | {cpu:.2f} | {load:.1f} | < {goal:g} | "
-                     f"{'met' if med < goal else 'not met'} |")
+        met = "" if goal is None else ("met" if med < goal else "not met")
+        lines.append(f"| {what} | {med:.2f} | {lo:.2f}-{hi:.2f} | {cpu:.2f} | {load:.1f} | "
+                     f"{'-' if goal is None else f'< {goal:g}'} | {met} |")
     table = "\n".join(lines) + "\n"
     print(table)
     if args.markdown:

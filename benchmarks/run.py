@@ -15,7 +15,8 @@ the floating-point operations per configuration of that forward kinematics, divi
 the peak rate of a large numpy matrix product.
 
 The pinocchio benchmarks are skipped, with the reason printed, when pinocchio (PyPI
-``pin``, the ``bench`` extra) is not installed.
+``pin``, the ``bench`` extra) is not installed; so are the numba and JAX peers
+(``benchmarks/peers6r.py``, the ``bench`` extra installs numba; JAX is optional).
 """
 
 from __future__ import annotations
@@ -233,6 +234,34 @@ def _pin_jacobian(pin):
 
 
 bench("FK 6R: pinocchio, one call per configuration", unit="configs/s")(_pinocchio_loop(_pin_fk))
+
+
+def _peer(builder: str, package: str):
+    """Benchmark setup: the peer ``peers6r.<builder>`` on the batched 6R arm, checked to 1e-9 first."""
+
+    def setup():
+        import numpy as np
+
+        import peers6r
+
+        arm = _arm()
+        try:
+            fk = getattr(peers6r, builder)(arm["geometry"])
+        except ImportError:
+            raise Skip(f"{package} is not installed (pip install {package}); not a dependency of hyperstat") from None
+        q = arm["q"]
+        ref = arm["kin"].forward(q[:1000], arm["xi"])[0]
+        err = float(np.abs(fk(q[:1000]) - ref).max())
+        if err > 1e-9:
+            raise AssertionError(f"{builder} and hyperstat disagree on the 6R arm by {err:.3g}")
+        _ARM[f"{builder}_check"] = err
+        return (lambda: fk(q)), len(q)
+
+    return setup
+
+
+bench("FK 6R: numba compiled loop, all cores (compiled reference)", unit="configs/s")(_peer("numba_fk", "numba"))
+bench("FK 6R: JAX jit + vmap, float64", unit="configs/s")(_peer("jax_fk", "jax[cpu]"))
 
 
 bench("FK 6R: naive numpy loop per configuration", unit="configs/s")(_naive_loop("naive_fk"))
@@ -561,6 +590,22 @@ def summary(rows: dict) -> list[str]:
         r_pin = f"{ours / pin:.1f}x" if pin else "n/a"
         r_naive = f"{ours / naive:.0f}x" if naive else "n/a"
         lines.append(f"| {label} | {ours:.4g} | {r_pin} | {r_naive} |")
+    peers = [(label, val(prefix)) for label, prefix in (
+        ("pinocchio, one call per configuration", "FK 6R: pinocchio"),
+        ("JAX jit + vmap (float64)", "FK 6R: JAX"),
+        ("numba compiled loop, all cores (compiled reference)", "FK 6R: numba"),
+        ("naive numpy loop per configuration", "FK 6R: naive"))]
+    if fk and any(v for _, v in peers):
+        lines += ["", "| FK 6R, 100,000 configurations | configs/s | hyperstat batched relative to it |", "|---|---|---|",
+                  f"| hyperstat batched (Kinematics.forward), all cores | {fk:.4g} | 1 |"]
+        for label, v in peers:
+            if v:
+                rel = fk / v
+                lines.append(f"| {label} | {v:.4g} | " + (f"{rel:.2g}x faster |" if rel >= 1 else f"{1 / rel:.2g}x slower |"))
+        checks = [f"{n[:-6]} {_ARM[n]:.1e}" for n in ("numba_fk_check", "jax_fk_check") if n in _ARM]
+        if checks:
+            lines.append(f"\nPeers checked against hyperstat's poses before timing (largest difference, mm / rad, "
+                         f"1000 configurations): {', '.join(checks)}.")
     generic = val("FK 6R: hyperstat element-by-element")
     if fk and generic:
         lines.append(f"\nBatched path vs the element-by-element path it replaces: {fk / generic:.1f}x.")

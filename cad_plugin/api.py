@@ -17,15 +17,17 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hyperstat.solver.analysis.stationarity import StationarityResult
-from hyperstat.solver.calibration.identify import IdentificationResult
-from hyperstat.solver.calibration.measurements import MeasurementSet, read_measurements
-from hyperstat.solver.diagnosis.diagnose import Diagnosis
 from hyperstat.solver.errors import HyperstatError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
+
+if TYPE_CHECKING:  # imported where used: the identification and the diagnosis pull in scipy's optimisers
+    from hyperstat.solver.calibration.identify import IdentificationResult
+    from hyperstat.solver.calibration.measurements import MeasurementSet
+    from hyperstat.solver.diagnosis.diagnose import Diagnosis
 
 __all__ = ["load", "analyze", "accuracy", "identify", "diagnose", "report", "template_path"]
 
@@ -79,23 +81,39 @@ def load(source: str | Path, **parameters: Any) -> Mechanism:
     return mech
 
 
-def analyze(mechanism: Mechanism, configurations: int = 24, seed: int = 0) -> StationarityResult:
+def analyze(mechanism: Mechanism, configurations: int = 24, seed: int = 0, samples: int = 2) -> StationarityResult:
     """Stationarity analysis: which defects are forced, coupled, free (paper 1, sections 3-4).
+
+    As on the command line (``hyperstat analyze``, ``--samples``), the analysis is repeated on
+    ``samples`` independent samples (seeds ``seed``, ``seed + 1``, ...) and compared: rank,
+    admissible dimension, mobility, every verdict and the admissible subspace
+    (:func:`hyperstat.solver.analysis.stationarity.compare_samples`).  The verdicts are the first
+    sample's; ``result.stability["summary"]`` says "stable across 2 independent samples" or names
+    every disagreement, and a disagreement is also raised as a :class:`UserWarning` (where the
+    command line exits with status 3), so that the answer never depends silently on the seed.
 
     Parameters
     ----------
     mechanism : Mechanism
         From :func:`load`.
     configurations : int
-        Actuated configurations sampled over the workspace.
+        Actuated configurations sampled over the workspace, per sample.
     seed : int
-        Seed of that sample.
+        Seed of the first sample.
+    samples : int
+        Independent samples analysed and compared (default 2, as the command line; more for a
+        stronger check; 1 skips the check and leaves ``result.stability`` at ``None``).
 
     Returns
     -------
     StationarityResult
         A verdict per defect parameter, the relations between coupled ones, the rank of
-        the stacked constraint (eq. (11)) with its singular-value gap.
+        the stacked constraint (eq. (11)) with its singular-value gap, and ``stability``.
+
+    Raises
+    ------
+    HyperstatError
+        If ``samples`` is not an integer of at least 1.
 
     Examples
     --------
@@ -105,12 +123,25 @@ def analyze(mechanism: Mechanism, configurations: int = 24, seed: int = 0) -> St
     'forced'
     >>> result.gap > 1e6
     True
+    >>> result.stability["stable"], result.stability["samples"]
+    (True, 2)
+    >>> result.stability["summary"].startswith("stable across 2 independent samples")
+    True
+    >>> hs.analyze(hs.load("slider_crank"), samples=3).stability["seeds"]
+    [0, 1, 2]
     """
     from hyperstat.solver.analysis.stationarity import analyze as _analyze
 
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+        raise HyperstatError(f"analyze: samples must be an integer of at least 1, got {samples!r}.")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return _analyze(mechanism, n_configurations=configurations, seed=seed, kinematics=Kinematics(mechanism))
+        result = _analyze(mechanism, n_configurations=configurations, seed=seed, kinematics=Kinematics(mechanism),
+                          samples=samples)
+    if result.stability is not None and not result.stability["stable"]:
+        warnings.warn(f"the analysis of '{mechanism.name}' depends on the sample: "
+                      f"{'; '.join(result.stability['disagreements'])}.", UserWarning, stacklevel=2)
+    return result
 
 
 def accuracy(mechanism: Mechanism, analysis: StationarityResult | None = None, configurations: int = 2000,
@@ -163,6 +194,8 @@ def accuracy(mechanism: Mechanism, analysis: StationarityResult | None = None, c
 
 
 def _measurements(data: MeasurementSet | str | Path | None, mechanism: Mechanism) -> MeasurementSet | None:
+    from hyperstat.solver.calibration.measurements import MeasurementSet, read_measurements
+
     if data is None or isinstance(data, MeasurementSet):
         return data
     return read_measurements(data, mechanism)

@@ -123,14 +123,21 @@ def _cmd_report(args) -> int:
     from hyperstat.solver.tolerances.classification import classify
     from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values, monte_carlo_at_values
 
+    from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.plots import diagnosis_figures
-    from hyperstat.cad_plugin.report import write_report
+    from hyperstat.cad_plugin.report import skeleton_png, write_report
+    from hyperstat.cad_plugin.view import element_classes
 
     stages = ["stationarity analysis", "verification", "calibration and diagnosis", "tolerances and accuracy",
               "layout and pictures"]
     with solver_cli.stages(args, stages) as progress:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = solver_cli.analysis_of(args)
+        # the tolerance classes colour the skeleton views: classified now, the views are drawn by a forked
+        # child (pyvista import and rendering) while this process verifies, diagnoses and allocates
+        tolerances = classify(mech, result, kin)
+        early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
+        views = Background(skeleton_png, mech, early)
         data = read_measurements(args.data, mech) if args.data else None
         validation = read_measurements(args.validation, mech) if args.validation else None
         hypotheses = None
@@ -146,13 +153,14 @@ def _cmd_report(args) -> int:
             progress.next("calibration and diagnosis")
             diagnosis = identification = None
             images = {}
+            figures = None
             if data is not None:
                 from hyperstat.solver.diagnosis.diagnose import diagnose
 
                 if data.noise is not None:
                     diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
                     identification = diagnosis.final or diagnosis.rigid
-                    images.update(diagnosis_figures(diagnosis, data))
+                    figures = Background(diagnosis_figures, diagnosis, data)  # matplotlib, beside the tolerances
                 else:
                     from hyperstat.solver.calibration.identify import identify
 
@@ -161,7 +169,6 @@ def _cmd_report(args) -> int:
             workspace = sample_workspace(mech, 200, seed=0, kinematics=kin)
             if len(workspace) == 0:
                 workspace = result.configurations
-            tolerances = classify(mech, result, kin)
             assign_values(tolerances, mech, kin, workspace, args.position_accuracy, args.orientation_accuracy,
                           assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
             accuracy = report_section(mech, result, kin)
@@ -171,7 +178,12 @@ def _cmd_report(args) -> int:
         doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, tolerances,
                               accuracy, montecarlo)
         progress.next("layout and pictures")
+        if figures is not None:
+            images.update(figures.result())
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
+        drawn = views.result()
+        if element_classes(analysis_json) == element_classes(early):  # else write_report draws them again
+            images["views"] = drawn
         written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
@@ -300,9 +312,33 @@ def build_parser():
     return parser
 
 
+def _blas_threads() -> int | None:
+    """Threads of the BLAS library for a command: ``HYPERSTAT_BLAS_THREADS`` (default 1; 0 leaves BLAS as it is)."""
+    import os
+
+    text = os.environ.get("HYPERSTAT_BLAS_THREADS", "1").strip()
+    try:
+        value = int(text)
+    except ValueError:
+        value = 1
+    return None if value <= 0 else value
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``hyperstat`` command."""
-    return solver_cli.main(argv, build_parser())
+    """Entry point of the ``hyperstat`` command.
+
+    BLAS runs single-threaded (``HYPERSTAT_BLAS_THREADS`` to change it): the commands do many
+    small dense solves (tens to a few hundred rows), where OpenBLAS's threads only add
+    synchronisation; the large batched work runs on the commands' own thread pools.  Measured
+    on the Tripteor report (2 cores): 7.5-8.0 s of CPU with two BLAS threads, 5.6-6.0 s with one.
+    """
+    threads = _blas_threads()
+    if threads is None:
+        return solver_cli.main(argv, build_parser())
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=threads, user_api="blas"):
+        return solver_cli.main(argv, build_parser())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from hyperstat.solver.atomic import dumps_json, write_bytes, write_text
 
-__all__ = ["write_report", "render_html", "render_markdown", "SECTIONS"]
+__all__ = ["write_report", "skeleton_png", "render_html", "render_markdown", "SECTIONS"]
 
 SECTIONS = ("summary", "skeleton", "assembly", "accuracy", "montecarlo", "calibration", "hypotheses", "identification",
             "diagnosis", "joints", "appendix")
@@ -406,6 +406,14 @@ def render_markdown(doc: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def skeleton_png(mechanism, analysis_json: dict | None = None) -> bytes:
+    """PNG bytes of the report's skeleton views (four views, markers coloured by tolerance class)."""
+    from hyperstat.cad_plugin.view import render_png
+
+    with tempfile.TemporaryDirectory() as tmp:
+        return render_png(mechanism, Path(tmp) / "views.png", analysis_json, window_size=(1400, 1050)).read_bytes()
+
+
 def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: dict | None = None,
                  images: dict | None = None) -> list[Path]:
     """Render the views and write ``report.html``, ``report.md`` and ``report.json`` atomically into ``out_dir``."""
@@ -413,11 +421,7 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
     out_dir.mkdir(parents=True, exist_ok=True)
     images = dict(images or {})
     if mechanism is not None and "views" not in images:
-        from hyperstat.cad_plugin.view import render_png
-
-        with tempfile.TemporaryDirectory() as tmp:
-            path = render_png(mechanism, Path(tmp) / "views.png", analysis_json, window_size=(1400, 1050))
-            images["views"] = path.read_bytes()
+        images["views"] = skeleton_png(mechanism, analysis_json)
     written = [write_text(out_dir / "report.json", dumps_json(doc)),
                write_text(out_dir / "report.md", render_markdown(doc)),
                write_text(out_dir / "report.html", render_html(doc, images))]

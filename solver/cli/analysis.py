@@ -50,6 +50,9 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
             sys.stdout.write(f"\nChecks in combination, at all {result.n_configurations} configurations (mm):\n")
             for c in combined:
                 mark = "confirmed" if c.confirmed else "NOT CONFIRMED"
+                if c.correction is not None:  # closed exactly by the smallest correction
+                    sys.stdout.write(f"  {c.kind}: {c.subject}: {mark}, {c.note}\n")
+                    continue
                 sys.stdout.write(f"  {c.kind}: {c.subject}: {mark}, residual {c.residual:.2e} mm "
                                  f"({c.residual_small:.2e} mm at a tenth of the defect; "
                                  f"{c.predicted:.2e} mm predicted)\n")
