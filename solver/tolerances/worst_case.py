@@ -55,6 +55,8 @@ MARGIN = 1e-4
 #: SLSQP iterations for a maximum (half for a minimum: a largest singular value is not smooth where it is
 #: smallest, two singular values meet there, and the minima do not enter the allocation)
 MAXITER = 80
+#: SLSQP's stopping tolerance on the change of the objective, relative to the coefficient's value at the start
+FTOL = 1e-12
 #: relative smallest singular value of the scaled passive Jacobian below which a configuration is singular
 SINGULAR = 1e-2
 
@@ -179,12 +181,15 @@ def _optimise(f: _Coefficient, kin: Kinematics, q0: np.ndarray, lb: np.ndarray, 
         rows = np.zeros(0, dtype=int)
     cache: dict = {}
     eye = np.eye(n)
+    # the objective is divided by its size at the start, so that FTOL is relative: an absolute 1e-13 is
+    # out of reach of a forward-difference gradient and left every run at the iteration limit
+    size = max(abs(float(f(q0[None])[0])), 1e-300)
 
     def fg(x):
         key = x.tobytes()
         if key not in cache:
-            v = f(np.vstack([x, x + h * eye]))  # forward differences: the gradient's O(h) error moves
-            cache.clear()                          # the extreme by O(h), its value by O(h^2)
+            v = f(np.vstack([x, x + h * eye])) / size  # forward differences: the gradient's O(h) error moves
+            cache.clear()                                 # the extreme by O(h), its value by O(h^2)
             cache[key] = (-sign * v[0], -sign * (v[1:] - v[0]) / h)
         return cache[key]
 
@@ -197,7 +202,7 @@ def _optimise(f: _Coefficient, kin: Kinematics, q0: np.ndarray, lb: np.ndarray, 
         warnings.simplefilter("ignore")
         res = minimize(lambda x: fg(x)[0], np.clip(q0, lb, ub), jac=lambda x: fg(x)[1], method="SLSQP",
                        bounds=list(zip(lb, ub)), constraints=constraints,
-                       options={"ftol": 1e-13, "maxiter": maxiter or (MAXITER if sign > 0 else MAXITER // 2)})
+                       options={"ftol": FTOL, "maxiter": maxiter or (MAXITER if sign > 0 else MAXITER // 2)})
     return res
 
 
@@ -346,7 +351,7 @@ def _conclude(m, kin, f, ws, lb0, ub0, name, kind, sampled, q_sampled, results, 
         evidence = "attained on a passive joint's workspace bound (regular configuration)"
     agreeing = int(np.sum(np.abs(values - value) <= max(tol, 1e-7 * max(1.0, abs(value)))))
     if not evidence:
-        evidence = "local extreme (SLSQP, ftol 1e-13, forward-difference gradient, step 1e-7)"
+        evidence = f"local extreme (SLSQP, relative ftol {FTOL:g}, forward-difference gradient, step 1e-7)"
     if not converged:
         evidence += "; the optimiser stopped at its iteration limit (the value is a bound reached, not a converged extreme)"
         tol = float("nan")
