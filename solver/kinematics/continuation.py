@@ -513,7 +513,8 @@ def _correct(kin, q: np.ndarray, xi, rank: int, opt: ContinuationOptions, tol: f
     from the predicted point (one residual evaluation, no Jacobian).  Every Newton
     iteration then evaluates ``B`` (dimensionless) and its (pseudo-)inverse; an update
     shorter than 1e-5 (dimensionless) is applied and the residual at the new point checked
-    (one residual evaluation): below ``tol`` (rad, mm / length scale) the row is done,
+    (one residual evaluation): below ``tol`` (rad, mm / length scale), or after an update
+    below 1e-12 (a least-squares point: defects that do not re-assemble), the row is done,
     and ``B_p``, its inverse, the conditioning bounds and the branch tangent
     ``dq_p/dq_a = -B_p^+ B_a`` are those of the last iterate ``q_b``, within ``last`` (the
     final update) of the end point.  A row fails when an update does not contract by
@@ -565,7 +566,8 @@ def _correct(kin, q: np.ndarray, xi, rank: int, opt: ContinuationOptions, tol: f
             rr = _residual(kin, q[ls], xi)
             rn = np.sqrt(np.einsum("ij,ij->i", rr, rr))
             out.residual[ls] = rn
-            conv = small[rn <= tol]
+            # closed, or (Gauss-Newton on defects that do not re-assemble) at a least-squares point: no update left
+            conv = small[(rn <= tol) | (n[small] <= 1e-12)]
             if conv.size:
                 lc = live[conv]
                 pinv, sig, cond = _inverse_parts(bp[conv], rank)
@@ -788,7 +790,10 @@ def continue_nearest(
             nonconv[sel[ok]] = 0
             why[sel] = np.where(acc, why[sel], np.where(singular, _SINGULAR, np.where(too_far, _TOO_FAR,
                                                                                        _NO_CONVERGENCE)))
-            dead = singular | (~acc & ((streak[sel] >= opt.max_rejections) | (nonconv[sel] >= 2)
+            # two failed correctors in a row, or one on a step already short: beyond a fold (or outside the set)
+            beyond = (nonconv[sel] >= 2) | ((nonconv[sel] >= 1) & (hs * d[sel] < 0.25 * opt.reach))
+            nonconv[sel[~ok & beyond]] = 2
+            dead = singular | (~acc & ((streak[sel] >= opt.max_rejections) | beyond
                                        | (h[sel] * d[sel] < opt.min_step))) | (steps[sel] + rejected[sel] >= 400)
             alive[sel[dead]] = False
         done = alive & finished  # the last accepted step ended at the target
@@ -842,10 +847,10 @@ def continue_nearest(
     return q, cert
 
 
-_NOT_REACHED, _SINGULAR, _TOO_FAR, _NO_CONVERGENCE, _OUTSIDE_SET, _OUTSIDE_RANGES, _BEYOND = range(1, 8)
+_NOT_REACHED, _SINGULAR, _TOO_FAR, _NO_CONVERGENCE, _OUTSIDE_RANGES, _BEYOND = range(1, 7)
 _REASONS = ["", "not reached", "the path passes near a singularity of the passive joints",
             "the step reaches too far against the distance to another solution",
             "the corrector did not converge (the step is too long or the target beyond a fold)",
-            "no closure near the nearest certified configuration (outside the reachable set?)",
             "certified on the branch but outside the workspace's declared ranges",
-            "the corrector did not converge with shorter steps either (the target beyond a fold of the workspace?)"]
+            "the corrector did not converge on a short step or twice in a row (the target outside the reachable set "
+            "or beyond a fold of the workspace?)"]
