@@ -13,8 +13,10 @@ cache is shared between runs), and the rate of
 :func:`hyperstat.solver.kinematics.sampling.sample_configurations` (200 certified
 configurations) and of :func:`hyperstat.solver.tolerances.accuracy.sample_workspace`
 on the Triflex-II (100,000 draws, the ``accuracy`` command's sampler; every kept
-configuration certified).  CPU time is used because the machine may be shared; the whole
-``hyperstat analyze`` command adds about 0.7 s of imports and loading to both.
+configuration certified).  CPU time is used because the machine may be shared.  The whole
+``hyperstat analyze`` command adds about 0.6 s of imports and loading to both, so its ratio
+is smaller (Triflex-II, 2026-11-26: 0.78 s CPU with one sample, 0.94 s with two, 1.21x);
+``benchmarks/run.py --only "analyze command"`` times the whole commands.
 
 Usage::
 
