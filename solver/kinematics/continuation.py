@@ -437,7 +437,9 @@ def _inverse_parts(bp: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray, n
     Full column rank (``rank == n``): ``B_p^-1`` when square, else ``(B_p^T B_p)^-1 B_p^T``
     (damped by 1e-14 of the largest diagonal entry); the bounds come from Frobenius norms,
     ``sigma_n >= 1 / ||B_p^-1||_F`` (or ``sqrt(1 / ||(B_p^T B_p)^-1||_F - damping)``) and
-    ``sigma_1 <= ||B_p||_F``, so they never overstate the conditioning and cost no SVD.
+    ``sigma_1 <= ||B_p||_F``, so they never overstate the conditioning and cost no SVD
+    (where rounding could spoil them, below an inverse condition of 1e-9, or 1e-5 through the
+    normal equations, the exact values of the SVD are used instead).
     A passive self-motion (generic rank below ``n``): the rank-``r`` pseudo-inverse and the
     exact ``sigma_r`` from a batched SVD (:func:`_svd_parts`).
 
@@ -454,6 +456,7 @@ def _inverse_parts(bp: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray, n
         sig, cond, pinv = _svd_parts(bp, rank)
         return pinv, sig, cond
     fro_b = np.sqrt(np.einsum("kij,kij->k", bp, bp))
+    out = None
     if rows == n:
         try:
             inv = np.linalg.inv(bp)
@@ -461,15 +464,23 @@ def _inverse_parts(bp: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray, n
             inv = None
         if inv is not None and np.all(np.isfinite(inv)):
             sig = 1.0 / np.sqrt(np.einsum("kij,kij->k", inv, inv))
-            return inv, sig, sig / np.maximum(fro_b, 1e-300)
-    bt = np.ascontiguousarray(np.swapaxes(bp, 1, 2))
-    normal = bt @ bp
-    lam = 1e-14 * np.maximum(np.einsum("kii->ki", normal).max(axis=1), 1e-300)
-    idx = np.arange(n)
-    normal[:, idx, idx] += lam[:, None]
-    ninv = np.linalg.inv(normal)
-    sig = np.sqrt(np.maximum(1.0 / np.sqrt(np.einsum("kij,kij->k", ninv, ninv)) - lam, 0.0))
-    return ninv @ bt, sig, sig / np.maximum(fro_b, 1e-300)
+            out, floor = (inv, sig, sig / np.maximum(fro_b, 1e-300)), 1e-9
+    if out is None:
+        bt = np.ascontiguousarray(np.swapaxes(bp, 1, 2))
+        normal = bt @ bp
+        lam = 1e-14 * np.maximum(np.einsum("kii->ki", normal).max(axis=1), 1e-300)
+        idx = np.arange(n)
+        normal[:, idx, idx] += lam[:, None]
+        ninv = np.linalg.inv(normal)
+        sig = np.sqrt(np.maximum(1.0 / np.sqrt(np.einsum("kij,kij->k", ninv, ninv)) - lam, 0.0))
+        out, floor = (ninv @ bt, sig, sig / np.maximum(fro_b, 1e-300)), 1e-5
+    # rounding: the inverse carries a relative error of about eps / cond (the normal equations eps / cond^2);
+    # near a singularity the bounds are taken from the SVD instead
+    bad = np.nonzero(out[2] < floor)[0]
+    if bad.size:
+        s_, c_, p_ = _svd_parts(bp[bad], rank)
+        out[0][bad], out[1][bad], out[2][bad] = p_, s_, c_
+    return out
 
 
 @dataclass
