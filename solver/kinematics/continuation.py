@@ -106,6 +106,12 @@ class ContinuationOptions:
     branch_fraction : float
         The corrector's move and the predictor's estimated error of an accepted step are at
         most this fraction of the estimated distance ``2 / omega`` to another solution.
+    reach : float
+        :func:`continue_nearest`: longest first try of a step from a neighbour
+        (dimensionless actuated distance: rad, mm / length scale).
+    retries : int
+        :func:`continue_nearest`: further tries of a failed path, each with twice as many
+        steps.
     """
 
     initial_steps: int = 6
@@ -118,6 +124,8 @@ class ContinuationOptions:
     path_tol: float = 1e-8
     cond_tol: float = 1e-6
     branch_fraction: float = 0.25
+    reach: float = 0.1
+    retries: int = 1
 
 
 @dataclass
@@ -200,10 +208,14 @@ def _dimensionless_state(kin, q: np.ndarray, xi) -> tuple[np.ndarray, np.ndarray
     """Residual (rad, mm / L) and ``dF/dq`` with dimensionless rows and columns at ``q``."""
     st = kin.evaluate(q, xi, "joints")
     lc = kin.length_scale
-    r = st.residual.copy()
-    for c in range(r.shape[1] // 6):
-        r[:, 6 * c + 3: 6 * c + 6] /= lc
-    return r, kin.dimensionless(st.closure_q, kin.joint_scale)
+    r, b = st.residual, st.closure_q  # fresh arrays of this evaluation: scaled in place
+    if lc != 1.0:
+        r = r.copy()
+        for c in range(r.shape[1] // 6):
+            r[:, 6 * c + 3: 6 * c + 6] /= lc
+            b[:, 6 * c + 3: 6 * c + 6, :] /= lc
+        b *= kin.joint_scale
+    return r, b
 
 
 def _svd_parts(bp: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -418,6 +430,169 @@ def continue_path(
     return q, cert
 
 
+# ---------------------------------------------------------------------------- nearest-neighbour sampling
+def _inverse_parts(bp: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(Pseudo-)inverse of a stack of dimensionless ``B_p`` with lower bounds of ``sigma_r`` and ``sigma_r / sigma_1``.
+
+    Full column rank (``rank == n``): ``B_p^-1`` when square, else ``(B_p^T B_p)^-1 B_p^T``
+    (damped by 1e-14 of the largest diagonal entry); the bounds come from Frobenius norms,
+    ``sigma_n >= 1 / ||B_p^-1||_F`` (or ``sqrt(1 / ||(B_p^T B_p)^-1||_F - damping)``) and
+    ``sigma_1 <= ||B_p||_F``, so they never overstate the conditioning and cost no SVD
+    (where rounding could spoil them, below an inverse condition of 1e-9, or 1e-5 through the
+    normal equations, the exact values of the SVD are used instead).
+    A passive self-motion (generic rank below ``n``): the rank-``r`` pseudo-inverse and the
+    exact ``sigma_r`` from a batched SVD (:func:`_svd_parts`).
+
+    Returns
+    -------
+    pinv : ndarray, (K, n, m)
+    sigma : ndarray, (K,)
+        Lower bound of ``sigma_r`` (exact when ``rank < n``).
+    cond : ndarray, (K,)
+        Lower bound of ``sigma_r / sigma_1`` (exact when ``rank < n``).
+    """
+    k, rows, n = bp.shape
+    if rank < n:
+        sig, cond, pinv = _svd_parts(bp, rank)
+        return pinv, sig, cond
+    fro_b = np.sqrt(np.einsum("kij,kij->k", bp, bp))
+    out = None
+    if rows == n:
+        try:
+            inv = np.linalg.inv(bp)
+        except np.linalg.LinAlgError:  # an exactly singular matrix in the stack: the damped path below
+            inv = None
+        if inv is not None and np.all(np.isfinite(inv)):
+            sig = 1.0 / np.sqrt(np.einsum("kij,kij->k", inv, inv))
+            out, floor = (inv, sig, sig / np.maximum(fro_b, 1e-300)), 1e-9
+    if out is None:
+        bt = np.ascontiguousarray(np.swapaxes(bp, 1, 2))
+        normal = bt @ bp
+        lam = 1e-14 * np.maximum(np.einsum("kii->ki", normal).max(axis=1), 1e-300)
+        idx = np.arange(n)
+        normal[:, idx, idx] += lam[:, None]
+        ninv = np.linalg.inv(normal)
+        sig = np.sqrt(np.maximum(1.0 / np.sqrt(np.einsum("kij,kij->k", ninv, ninv)) - lam, 0.0))
+        out, floor = (ninv @ bt, sig, sig / np.maximum(fro_b, 1e-300)), 1e-5
+    # rounding: the inverse carries a relative error of about eps / cond (the normal equations eps / cond^2);
+    # near a singularity the bounds are taken from the SVD instead
+    bad = np.nonzero(out[2] < floor)[0]
+    if bad.size:
+        s_, c_, p_ = _svd_parts(bp[bad], rank)
+        out[0][bad], out[1][bad], out[2][bad] = p_, s_, c_
+    return out
+
+
+@dataclass
+class _Corrected:
+    """What a corrector leaves per configuration: dimensionless ``B_p`` and tangent at ``q_b``, bounds, contraction."""
+
+    ok: np.ndarray
+    theta: np.ndarray
+    bp: np.ndarray
+    tangent: np.ndarray
+    sigma: np.ndarray
+    cond: np.ndarray
+    pinv: np.ndarray
+    residual: np.ndarray
+    q_b: np.ndarray | None = None
+    last: np.ndarray | None = None
+    first: np.ndarray | None = None
+
+
+def _empty(k: int, rows: int, n_p: int, n_a: int, n_q: int) -> _Corrected:
+    return _Corrected(np.zeros(k, bool), np.zeros(k), np.zeros((k, rows, n_p)), np.zeros((k, n_p, n_a)),
+                      np.zeros(k), np.zeros(k), np.zeros((k, n_p, rows)), np.full(k, np.inf), np.zeros((k, n_q)),
+                      np.zeros(k))
+
+
+def _residual(kin, q: np.ndarray, xi) -> np.ndarray:
+    """Closure residual (rad, mm / length scale) at ``q``, no Jacobian."""
+    r = kin.evaluate(q, xi, False).residual
+    if kin.length_scale != 1.0:
+        r = r.copy()
+        for c in range(r.shape[1] // 6):
+            r[:, 6 * c + 3: 6 * c + 6] /= kin.length_scale
+    return r
+
+
+def _correct(kin, q: np.ndarray, xi, rank: int, opt: ContinuationOptions, tol: float = 1e-10,
+             pinv0: np.ndarray | None = None) -> _Corrected:
+    """Newton on the passive joints of ``q`` (K, n_q) at fixed actuated values, in place, all rows at once.
+
+    With ``pinv0`` (the start's ``B_p^+``, (K, n_p, m)) the first update is a chord step
+    from the predicted point (one residual evaluation, no Jacobian).  Every Newton
+    iteration then evaluates ``B`` (dimensionless) and its (pseudo-)inverse; an update
+    shorter than 1e-5 (dimensionless) is applied and the residual at the new point checked
+    (one residual evaluation): below ``tol`` (rad, mm / length scale), or after an update
+    below 1e-12 (a least-squares point: defects that do not re-assemble), the row is done,
+    and ``B_p``, its inverse, the conditioning bounds and the branch tangent
+    ``dq_p/dq_a = -B_p^+ B_a`` are those of the last iterate ``q_b``, within ``last`` (the
+    final update) of the end point.  A row fails when an update does not contract by
+    ``theta_max`` (``|dq_{k+1}| / |dq_k|``, updates above 1e-9 only) or within
+    ``max_newton`` iterations.
+    """
+    m = kin.mechanism
+    act, pas = m.actuated, m.passive
+    jp = kin.joint_scale[pas]
+    k = len(q)
+    out = _empty(k, 6 * len(m.closures), len(pas), len(act), kin.n_q)
+    prev_dq = np.full(k, np.inf)
+    if pinv0 is not None:
+        r0 = _residual(kin, q, xi)
+        rn0 = np.sqrt(np.einsum("ij,ij->i", r0, r0))
+        out.residual[:] = rn0
+        out.first = rn0
+        dq0 = -(pinv0 @ r0[..., None])[..., 0]  # the chord step: its contraction is not counted (linear, not Newton)
+        q[:, pas] += dq0 * jp
+    live = np.arange(k)
+    square = out.bp.shape[1] == len(pas) and rank == len(pas)
+    for it in range(opt.max_newton):
+        if live.size == 0:
+            break
+        r, b = _dimensionless_state(kin, q[live], xi)
+        bp = b[:, :, pas]
+        dq = None
+        if square:
+            try:
+                dq = -np.linalg.solve(bp, r[..., None])[..., 0]
+            except np.linalg.LinAlgError:  # an exactly singular matrix: the damped least-squares step
+                dq = None
+        if dq is None:
+            dq = -batched_lstsq(bp, r[..., None])[..., 0]
+        n = np.sqrt(np.einsum("ij,ij->i", dq, dq))
+        out.residual[live] = np.sqrt(np.einsum("ij,ij->i", r, r))
+        pd = prev_dq[live]
+        th = np.where(np.isfinite(pd) & (pd > 1e-9), n / np.maximum(pd, 1e-300), 0.0)
+        out.theta[live] = np.maximum(out.theta[live], th)
+        go = th <= opt.theta_max
+        if not go.all():
+            live, dq, n, b, bp = (x[go] for x in (live, dq, n, b, bp))
+        q_before = q[live]
+        q[np.ix_(live, pas)] += dq * jp
+        prev_dq[live] = n
+        small = np.nonzero(n < 1e-5)[0]
+        if small.size:
+            ls = live[small]
+            rr = _residual(kin, q[ls], xi)
+            rn = np.sqrt(np.einsum("ij,ij->i", rr, rr))
+            out.residual[ls] = rn
+            # closed, or (Gauss-Newton on defects that do not re-assemble) at a least-squares point: no update left
+            conv = small[(rn <= tol) | (n[small] <= 1e-12)]
+            if conv.size:
+                lc = live[conv]
+                pinv, sig, cond = _inverse_parts(bp[conv], rank)
+                out.ok[lc] = True
+                out.q_b[lc], out.bp[lc], out.pinv[lc], out.sigma[lc], out.cond[lc] = q_before[conv], bp[conv], pinv, \
+                    sig, cond
+                out.tangent[lc] = -pinv @ b[conv][:, :, act]
+                out.last[lc] = n[conv]
+                rest = np.ones(len(live), bool)
+                rest[conv] = False
+                live = live[rest]
+    return out
+
+
 def continue_nearest(
     kin,
     qa_targets: np.ndarray,
@@ -425,83 +600,268 @@ def continue_nearest(
     start: np.ndarray | None = None,
     options: ContinuationOptions | None = None,
     pool: np.ndarray | None = None,
+    inside=None,
 ) -> tuple[np.ndarray, BranchCertificate]:
-    """Certified configurations at many actuated values, each continued from the nearest one assembled.
+    """Certified configurations at many actuated values, each continued from the nearest one certified.
 
-    The implementation of :func:`hyperstat.solver.kinematics.sampling.assemble_nearest`
-    (see there); also what :meth:`Kinematics.solve` uses for large batches from one start.
+    The one workspace sampler of hyperstat: :func:`hyperstat.solver.kinematics.sampling.assemble_nearest`,
+    :func:`~hyperstat.solver.kinematics.sampling.sample_configurations` (analysis),
+    :func:`hyperstat.solver.tolerances.accuracy.sample_workspace` (accuracy maps, worst
+    cases, Monte Carlo) and :meth:`Kinematics.solve` for many targets from one start.
+
+    **Method.** ``start`` (and ``pool``) are corrected onto ``F = 0`` and certified (Newton
+    converged, ``B_p`` conditioned).  The targets are then taken in waves: first the
+    ``4, 16, 64, ...`` targets nearest to ``start`` (up to 256), then the others in the
+    given order in waves as large as the set certified so far.  Every target of a wave
+    starts from its nearest certified configuration (a k-d tree over the actuated values,
+    scaled by the length scale for prismatic joints) and moves on a straight actuated
+    segment in ``ceil(d / reach)`` equal steps: tangent predictor of the start
+    (``dq_p = -B_p^+ B_a dq_a``, paper 1, eq. 3), Newton corrector at fixed actuated values,
+    every step checked like a step of :func:`continue_path`.  A target whose path fails
+    is tried again with twice as many steps (``retries`` times), then once more after
+    the waves from its nearest certified configuration at that time.
+
+    **Guarantee** (the same rules as :func:`continue_path`, per step): a configuration
+    reported ``certified`` is linked to ``start`` by a chain of steps each of which (i)
+    converged by Newton with contraction at most ``theta_max``, (ii) ends where a lower
+    bound of the inverse condition number of the dimensionless ``B_p`` (Frobenius norms,
+    :func:`_inverse_parts`) is at least ``cond_tol``, and (iii) moved the passive joints
+    from the predictor by, and predicted with an error of, at most ``branch_fraction`` of
+    the estimated distance ``2 / omega`` to another solution with the same actuated values,
+    ``omega`` being the largest chord estimate ``||B_p(x1)^+ (B_p(x0) - B_p(x1))||_F / |x1 - x0|``
+    met along the chain (Frobenius, so never below the spectral estimate).  Under that
+    estimate of the Lipschitz constant no step can reach another solution, so the
+    configuration lies on the assembly branch of ``start``.  These are estimates from the
+    computed path, not interval bounds (module docstring).  Targets that cannot be certified
+    are reported with the reason, never as certified; with ``inside``, a certified
+    configuration outside the workspace is reported uncertified with that reason.
+
+    Parameters
+    ----------
+    kin : Kinematics
+    qa_targets : ndarray, (K, n_actuated)
+        Actuated values (rad / mm).
+    xi : ndarray, (n_xi,), optional
+        Defects (rad / mm), the same for every target.
+    start : ndarray, (n_q,), optional
+        Assembled start configuration (default: home).
+    options : ContinuationOptions, optional
+        Thresholds and ``reach`` (longest step, dimensionless actuated distance).
+    pool : ndarray, (P, n_q), optional
+        Configurations already certified on the branch of ``start`` at the same ``xi``; they
+        are corrected and certified again and used as further start points.
+    inside : callable, optional
+        ``inside(q) -> bool (K,)``: configurations in the workspace (e.g. the declared passive
+        ranges); only those are kept and continued from.
+
+    Returns
+    -------
+    q : ndarray, (K, n_q)
+        Configurations; an uncertified row holds the last certified point of its path.
+    certificate : BranchCertificate
+        Per target; ``steps``, ``path_length`` and the conditioning count the path from
+        its neighbour (conditioning as lower bounds, see the guarantee).
     """
+    from scipy.spatial import cKDTree
+
+    opt = options or ContinuationOptions()
     m = kin.mechanism
-    act = m.actuated
+    act, pas = np.asarray(m.actuated), np.asarray(m.passive)
     qa = np.atleast_2d(np.asarray(qa_targets, dtype=float))
     k = len(qa)
-    q_home = np.asarray(m.home if start is None else start, dtype=float)
     if xi is not None and np.ndim(xi) != 1:
-        raise ValueError("assemble_nearest takes one defect vector (n_xi,) for every target.")
-    scale = kin.joint_scale[act]
-    options = options or ContinuationOptions(initial_steps=1)
-    q = np.zeros((k, kin.n_q))
-    parts: list = [None] * k
-    q0 = q_home[None, :]  # every path corrects its start first (step 0 of continue_path)
-    pool_q = [q0[0]] + ([] if pool is None else list(np.atleast_2d(np.asarray(pool, dtype=float))))
-    pool_a = [p[act] / scale for p in pool_q]
-    order = np.argsort(np.min(np.linalg.norm((qa / scale)[:, None, :] - np.array(pool_a)[None], axis=2), axis=1),
-                       kind="stable")
-    pos, size = 0, 4 * len(pool_q)
-    while pos < k:
-        batch = order[pos: pos + size]
+        raise ValueError("continue_nearest takes one defect vector (n_xi,) for every target.")
+    q_home = np.asarray(m.home if start is None else start, dtype=float)
+    jscale = kin.joint_scale
+    ja, jp = jscale[act], jscale[pas]
+    z = np.zeros(k)
+    cert = BranchCertificate(np.zeros(k, bool), ["not reached"] * k, np.ones(k), np.full(k, np.inf), z.copy(),
+                             z.copy(), np.zeros(k, int), np.zeros(k, int), z.copy(), np.ones(k), opt)
+    q = np.array(np.broadcast_to(q_home, (k, kin.n_q)), dtype=float)
+    if k == 0:
+        return q, cert
+    if len(m.closures) == 0 or len(pas) == 0:
+        q[:, act] = qa
+        cert.certified[:] = True
+        cert.reason = [""] * k
+        cert.path_length[:] = np.linalg.norm((qa - q_home[act]) / ja, axis=1)
+        if inside is not None:
+            out = ~np.asarray(inside(q), bool)
+            cert.certified[out] = False
+            for i in np.nonzero(out)[0]:
+                cert.reason[i] = "outside the workspace's declared ranges"
+        return q, cert
+    inside = inside or (lambda qq: np.ones(len(qq), bool))
+    # roots: the start (and the pool), corrected onto the closure and certified (step 0 of continue_path)
+    roots = np.vstack([q_home[None, :]] + ([] if pool is None else [np.atleast_2d(np.asarray(pool, float))]))
+    _, b0 = _dimensionless_state(kin, roots[:1], xi)
+    s0 = np.linalg.svd(b0[:, :, pas], compute_uv=False)
+    rank = int(np.sum(s0[0] > 1e-8 * max(s0[0, 0], 1e-300)))  # generic rank (a passive self-motion keeps it low)
+    rc = _correct(kin, roots, xi, rank, opt, tol=1e-12)
+    good = rc.ok & (rc.cond >= opt.cond_tol) & np.asarray(inside(roots), bool)
+    if not good[0] and rc.ok[0] and rc.cond[0] >= opt.cond_tol:
+        good[0] = True  # the start itself need not lie in the workspace; it is a start, not a sample
+    if not good[0]:
+        why = ("the start configuration could not be corrected onto the closure" if not rc.ok[0] else
+               "the start configuration is near a singularity of the passive joints")
+        cert.reason = [why] * k
+        return q, cert
+    cap = k + len(roots)
+    node_q = np.zeros((cap, kin.n_q))
+    node_b = np.zeros((cap,) + rc.bp.shape[1:])
+    node_t = np.zeros((cap,) + rc.tangent.shape[1:])
+    node_p = np.zeros((cap,) + rc.pinv.shape[1:])
+    node_qb = np.zeros((cap, kin.n_q))  # where each node's B_p was evaluated (within 1e-5 of the node)
+    nodes = int(good.sum())
+    node_q[:nodes], node_b[:nodes], node_t[:nodes], node_p[:nodes] = roots[good], rc.bp[good], rc.tangent[good], \
+        rc.pinv[good]
+    node_qb[:nodes] = rc.q_b[good]
+    code = np.full(k, _NOT_REACHED)  # why a target is not certified (index into _REASONS); 0 = certified
+    last_d = np.full(k, np.inf)
+
+    def run(idx: np.ndarray, extra: int) -> None:
+        """Paths of targets ``idx`` from their nearest node; first steps ``2**extra`` times shorter than ``reach``.
+
+        Adaptive steps as in :func:`continue_path`: a rejected step is shortened (to aim at
+        70 % of the branch bound when it reached too far, halved when the corrector failed),
+        an accepted one lengthened by at most 2x after an easy corrector.  A path is given up
+        after ``max_rejections`` consecutive rejections, or after two failed correctors in a
+        row (the target is then most likely beyond a fold of the workspace).
+        """
+        nonlocal nodes
+        n_i = len(idx)
+        d, nn = cKDTree(node_q[:nodes, act] / ja).query(qa[idx] / ja)
+        d, nn = np.atleast_1d(d), np.atleast_1d(nn)
+        last_d[idx] = d
+        h = np.where(d > 0, np.minimum(opt.reach / (2 ** extra) / np.maximum(d, 1e-300), 1.0), 1.0)
+        pos = np.zeros(n_i)
+        cur_q, cur_b, cur_t, cur_p = node_q[nn], node_b[nn], node_t[nn], node_p[nn]  # fancy indexing: copies
+        cur_qb = node_qb[nn]
+        cur_w = np.zeros(n_i)  # the Lipschitz estimate of this path (as continue_path from the neighbour)
+        a0 = cur_q[:, act].copy()
+        alive = np.ones(n_i, bool)
+        finished = np.zeros(n_i, bool)
+        why = np.zeros(n_i, int)
+        streak, nonconv = np.zeros(n_i, int), np.zeros(n_i, int)
+        rejected = np.zeros(n_i, int)
+        mincond, minsig, endcond = np.ones(n_i), np.full(n_i, np.inf), np.zeros(n_i)
+        maxth, maxratio = np.zeros(n_i), np.zeros(n_i)
+        steps = np.zeros(n_i, int)
+        # a wave stops after 24 rounds: its few slow paths are taken up again together after the last wave
+        for _ in range(24 if extra == 0 else 100000):
+            sel = np.nonzero(alive & ~finished)[0]
+            if sel.size == 0:
+                break
+            hs = np.minimum(h[sel], 1.0 - pos[sel])
+            target = a0[sel] + (qa[idx[sel]] - a0[sel]) * (pos[sel] + hs)[:, None]
+            last_step = pos[sel] + hs >= 1.0 - 1e-12
+            target[last_step] = qa[idx[sel[last_step]]]
+            qc = cur_q[sel]
+            da = (target - qc[:, act]) / ja
+            pred = qc.copy()
+            pred[:, act] = target
+            pred[:, pas] += (cur_t[sel] @ da[:, :, None])[..., 0] * jp
+            qn = pred.copy()
+            c = _correct(kin, qn, xi, rank, opt, pinv0=cur_p[sel])
+            ok = c.ok
+            moved = np.linalg.norm((c.q_b - cur_qb[sel]) / jscale, axis=1)  # between the points where B was taken
+            corr = np.linalg.norm((qn - pred) / jscale, axis=1)
+            reach = np.linalg.norm((pred - qc) / jscale, axis=1)
+            chord = c.pinv @ (cur_b[sel] - c.bp)
+            w_step = np.sqrt(np.einsum("kij,kij->k", chord, chord)) / np.maximum(moved, 1e-300)
+            w = np.maximum(np.where(moved > 1e-8, w_step, 0.0), cur_w[sel])  # (a shorter chord measures round-off)
+            # B_p at the end point is B_p(q_b) (I + E) with ||E|| <= w |last|: the bounds move by that factor
+            eps = np.minimum(w * c.last, 1.0)
+            sig = c.sigma * (1.0 - eps)
+            cond = c.cond * (1.0 - eps) / (1.0 + eps)
+            ratio = 0.5 * w * np.maximum(corr, 0.5 * w * reach ** 2)
+            singular = ok & (cond < opt.cond_tol)
+            too_far = ok & ~singular & (ratio > opt.branch_fraction)
+            acc = ok & ~singular & ~too_far
+            sa = sel[acc]
+            cur_q[sa], cur_qb[sa], cur_b[sa], cur_t[sa], cur_p[sa], cur_w[sa] = \
+                qn[acc], c.q_b[acc], c.bp[acc], c.tangent[acc], c.pinv[acc], w[acc]
+            mincond[sa] = np.minimum(mincond[sa], cond[acc])
+            endcond[sa] = cond[acc]
+            minsig[sa] = np.minimum(minsig[sa], sig[acc])
+            maxth[sa] = np.maximum(maxth[sa], c.theta[acc])
+            maxratio[sa] = np.maximum(maxratio[sa], ratio[acc])
+            steps[sa] += 1
+            pos[sa] += hs[acc]
+            finished[sa] = last_step[acc]
+            aim = np.where(ratio > 0, np.sqrt(0.7 * opt.branch_fraction / np.maximum(ratio, 1e-300)), 2.0)
+            easy = c.theta < opt.theta_max / 4
+            grow = np.clip(np.where(easy, np.minimum(aim, 2.0), np.minimum(aim, 1.0)), 0.5, 2.0)
+            h[sel] = np.where(acc, hs * grow, np.where(too_far, hs * np.clip(aim, 0.1, 0.5), hs * 0.5))
+            streak[sa], nonconv[sa] = 0, 0
+            rj = sel[~acc]
+            streak[rj] += 1
+            rejected[rj] += 1
+            nonconv[sel[~ok]] += 1
+            nonconv[sel[ok]] = 0
+            why[sel] = np.where(acc, why[sel], np.where(singular, _SINGULAR, np.where(too_far, _TOO_FAR,
+                                                                                       _NO_CONVERGENCE)))
+            # two failed correctors in a row, or one on a step already short: beyond a fold (or outside the set)
+            beyond = (nonconv[sel] >= 2) | ((nonconv[sel] >= 1) & (hs * d[sel] < 0.25 * opt.reach))
+            nonconv[sel[~ok & beyond]] = 2
+            dead = singular | (~acc & ((streak[sel] >= opt.max_rejections) | beyond
+                                       | (h[sel] * d[sel] < opt.min_step))) | (steps[sel] + rejected[sel] >= 400)
+            alive[sel[dead]] = False
+        done = alive & finished  # the last accepted step ended at the target
+        why[alive & ~finished] = _NOT_REACHED
+        cur_q[np.ix_(np.nonzero(done)[0], act)] = qa[idx[done]]
+        inn = np.asarray(inside(cur_q), bool)
+        q[idx] = cur_q
+        cert.min_condition[idx], cert.min_sigma[idx] = mincond, minsig
+        cert.max_contraction[idx], cert.max_branch_ratio[idx] = maxth, maxratio
+        cert.steps[idx] += steps
+        cert.rejected[idx] += rejected
+        cert.path_length[idx] = d
+        cert.end_condition[idx] = endcond
+        keep = done & inn
+        # a corrector that fails again with a step half as long: the target is beyond a fold of the workspace
+        why = np.where((why == _NO_CONVERGENCE) & (nonconv >= 2), _BEYOND, why)
+        code[idx] = np.where(keep, 0, np.where(done, _OUTSIDE_RANGES, why))
+        cert.certified[idx] = keep
+        new = slice(nodes, nodes + int(keep.sum()))
+        node_q[new], node_b[new], node_t[new], node_p[new] = cur_q[keep], cur_b[keep], cur_t[keep], cur_p[keep]
+        node_qb[new] = cur_qb[keep]
+        nodes += int(keep.sum())
+
+    def retryable(idx: np.ndarray) -> np.ndarray:
+        return idx[np.isin(code[idx], (_NOT_REACHED, _TOO_FAR))]
+
+    # waves: the nearest targets to the roots first (growing 4x from 4), then the rest in order, each wave about as
+    # large as the set certified before it; a failed path is tried once more at once with steps half as long
+    d0, _ = cKDTree(node_q[:nodes, act] / ja).query(qa / ja)
+    near_first = np.argsort(d0, kind="stable")[: min(k, 256)]
+    rest = np.setdiff1d(np.arange(k), near_first, assume_unique=True)
+    waves, pos, size = [], 0, 4
+    while pos < len(near_first):
+        waves.append(near_first[pos: pos + size])
         pos += size
         size *= 4
-        pa = np.array(pool_a)
-        dist = np.linalg.norm((qa[batch] / scale)[:, None, :] - pa[None, :, :], axis=2)
-        near = np.argmin(dist, axis=1)
-        starts = np.array(pool_q)[near]
-        # screen: a target where Gauss-Newton in six equal steps from its neighbour finds no closure (gap above 1 % of
-        # the length scale) is beyond the workspace; following a path to it would crawl to a fold
-        # (it finds a closure, on some branch, wherever one is near; the certified path then decides the branch)
-        trial = starts.copy()
-        trial[:, act] = qa[batch]
-        closes = kin.assemble(trial, xi).residual <= 1e-2 * kin.length_scale  # one jump first (short paths)
-        if not np.all(closes):
-            far = np.nonzero(~closes)[0]
-            trial = starts[far].copy()
-            for step in range(1, 7):
-                trial[:, act] = starts[far][:, act] + (qa[batch][far] - starts[far][:, act]) * (step / 6)
-                gn = kin.assemble(trial, xi, max_iter=40 if step == 6 else 12)
-                trial = gn.q
-            closes[far] = gn.residual <= 1e-2 * kin.length_scale
-        qb = starts.copy()
-        nb = len(batch)
-        z = np.zeros(nb)
-        cb = BranchCertificate(np.zeros(nb, bool),
-                               ["no closure near the nearest assembled configuration (outside the workspace?)"] * nb,
-                               z.copy(), z.copy(), z.copy(), z.copy(), np.zeros(nb, int), np.zeros(nb, int), z.copy(),
-                               z.copy(), options)
-        if np.any(closes):
-            qc, cc = continue_path(kin, starts[closes], qa[batch][closes], xi, options)
-            qb[closes] = qc
-            for j, i in enumerate(np.nonzero(closes)[0]):
-                one = cc.take([j])
-                for attr in ("certified", "min_condition", "min_sigma", "max_contraction", "max_branch_ratio",
-                             "steps", "rejected", "path_length", "end_condition"):
-                    getattr(cb, attr)[i] = getattr(one, attr)[0]
-                cb.reason[i] = one.reason[0]
-        lost = ~cb.certified & closes
-        if np.any(lost) and np.any(near[lost] != 0):  # once more from the start
-            retry = lost & (near != 0)
-            qr, cr = continue_path(kin, q0[0], qa[batch][retry], xi, options)
-            qb[retry] = qr
-            ridx = np.nonzero(retry)[0]
-            for j, i in enumerate(ridx):
-                cb_one = cr.take([j])
-                for attr in ("certified", "min_condition", "min_sigma", "max_contraction", "max_branch_ratio",
-                             "steps", "rejected", "path_length", "end_condition"):
-                    getattr(cb, attr)[i] = getattr(cb_one, attr)[0]
-                cb.reason[i] = cb_one.reason[0]
-        for j, i in enumerate(batch):
-            q[i] = qb[j]
-            parts[i] = cb.take([j])
-            if cb.certified[j]:
-                pool_q.append(qb[j])
-                pool_a.append(qb[j][act] / scale)
-    return q, BranchCertificate.concatenate(parts)
+    pos = 0
+    while pos < len(rest):
+        size = max(sum(len(w_) for w_ in waves), 256)
+        waves.append(rest[pos: pos + size])
+        pos += size
+    for wave in waves:
+        run(wave, 0)
+    # then, from the nearest certified configuration at that time, with shorter first steps
+    for extra in range(1, opt.retries + 1):
+        again = retryable(np.arange(k))
+        if again.size == 0:
+            break
+        run(again, extra)
+    cert.reason = [_REASONS[c_] for c_ in code]
+    return q, cert
+
+
+_NOT_REACHED, _SINGULAR, _TOO_FAR, _NO_CONVERGENCE, _OUTSIDE_RANGES, _BEYOND = range(1, 7)
+_REASONS = ["", "not reached", "the path passes near a singularity of the passive joints",
+            "the step reaches too far against the distance to another solution",
+            "the corrector did not converge (the step is too long or the target beyond a fold)",
+            "certified on the branch but outside the workspace's declared ranges",
+            "the corrector did not converge on a short step or twice in a row (the target outside the reachable set "
+            "or beyond a fold of the workspace?)"]

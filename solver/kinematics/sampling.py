@@ -3,8 +3,8 @@
 Units: joint values in rad (revolute) and mm (prismatic).
 
 Every configuration is reached by branch-safe continuation
-(:func:`hyperstat.solver.kinematics.continuation.continue_path`) from the *nearest*
-configuration already assembled (home first), so that paths are short and every
+(:func:`hyperstat.solver.kinematics.continuation.continue_nearest`) from the *nearest*
+configuration already certified (home first), so that paths are short and every
 configuration carries a certificate that it lies on the assembly branch of the home
 configuration (by a chain of certified paths back to home).
 """
@@ -97,13 +97,13 @@ def assemble_nearest(
 ) -> tuple[np.ndarray, BranchCertificate]:
     """Assemble many actuated values on the branch of ``start``, each from the nearest one already assembled.
 
-    Targets are taken in order of their (dimensionless) actuated distance from ``start``,
-    in batches that grow four-fold (4, 16, 64, ...); every target of a batch continues
-    from the nearest configuration assembled so far (``start`` and ``pool`` included), all
-    of the batch at once, with a first step as long as the whole path when it is short
-    (at most ``max_step``).  A target that cannot be certified from its neighbour is tried once more from
-    ``start``.  Every certified configuration is linked to ``start`` by a chain of certified
-    paths, so it lies on the branch of ``start``.
+    The certified nearest-neighbour continuation
+    (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`, the sampler of every
+    stage): the targets nearest to ``start`` first, in batches growing four-fold, then the
+    others in waves; every target continues from the nearest configuration certified so
+    far (``start`` and ``pool`` included) with adaptive, certified steps.  Every certified
+    configuration is linked to ``start`` by a chain of certified paths, so it lies on the
+    branch of ``start``.
 
     Parameters
     ----------
@@ -224,7 +224,8 @@ def sample_configurations(
         rejected["out_of_range"] += int(np.sum(ok & ~in_range))
         ok &= in_range
         if np.any(ok):
-            cond = cert.end_condition[ok]  # inverse condition of B_p at the end of the certified path
+            # exact inverse condition of B_p (the certificate holds a lower bound from Frobenius norms)
+            cond = passive_conditioning(kin, q[ok])
             good = cond > singular_tol
             rejected["singular"] += int(np.sum(~good))
             kept.append(q[ok][good])

@@ -34,7 +34,6 @@ import numpy as np
 
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
-from hyperstat.solver.tolerances.continuation import assemble_from_nearest
 from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
 
 __all__ = ["COEFFICIENT_NAMES", "AccuracyMaps", "accuracy_maps", "allocate", "compensable", "grid_slice", "report_section",
@@ -228,16 +227,20 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
 
 # ---------------------------------------------------------------------------- workspace
 def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict | None = None,
-                     kinematics: Kinematics | None = None, steps: int = 6, workspace: Workspace | None = None) -> np.ndarray:
-    """Assembled configurations with actuated values uniform in the workspace's actuated box.
+                     kinematics: Kinematics | None = None, workspace: Workspace | None = None,
+                     certificate: bool = False):
+    """Configurations with actuated values uniform in the workspace's actuated box, certified on the home branch.
 
     The box and the assembly branch come from the workspace (:func:`workspace_of`: the
-    model's joint ranges, the template's declaration, then ``ranges``).  The first samples
-    are assembled by continuation from home, the others from the nearest configuration
-    already assembled with a first-order predictor
-    (:func:`hyperstat.solver.tolerances.continuation.assemble_from_nearest`); samples
-    that do not assemble (outside the reachable set) or leave the declared passive ranges
-    (another assembly branch) are left out.
+    model's joint ranges, the template's declaration, then ``ranges``).  Every draw is
+    assembled by the certified nearest-neighbour continuation of issue 18
+    (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`): from the
+    nearest configuration already certified, tangent predictor and Newton corrector, with
+    a branch certificate per configuration (``sigma_min(B_p)`` bounded below along the
+    path, contracting corrections, every step well inside the estimated distance to
+    another solution).  Draws that cannot be certified (outside the reachable set, beyond
+    a fold, near a singularity of the passive joints) or that leave the declared passive
+    ranges are left out with a warning that says how many and why.
 
     Parameters
     ----------
@@ -245,18 +248,31 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         Joint name -> (lo, hi) replacing the declared or model range.
     workspace : Workspace, optional
         Use this workspace instead of building one from ``mechanism`` and ``ranges``.
+    certificate : bool
+        Also return the :class:`~hyperstat.solver.kinematics.continuation.BranchCertificate`
+        of the kept configurations and the one of every draw.
 
     Returns
     -------
     ndarray, (K, n_q)
-        The configurations that assembled (K <= n), in draw order.
+        The certified configurations (K <= n), in draw order (mm / rad); with
+        ``certificate``, ``(q, certificate of the kept, certificate of every draw)``.
     """
+    import warnings
+
+    from hyperstat.solver.kinematics.continuation import continue_nearest
+
     kin = kinematics or Kinematics(mechanism)
     ws = workspace or workspace_of(mechanism, ranges)
     lo, hi = ws.actuated_box(mechanism)
     rng = np.random.default_rng(seed)
     qa = lo + (hi - lo) * rng.random((n, len(lo)))
-    q, ok = assemble_from_nearest(kin, qa, mechanism.home, inside=ws.inside, steps=steps)
+    q, cert = continue_nearest(kin, qa, None, mechanism.home, inside=ws.inside)
+    ok = cert.certified
+    if not ok.all():
+        warnings.warn(f"workspace sampling of '{mechanism.name}': {cert.summary()} They were left out.", stacklevel=2)
+    if certificate:
+        return q[ok], cert.take(ok), cert
     return q[ok]
 
 

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hyperstat.solver.kinematics.continuation import ContinuationOptions
+from hyperstat.solver.kinematics.continuation import ContinuationOptions, continue_path
 from scipy.linalg import qr
 from scipy.optimize import minimize
 
@@ -265,48 +265,62 @@ def refine_extremes(mechanism: Mechanism, maps: AccuracyMaps, analysis=None, kin
                     chosen.append(int(i))
                 if len(chosen) == n_starts:
                     break
-            results = []
-            for i in chosen:
-                r = _refine_one(f, kin, ws, q_all[i], lb0, ub0, sign, margin)
-                if r is not None:
-                    results.append(r)
+            results = [r for r in _refine_many(f, kin, ws, q_all[chosen], lb0, ub0, sign, margin) if r is not None]
             out[(name, kind)] = _conclude(m, kin, f, ws, lb0, ub0, name, kind, sampled, q_all[best], results,
                                           len(chosen), sign, margin)
     return out
 
 
 def _refine_one(f, kin, ws, q_start, lb0, ub0, sign, margin):
-    """One local optimisation from a sample: (value, q, active passive bound?, res) or None if it left the branch."""
+    """One local optimisation from a sample: (value, q, lb, ub, converged) or None if it left the branch."""
+    return _refine_many(f, kin, ws, np.asarray(q_start)[None], lb0, ub0, sign, margin)[0]
+
+
+def _refine_many(f, kin, ws, q_starts, lb0, ub0, sign, margin):
+    """Local optimisations from several samples, their branch checks batched: a list of results or None."""
     m = kin.mechanism
     pas = np.asarray(m.passive)
     lb, ub = lb0.copy(), ub0.copy()
     step = np.where(kin.joint_scale[pas] == 1.0, margin, margin * kin.length_scale)
     lb[pas] += step
     ub[pas] -= step
-    q0 = ws.wrapped(q_start)
-    res = _optimise(f, kin, q0, lb, ub, sign)
-    out = _settle(f, kin, ws, q0, res.x, lb, ub)
-    return None if out is None else (*out, bool(res.success))
+    q0 = ws.wrapped(np.atleast_2d(q_starts))
+    res = [_optimise(f, kin, q, lb, ub, sign) for q in q0]
+    settled = _settle(f, kin, ws, q0, np.array([r.x for r in res]), lb, ub)
+    return [None if s_ is None else (*s_, bool(r.success)) for s_, r in zip(settled, res)]
 
 
-def _settle(f, kin, ws, q_start, x, lb, ub):
-    """Re-assemble the optimiser's point at its actuated values; keep it if it is on the start's branch."""
+def _settle(f, kin, ws, q_starts, xs, lb, ub):
+    """Re-assemble the optimiser's points at their actuated values; keep those on their start's branch.
+
+    The branch checks of all points are one batched continuation (one path per point).
+    """
     m = kin.mechanism
     act = np.asarray(m.actuated)
-    a = kin.assemble(np.clip(x, lb, ub)[None].copy())
-    q = ws.wrapped(a.q[0])
-    if not (a.converged[0] and ws.inside(q[None])[0]):
-        return None
+    a = kin.assemble(np.clip(xs, lb, ub).copy())
+    q = ws.wrapped(a.q)
+    good = np.nonzero(a.converged & ws.inside(q))[0]
+    out: list = [None] * len(xs)
+    if good.size == 0:
+        return out
     # the branch check: back to the sample by certified continuation; the optimiser's point may lie
     # a margin from the singular edge of the branch, so the conditioning floor is lowered for this path
     # only (the steps stay bounded by the distance to another solution, see ContinuationOptions)
-    back = kin.solve(q_start[None, act], start=q, steps=4, options=ContinuationOptions(cond_tol=1e-12))
+    opt = ContinuationOptions(initial_steps=4, cond_tol=1e-12)
+    back, cert = continue_path(kin, q[good], q_starts[good][:, act], None, opt)
+    lost = ~cert.certified
+    if np.any(lost):  # as Kinematics.solve: a least-squares assembly at the target from the last certified point
+        qq = back[lost].copy()
+        qq[:, act] = q_starts[good][lost][:, act]
+        back[lost] = kin.assemble(qq).q
     # evidence: the path, taken in steps bounded by the distance to another solution, ends on the sample.
     # Its certificate may still fail at the very start (a fold a margin away: the corrector cannot shrink
     # its steps below the minimum there), which is why the end point, not the flag, decides.
-    if np.max(np.abs(ws.wrapped(back.q[0]) - q_start) / kin.joint_scale) > 1e-6:
-        return None
-    return float(f(q[None])[0]), q, lb, ub
+    values = f(q[good])
+    for j, i in enumerate(good):
+        if np.max(np.abs(ws.wrapped(back[j]) - q_starts[i]) / kin.joint_scale) <= 1e-6:
+            out[i] = (float(values[j]), q[i], lb, ub)
+    return out
 
 
 def _active(q, lb, ub, scale, tol=1e-7):

@@ -135,3 +135,40 @@ def test_sampling_leaves_out_uncertifiable_draws_and_says_how_many_and_why(tmp_p
     assert len(sample.q) and np.all(sample.q[:, 0] < 0)
     assert np.max(_branch_error(sample.q, ISOGRAM, -1)) < 1e-9
     assert sample.certificate.certified.all()
+
+
+def test_conditioning_bounds_of_the_sampler_never_exceed_the_singular_values():
+    """The Frobenius bounds of continue_nearest's certificate: sigma_n(B) >= 1 / ||B^-1||_F (square) or
+    sqrt(1 / ||(B^T B)^-1||_F) (tall), sigma_1 <= ||B||_F; checked against LAPACK's SVD, down to near-singular."""
+    from hyperstat.solver.kinematics.continuation import _inverse_parts
+
+    rng = np.random.default_rng(0)
+    for shape in ((200, 6, 6), (200, 12, 10)):
+        u, _ = np.linalg.qr(rng.normal(size=(shape[0], shape[1], shape[1])))
+        v, _ = np.linalg.qr(rng.normal(size=(shape[0], shape[2], shape[2])))
+        s = 10.0 ** rng.uniform(-7, 1, size=(shape[0], shape[2]))
+        b = (u[:, :, : shape[2]] * s[:, None, :]) @ np.swapaxes(v, 1, 2)
+        pinv, sig, cond = _inverse_parts(b, shape[2])
+        exact = np.linalg.svd(b, compute_uv=False)
+        assert np.all(sig <= exact[:, -1] * (1 + 1e-6)) and np.all(cond <= exact[:, -1] / exact[:, 0] * (1 + 1e-6))
+        assert np.all(sig >= exact[:, -1] / np.sqrt(shape[2]) * (1 - 1e-6))  # at most sqrt(n) below (Frobenius)
+        good = exact[:, -1] > 1e-3 * exact[:, 0]  # normal equations: rounding about eps / cond^2 = 1e-10
+        np.testing.assert_allclose((pinv @ b)[good], np.broadcast_to(np.eye(shape[2]), (good.sum(),) + (shape[2],) * 2),
+                                   atol=1e-9)
+
+
+def test_every_configuration_of_the_sampler_meets_the_rules_of_its_certificate(tmp_path):
+    m = _model(tmp_path, CRANK_ROCKER, 0.5, +1, (-np.pi, np.pi), "cr")
+    kin = Kinematics(m)
+    theta = np.random.default_rng(1).uniform(-np.pi, np.pi, 300)
+    q, cert = assemble_nearest(kin, theta[:, None])
+    opt = ContinuationOptions()
+    ok = cert.certified
+    assert ok.all(), cert.summary()
+    assert np.max(_branch_error(q, CRANK_ROCKER, +1)) < 1e-9  # the closed-form branch of home
+    assert np.all(cert.max_branch_ratio <= opt.branch_fraction) and np.all(cert.max_contraction <= opt.theta_max)
+    # the certificate's end conditioning is a lower bound of the exact inverse condition number
+    from hyperstat.solver.kinematics.sampling import passive_conditioning
+
+    assert np.all(cert.end_condition <= passive_conditioning(kin, q) * (1 + 1e-6))
+    assert np.all(cert.end_condition >= opt.cond_tol)

@@ -19,7 +19,7 @@ import pytest
 from hyperstat.solver.errors import HyperstatError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate, sample_workspace
-from hyperstat.solver.tolerances.continuation import assemble_from_nearest
+from hyperstat.solver.kinematics.continuation import continue_nearest
 from hyperstat.solver.tolerances.workspace import workspace_of
 from hyperstat.solver.tolerances.worst_case import refine_extremes
 
@@ -111,13 +111,15 @@ def test_bad_workspace_declaration_names_the_joint(triflex):
 
 
 def test_nearest_neighbour_sampler_finds_the_reachable_set_on_the_papers_branch(triflex):
-    """Every kept sample closes, lies inside the three cylinders with both elbows in [0, pi]; almost every
-    reachable draw is kept (the reachable set from the cylinders, not from the solver)."""
+    """Every kept sample is certified, closes, lies inside the three cylinders with both elbows in [0, pi]; almost
+    every reachable draw is kept (the reachable set from the cylinders, not from the solver)."""
     kin = Kinematics(triflex)
     ws = workspace_of(triflex)
     lo, hi = ws.actuated_box(triflex)
     qa = lo + (hi - lo) * np.random.default_rng(3).random((3000, 3))
-    q, ok = assemble_from_nearest(kin, qa, triflex.home, inside=ws.inside)
+    q, cert = continue_nearest(kin, qa, None, triflex.home, inside=ws.inside)
+    ok = cert.certified
+    assert all(r == "" for r, c in zip(cert.reason, ok) if c) and all(r for r, c in zip(cert.reason, ok) if not c)
     margin = reach_margin(qa)
     assert np.all(margin[ok] > -1e-9)  # nothing outside the reachable set
     missed = (margin > 1e-6) & ~ok
