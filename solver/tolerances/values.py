@@ -44,6 +44,8 @@ __all__ = ["assign_values", "task_maps", "task_extremes", "monte_carlo_at_values
 
 #: configurations of the stationarity sample on which the assemblability programme runs (report, accuracy)
 ASSEMBLY_SAMPLE = 8
+#: workspace configurations (at most, evenly spread over the sample) added to the assemblability programme
+ASSEMBLY_WORKSPACE = 256
 
 
 def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, task: tuple,
@@ -185,8 +187,9 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
     assembly : bool
         Compute the assembly conditions' values from the clearances.
     assembly_configurations : ndarray, optional
-        Configurations checked for assemblability besides the workspace sample (e.g. the
-        analysis' configurations).
+        Configurations checked for assemblability besides the workspace sample (at most
+        :data:`ASSEMBLY_WORKSPACE` of it) and the allocation's worst cases: e.g. the
+        analysis' configurations, whose own worst case is reported beside the value.
     refine : bool or "slsqp"
         Refine the sampled maxima of the task-restricted coefficients: ``True``, the batched
         ascent of :func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`;
@@ -274,15 +277,37 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
 
         items = cl.by_class("assembly")
         if items:
-            qa = q if assembly_configurations is None else np.atleast_2d(assembly_configurations)
-            vals = assembly_tolerances(mechanism, items, decl, qa)
+            # the workspace sample (at most ASSEMBLY_WORKSPACE of it, evenly spread), after the given
+            # configurations (the reference set) and the allocation's worst-case configurations
+            ws_part = q[np.unique(np.linspace(0, len(q) - 1, min(len(q), ASSEMBLY_WORKSPACE)).astype(int))]
+            ref = None if assembly_configurations is None else np.atleast_2d(assembly_configurations)
+            extra = [np.asarray(w["configuration"]) for a in (info.get("calibrated"), info.get("uncalibrated")) if a
+                     for w in a.get("worst_cases", {}).values() if w["location"] != "constant"]
+            parts = ([ref] if ref is not None else []) + [ws_part] + ([np.array(extra)] if extra else [])
+            qa = np.vstack(parts)
+            vals = assembly_tolerances(mechanism, items, decl, qa, reference=None if ref is None else len(ref))
+            n_ref = 0 if ref is None else len(ref)
+            info["assembly_configurations"] = {"total": int(len(qa)), "analysis": n_ref, "workspace": int(len(ws_part)),
+                                               "worst_cases": len(extra)}
             for t in items:
                 v = vals[t.id]
                 t.value = v["value"]
-                t.evidence["assemblability"] = {k: v[k] for k in ("worst_configuration", "limiting", "at_bound",
-                                                                  "configurations")}
+                t.evidence["assemblability"] = {k: v.get(k) for k in ("worst_configuration", "limiting", "at_bound",
+                                                                      "configurations", "reference_value")}
+                wc = v["worst_configuration"]
+                if wc is not None:
+                    t.evidence["assemblability"]["worst_actuated"] = {
+                        mechanism.joints[i].name: float(qa[wc, i]) for i in mechanism.actuated}
+                    t.evidence["assemblability"]["worst_in"] = ("analysis" if wc < n_ref else "workspace sample"
+                                                                if wc < n_ref + len(ws_part) else "accuracy worst case")
                 t.value_source = (f"largest violation the joint clearances absorb at every one of {v['configurations']} "
-                                  "configurations (worst-case assemblability, linear programme)")
+                                  f"configurations ({n_ref} of the analysis, {len(ws_part)} of the declared workspace, "
+                                  f"{len(extra)} accuracy worst cases; worst-case assemblability, linear programme)")
+                rv = v.get("reference_value")
+                if v["value"] is not None and rv is not None and n_ref:
+                    t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
+                                       f"({100 * (rv / v['value'] - 1):.0f} % looser)" if rv > v["value"] * (1 + 1e-9)
+                                       else "; the analysis configurations alone give the same value")
                 if v["value"] is None:
                     t.value_source = "the clearances absorb any small violation (no limit to first order)"
     cl.allocation = info
