@@ -35,7 +35,7 @@ import numpy as np
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, output_twist_maps
-from hyperstat.solver.tolerances.classification import Classification
+from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
 from hyperstat.solver.tolerances.task_worst import TASK_COEFFICIENTS, TaskCoefficients, task_worst_cases
 
@@ -44,9 +44,6 @@ __all__ = ["assign_values", "task_maps", "task_extremes", "monte_carlo_at_values
 
 #: configurations of the stationarity sample on which the assemblability programme runs (report, accuracy)
 ASSEMBLY_SAMPLE = 8
-#: workspace configurations (at most, evenly spread over the sample) added to the assemblability programme
-ASSEMBLY_WORKSPACE = 256
-
 
 def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, task: tuple,
               directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -187,9 +184,10 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
     assembly : bool
         Compute the assembly conditions' values from the clearances.
     assembly_configurations : ndarray, optional
-        Configurations checked for assemblability besides the workspace sample (at most
-        :data:`ASSEMBLY_WORKSPACE` of it) and the allocation's worst cases: e.g. the
-        analysis' configurations, whose own worst case is reported beside the value.
+        Configurations checked for assemblability besides the fixed workspace checkpoints
+        (:func:`hyperstat.solver.tolerances.classification.workspace_checkpoints`: a sample of
+        the declared workspace and the corners of its actuated box): e.g. the analysis'
+        configurations, whose own worst case is reported beside the value.
     refine : bool or "slsqp"
         Refine the sampled maxima of the task-restricted coefficients: ``True``, the batched
         ascent of :func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`;
@@ -260,6 +258,21 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
             else:
                 t.value_source = ("equal allocation against the spec without calibration (paper 2, eqs. 30-31), "
                                   f"worst case over the declared workspace; calibration lets it open{worst}")
+        # the verdicts again with the worst-case configurations added (compensable means cancellable at every
+        # configuration of the workspace, and the worst cases are where the coefficients peak)
+        extra = [np.asarray(w["configuration"]) for a in (calibrated, uncalibrated) if a
+                 for w in a.get("worst_cases", {}).values() if w["location"] != "constant"]
+        if extra and cl.analysis is not None and cl.configurations is not None:
+            from hyperstat.solver.tolerances.classification import classify
+
+            again = classify(mechanism, cl.analysis, kin, decl, configurations=np.vstack([cl.configurations] + extra))
+            changed = [f"{t.id} ({t.cls} -> {u.cls})" for t, u in zip(cl.items, again.items) if t.cls != u.cls]
+            cl.checked["worst_cases"] = len(extra)
+            cl.checked["worst_case_margin"] = again.checked.get("margin")
+            cl.checked["worst_cases_agree"] = not changed
+            if changed:
+                cl.warnings.append("at the accuracy worst cases the verdict changes for " + ", ".join(changed) +
+                                   ": the class shown holds at the sampled configurations only.")
         # contributions: first-order variance at the values (uniform: t^2 / 3)
         rows = pos if pos.shape[1] else rot
         vals = np.array([t.value or 0.0 for t in influential])
@@ -277,18 +290,16 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
 
         items = cl.by_class("assembly")
         if items:
-            # the workspace sample (at most ASSEMBLY_WORKSPACE of it, evenly spread), after the given
-            # configurations (the reference set) and the allocation's worst-case configurations
-            ws_part = q[np.unique(np.linspace(0, len(q) - 1, min(len(q), ASSEMBLY_WORKSPACE)).astype(int))]
+            # the same configurations whatever the command: the given ones (the reference set), a fixed
+            # sample of the declared workspace and the corners of its actuated box that assemble on its branch
             ref = None if assembly_configurations is None else np.atleast_2d(assembly_configurations)
-            extra = [np.asarray(w["configuration"]) for a in (info.get("calibrated"), info.get("uncalibrated")) if a
-                     for w in a.get("worst_cases", {}).values() if w["location"] != "constant"]
-            parts = ([ref] if ref is not None else []) + [ws_part] + ([np.array(extra)] if extra else [])
-            qa = np.vstack(parts)
+            ws_part, corners = workspace_checkpoints(mechanism, kin, workspace)
+            parts = ([ref] if ref is not None else []) + [p for p in (ws_part, corners) if len(p)]
+            qa = np.vstack(parts) if parts else q
             vals = assembly_tolerances(mechanism, items, decl, qa, reference=None if ref is None else len(ref))
             n_ref = 0 if ref is None else len(ref)
             info["assembly_configurations"] = {"total": int(len(qa)), "analysis": n_ref, "workspace": int(len(ws_part)),
-                                               "worst_cases": len(extra)}
+                                               "box_corners": int(len(corners))}
             for t in items:
                 v = vals[t.id]
                 t.value = v["value"]
@@ -299,10 +310,11 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
                     t.evidence["assemblability"]["worst_actuated"] = {
                         mechanism.joints[i].name: float(qa[wc, i]) for i in mechanism.actuated}
                     t.evidence["assemblability"]["worst_in"] = ("analysis" if wc < n_ref else "workspace sample"
-                                                                if wc < n_ref + len(ws_part) else "accuracy worst case")
+                                                                if wc < n_ref + len(ws_part) else "actuated box corner")
                 t.value_source = (f"largest violation the joint clearances absorb at every one of {v['configurations']} "
-                                  f"configurations ({n_ref} of the analysis, {len(ws_part)} of the declared workspace, "
-                                  f"{len(extra)} accuracy worst cases; worst-case assemblability, linear programme)")
+                                  f"configurations ({n_ref} of the analysis, {len(ws_part)} sampled in the declared "
+                                  f"workspace, {len(corners)} corners of its actuated box; worst-case assemblability, "
+                                  "linear programme)")
                 rv = v.get("reference_value")
                 if v["value"] is not None and rv is not None and n_ref:
                     t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
