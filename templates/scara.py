@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from hyperstat.cad_plugin.params import make_parameters, param
 from hyperstat.cad_plugin.skeleton import Skeleton
+from hyperstat.solver.tolerances.declaration import MACHINE_TOOL_CLEARANCES
 
 
 #: Tolerancing declaration (hyperstat.solver.tolerances.declaration): a SCARA places a part and turns it about the
@@ -25,11 +26,7 @@ TOLERANCING = {
     "task": ["position", "rz"],
     "measurements": {"kind": "poses", "targets_mm": [[0.0, 0.0, 0.0]], "noise_mm": 0.005, "noise_rad": 1e-5},
     "spec": {"position_mm": 0.05, "orientation_rad": 5e-4},
-    "clearances": {"R": {"radial_mm": 0.005, "axial_mm": 0.005, "tilt_rad": 1e-4, "twist_rad": 0.0,
-                         "source": "assumed: preloaded rolling bearings of a machine tool, play at most 5 um "
-                                   "over a 50 mm bearing span"},
-                   "P": {"radial_mm": 0.002, "axial_mm": 0.0, "tilt_rad": 2e-5, "twist_rad": 2e-5,
-                         "source": "assumed: preloaded linear guide or ball screw (no play; 2 um, 20 urad)"}},
+    "clearances": MACHINE_TOOL_CLEARANCES,  # ISO 5753-1 C2 revolutes; prismatic play assumed
 }
 
 @dataclass
