@@ -390,6 +390,8 @@ def render_markdown(doc: dict) -> str:
     for t in tol["items"]:
         lines.append(f"| {t['id']} | {t['feature']} | {t['words']} | `{t['statement']}` | {_value(t)} | {t['class']} | "
                      f"{t['summary']} | {_pct(t.get('contribution_percent'))} |")
+    if tol.get("warnings"):
+        lines += ["", "Warnings:", ""] + [f"* {w}" for w in tol["warnings"]]
     lines += ["", "## Assembly conditions", ""]
     lines += [f"* {a['id']}: {a['statement']} ({_value(a)})" for a in doc["assembly_conditions"]] or ["* none"]
     red = tol.get("redundant", {})

@@ -16,7 +16,9 @@ over the actuated variables:
   the sample's assembly branch: each step is predicted to first order
   (``dq_p = -B_p^+ B_a dq_a``, paper 1, eq. 3) and corrected by Gauss-Newton; a step
   whose correction is not small against the prediction, that does not converge, or
-  that leaves the declared passive ranges (another branch) is refused and shortened;
+  that leaves the declared passive ranges (another branch) or comes within a relative
+  conditioning of :data:`CONDITIONING_FLOOR` of a singular passive Jacobian (where a
+  coefficient can grow without bound) is refused and shortened;
 * the gradient is taken by forward differences (step 1e-6 of the box) on the
   first-order passive motion, for all paths in one batched evaluation;
 * the step doubles after an accepted ascent and is quartered after a refusal; a path
@@ -148,6 +150,21 @@ class TaskCoefficients:
         return out
 
 
+#: relative smallest singular value of the scaled passive Jacobian below which a step is refused: at a singular
+#: edge of the workspace a coefficient can grow without bound (the same floor as worst_case.SINGULAR)
+CONDITIONING_FLOOR = 1e-2
+
+
+def _conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
+    """Relative smallest singular value of the scaled passive closure Jacobian at each configuration (K,)."""
+    m = kin.mechanism
+    if not (len(m.passive) and len(m.closures)):
+        return np.ones(len(q))
+    b = kin.scaled_rows(kin.evaluate(q, None, "joints").closure_q)[:, :, m.passive]
+    s = np.linalg.svd(b, compute_uv=False)
+    return s[:, min(b.shape[1:]) - 1] / np.maximum(s[:, 0], 1e-300)
+
+
 def _passive_motion(kin: Kinematics, q: np.ndarray) -> np.ndarray:
     """First-order passive motion per unit actuated motion, ``-B_p^+ B_a`` (K, n_p, n_a), mm and rad."""
     m = kin.mechanism
@@ -226,6 +243,7 @@ def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, 
     active = np.ones(p, dtype=bool)
     done = np.zeros(p, dtype=bool)
     iters = np.zeros(p, dtype=int)
+    floor = np.zeros(p, dtype=bool)  # a step was refused at the conditioning floor (a singular edge)
     h = 1e-6
     n_a = len(act)
     for _ in range(iterations):
@@ -267,6 +285,12 @@ def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, 
         corr = np.linalg.norm((res.q[:, pas] - q_pred[:, pas]) / kin.joint_scale[pas], axis=1)
         pred = np.linalg.norm(dq_p / kin.joint_scale[pas], axis=1)
         ok = res.converged & ws.inside(q_new) & (corr <= 0.1 * pred + 1e-9)
+        if ok.any():
+            cond = np.ones(len(idx))
+            cond[ok] = _conditioning(kin, q_new[ok])
+            edge = ok & (cond < CONDITIONING_FLOOR)
+            floor[idx[edge]] = True
+            ok &= ~edge
         v_new = np.full(len(idx), -np.inf)
         if ok.any():
             v_new[ok] = f(q_new[ok], [names[k] for k in idx[ok]])
@@ -297,6 +321,10 @@ def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, 
             continue
         evidence = (f"projected-gradient ascent over the actuated variables from {len(ks)} of the best samples, "
                     f"passive joints on the sample's branch; {agree} of {len(ks)} starts agree")
+        if floor[top]:
+            evidence += (f"; bounded by the singular edge of the workspace: steps where the passive Jacobian's relative "
+                         f"smallest singular value falls below {CONDITIONING_FLOOR:g} were refused (the coefficient "
+                         "grows without bound there; the value holds on the well-conditioned part of the workspace)")
         if not done[top]:
             evidence += (f"; stopped at the iteration limit ({iterations}) with a last accepted gain of {tol:.2g} "
                          "(the stated tolerance): a value reached, not a certified maximum")

@@ -258,6 +258,13 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
             else:
                 t.value_source = ("equal allocation against the spec without calibration (paper 2, eqs. 30-31), "
                                   f"worst case over the declared workspace; calibration lets it open{worst}")
+        for key, a in (("calibrated", calibrated), ("uncalibrated", uncalibrated)):
+            for name, w in ((a or {}).get("worst_cases") or {}).items():
+                if "singular edge" in w["evidence"]:
+                    cl.warnings.append(f"the worst case of {name} ({key} allocation) lies at the singular edge of the "
+                                       "declared workspace, where it grows without bound: the values hold where the "
+                                       "passive Jacobian's relative conditioning is at least 1e-2 (declare a workspace "
+                                       "away from the singularity to relax them).")
         # the verdicts again with the worst-case configurations added (compensable means cancellable at every
         # configuration of the workspace, and the worst cases are where the coefficients peak)
         extra = [np.asarray(w["configuration"]) for a in (calibrated, uncalibrated) if a
