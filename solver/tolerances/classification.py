@@ -73,7 +73,8 @@ def workspace_checkpoints(mechanism: Mechanism, kin: Kinematics, workspace=None,
     """Fixed configurations of the declared workspace: a sample (seed 0) and the corners of the actuated box.
 
     The same for every command (``analyze``, ``accuracy``, ``report``), so that the
-    assemblability values agree.  The corners are assembled from the nearest sample on its
+    assemblability values agree.  A revolute actuator turning a full circle has no bound:
+    it stays at its home value in the corners.  The corners are assembled from the nearest sample on its
     branch and kept when they converge inside the workspace (the reachable set may cut a
     corner off); at most 2^8 corners.
 
@@ -95,9 +96,18 @@ def workspace_checkpoints(mechanism: Mechanism, kin: Kinematics, workspace=None,
     if not len(sample) or n_a > 8 or not np.all(np.isfinite(np.r_[lo, hi])):
         out = (sample, np.zeros((0, kin.n_q)))
     else:
-        bits = (np.arange(2 ** n_a)[:, None] >> np.arange(n_a)[None, :]) & 1
-        q, ok = assemble_from_nearest(kin, np.where(bits == 1, hi, lo), mechanism.home, inside=ws.inside)
-        out = (sample, q[ok])
+        # a revolute actuator turning a full circle has no boundary: it stays at home in the corners
+        turn = np.array([mechanism.joints[i].type == "R" and hi[a] - lo[a] >= 2 * np.pi - 1e-9
+                         for a, i in enumerate(mechanism.actuated)])
+        varied = np.nonzero(~turn)[0]
+        if not len(varied):
+            out = (sample, np.zeros((0, kin.n_q)))
+        else:
+            bits = (np.arange(2 ** len(varied))[:, None] >> np.arange(len(varied))[None, :]) & 1
+            qa = np.tile(mechanism.home[mechanism.actuated].astype(float), (len(bits), 1))
+            qa[:, varied] = np.where(bits == 1, hi[varied], lo[varied])
+            q, ok = assemble_from_nearest(kin, qa, mechanism.home, inside=ws.inside)
+            out = (sample, q[ok])
     if workspace is None:
         _CHECKPOINTS.update(key=key, kin=kin, value=out)
     return out
@@ -446,6 +456,14 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
     j_pinv = np.linalg.pinv(j_m, rcond=1e-10) if j_m.size else np.zeros((j_m.shape[1], j_m.shape[0]))
     sv = np.linalg.svd(j_m, compute_uv=False) if j_m.size else np.zeros(0)
     ka_pinv = np.linalg.pinv(task_a, rcond=1e-8)  # (K, n_a, r)
+    # task-singular configurations (a dead centre: the actuators lose a task direction there, so nothing is
+    # cancellable to first order) are left out of the residual test: their rank is below the generic one
+    if task_a.size:
+        sa = np.linalg.svd(task_a, compute_uv=False)
+        rank_a = np.sum(sa > 1e-6 * max(float(sa.max()), 1e-300), axis=1)
+        regular = rank_a == rank_a.max()
+    else:
+        regular = np.ones(len(q), dtype=bool)
     n_s = basis.shape[1]
 
     def task_of(d: np.ndarray) -> np.ndarray:
@@ -489,9 +507,9 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
             uncancelled = predicted - np.einsum("kra,ka->kr", task_a, delta_a)
             total = unseen + uncancelled
             ref = float(np.max(np.linalg.norm(task_of(d), axis=1)))
-            r_unseen = float(np.max(np.linalg.norm(unseen, axis=1))) / ref
-            r_unc = float(np.max(np.linalg.norm(uncancelled, axis=1))) / ref
-            r_total = float(np.max(np.linalg.norm(total, axis=1))) / ref
+            r_unseen = float(np.max(np.linalg.norm(unseen[regular], axis=1))) / ref
+            r_unc = float(np.max(np.linalg.norm(uncancelled[regular], axis=1))) / ref
+            r_total = float(np.max(np.linalg.norm(total[regular], axis=1))) / ref
             ev.update({"not_identified_share": r_unseen, "not_cancelled_share": r_unc, "residual_share": r_total})
             if r_total < _REL:
                 cls = "compensable"
@@ -585,7 +603,8 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
     shares = {c: [t.evidence.get("residual_share") for t in items if t.cls == c and t.kind == "direction"]
               for c in ("compensable", "accuracy-critical")}
     infl = [t.evidence["task_influence"] / top for t in items if t.cls == "non-influent" and top > 0]
-    checked = {"configurations": int(len(q)), "of": origin, "thresholds": {"residual_share": _REL,
+    checked = {"configurations": int(len(q)), "of": origin, "task_singular_left_out": int(np.sum(~regular)),
+               "thresholds": {"residual_share": _REL,
                                                                           "task_motion_ratio": 1e-9},
                "compensable_largest_residual": max(shares["compensable"], default=None),
                "accuracy_critical_smallest_residual": min(shares["accuracy-critical"], default=None),
