@@ -249,9 +249,11 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
             t.value = v
             worst = ""
             if src and src.get("worst_cases"):
-                worst = "; coefficients at their worst case: " + "; ".join(
-                    f"{n} max {w['max']:.6g} (sampled {w['sampled_max']:.6g}, optimiser tolerance "
-                    f"{w['optimiser_tolerance']:.1g}) {w['where']}" for n, w in src["worst_cases"].items())
+                key = "calibrated" if t.cls == "accuracy-critical" else "uncalibrated"
+                worst = "; " + ", ".join(f"{n} max {w['max']:.6g} (sampled {w['sampled_max']:.6g})"
+                                         for n, w in src["worst_cases"].items() if w["location"] != "constant")
+                worst += f" (where: allocation.{key}.worst_cases)"
+                worst = "" if worst.startswith("; (") else worst
             if t.cls == "accuracy-critical":
                 t.value_source = ("equal allocation against the spec less the calibration residual, worst case "
                                   f"over the declared workspace (paper 2, eqs. 30-31){worst}")
