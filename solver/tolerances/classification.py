@@ -64,7 +64,7 @@ _COMPONENT_WORDS = {"I": "axis tilt, x component", "J": "axis tilt, y component"
                     "G": "rotation about its own axis"}
 _REL = 1e-6  # relative threshold on task residuals (dimensionless, round-off is ~1e-12)
 #: workspace configurations (seed 0) checked besides the analysis' (classification, assemblability), whatever the command
-WORKSPACE_CHECKPOINTS = 128
+WORKSPACE_CHECKPOINTS = 64
 _CHECKPOINTS: dict = {}  # the last checkpoints computed (one mechanism per process, as the commands run)
 
 
@@ -364,6 +364,17 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
     >>> c.counts()  # doctest: +SKIP
     {'assembly': 6, 'accuracy-critical': 0, 'compensable': 3, 'non-influent': 1}
     """
+    from threadpoolctl import threadpool_limits
+
+    # a few hundred small matrices and one design of ~1000 rows: threaded BLAS only adds synchronisation
+    # (on a loaded 2-core machine it tripled the CPU time of the workspace checks)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _classify(mechanism, analysis, kinematics, declaration, configurations)
+
+
+def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kinematics | None,
+              declaration: Declaration | None, configurations: np.ndarray | None) -> Classification:
+    """Body of :func:`classify` (BLAS single-threaded by the caller)."""
     kin = kinematics or Kinematics(mechanism)
     decl = declaration or declaration_of(mechanism)
     m = mechanism

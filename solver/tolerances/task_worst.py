@@ -173,7 +173,7 @@ def _passive_motion(kin: Kinematics, q: np.ndarray) -> np.ndarray:
 
 
 def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, coefficients: TaskCoefficients,
-                     workspace: Workspace | None = None, starts: int = 3, iterations: int = 40,
+                     workspace: Workspace | None = None, starts: int = 2, iterations: int = 30,
                      sampled: dict | None = None) -> dict:
     """Refined maxima of the task-restricted coefficients (see the module docstring).
 

@@ -196,6 +196,17 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
     workspace : Workspace, optional
         Bounds of the refinement (default: the mechanism's declared workspace).
     """
+    from threadpoolctl import threadpool_limits
+
+    # small batched matrices and one sparse programme per condition: threaded BLAS only adds synchronisation
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
+                              assembly_configurations, refine, workspace)
+
+
+def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
+                   assembly_configurations, refine, workspace) -> Classification:
+    """Body of :func:`assign_values` (BLAS single-threaded by the caller)."""
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
     spec_o = orientation_accuracy if orientation_accuracy is not None else decl.orientation_rad
@@ -274,7 +285,10 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         if extra and cl.analysis is not None and cl.configurations is not None:
             from hyperstat.solver.tolerances.classification import classify
 
-            again = classify(mechanism, cl.analysis, kin, decl, configurations=np.vstack([cl.configurations] + extra))
+            # identification from the analysis configurations (as analyze did before the workspace checks), the
+            # residual test at them and at the worst cases
+            again = classify(mechanism, cl.analysis, kin, decl,
+                             configurations=np.vstack([cl.analysis.configurations] + extra))
             changed = [f"{t.id} ({t.cls} -> {u.cls})" for t, u in zip(cl.items, again.items) if t.cls != u.cls]
             cl.checked["worst_cases"] = len(extra)
             cl.checked["worst_case_margin"] = again.checked.get("margin")
