@@ -16,9 +16,10 @@ over the actuated variables:
   the sample's assembly branch: each step is predicted to first order
   (``dq_p = -B_p^+ B_a dq_a``, paper 1, eq. 3) and corrected by Gauss-Newton; a step
   whose correction is not small against the prediction, that does not converge, or
-  that leaves the declared passive ranges (another branch) or comes within a relative
-  conditioning of :data:`CONDITIONING_FLOOR` of a singular passive Jacobian (where a
-  coefficient can grow without bound) is refused and shortened;
+  that leaves the declared passive ranges (another branch) or where the passive
+  Jacobian's relative conditioning falls below :data:`CONDITIONING_FLOOR` times its
+  median over the sample (a singular edge, where a coefficient can grow without bound)
+  is refused and shortened;
 * the gradient is taken by forward differences (step 1e-6 of the box) on the
   first-order passive motion, for all paths in one batched evaluation;
 * the step doubles after an accepted ascent and is quartered after a refusal; a path
@@ -150,8 +151,8 @@ class TaskCoefficients:
         return out
 
 
-#: relative smallest singular value of the scaled passive Jacobian below which a step is refused: at a singular
-#: edge of the workspace a coefficient can grow without bound (the same floor as worst_case.SINGULAR)
+#: a step is refused where the relative smallest singular value of the scaled passive Jacobian falls below this
+#: fraction of its median over the sample: at a singular edge of the workspace a coefficient can grow without bound
 CONDITIONING_FLOOR = 1e-2
 
 
@@ -238,6 +239,7 @@ def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, 
         return np.array([c[n][k] for k, n in enumerate(who)])
 
     val = f(q, names)
+    floor_at = CONDITIONING_FLOOR * float(np.median(_conditioning(kin, sample)))
     step = np.full(p, 0.05)
     gain = np.full(p, np.nan)  # last accepted increase
     active = np.ones(p, dtype=bool)
@@ -288,7 +290,7 @@ def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, 
         if ok.any():
             cond = np.ones(len(idx))
             cond[ok] = _conditioning(kin, q_new[ok])
-            edge = ok & (cond < CONDITIONING_FLOOR)
+            edge = ok & (cond < floor_at)
             floor[idx[edge]] = True
             ok &= ~edge
         v_new = np.full(len(idx), -np.inf)
@@ -323,8 +325,9 @@ def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, 
                     f"passive joints on the sample's branch; {agree} of {len(ks)} starts agree")
         if floor[top]:
             evidence += (f"; bounded by the singular edge of the workspace: steps where the passive Jacobian's relative "
-                         f"smallest singular value falls below {CONDITIONING_FLOOR:g} were refused (the coefficient "
-                         "grows without bound there; the value holds on the well-conditioned part of the workspace)")
+                         f"conditioning falls below {CONDITIONING_FLOOR:g} of its median over the sample were refused "
+                         "(the coefficient grows without bound there; the value holds on the well-conditioned part of "
+                         "the workspace)")
         if not done[top]:
             evidence += (f"; stopped at the iteration limit ({iterations}) with a last accepted gain of {tol:.2g} "
                          "(the stated tolerance): a value reached, not a certified maximum")

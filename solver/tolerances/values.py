@@ -261,10 +261,10 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
             worst = ""
             if src and src.get("worst_cases"):
                 key = "calibrated" if t.cls == "accuracy-critical" else "uncalibrated"
-                worst = "; " + ", ".join(f"{n} max {w['max']:.6g} (sampled {w['sampled_max']:.6g})"
-                                         for n, w in src["worst_cases"].items() if w["location"] != "constant")
-                worst += f" (where: allocation.{key}.worst_cases)"
-                worst = "" if worst.startswith("; (") else worst
+                moved = [f"{n} max {w['max']:.6g} (sampled {w['sampled_max']:.6g})"
+                         for n, w in src["worst_cases"].items() if w["location"] != "constant"]
+                if moved:
+                    worst = "; " + ", ".join(moved) + f" (where: allocation.{key}.worst_cases)"
             if t.cls == "accuracy-critical":
                 t.value_source = ("equal allocation against the spec less the calibration residual, worst case "
                                   f"over the declared workspace (paper 2, eqs. 30-31){worst}")
@@ -273,11 +273,16 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
                                   f"worst case over the declared workspace; calibration lets it open{worst}")
         for key, a in (("calibrated", calibrated), ("uncalibrated", uncalibrated)):
             for name, w in ((a or {}).get("worst_cases") or {}).items():
+                tol_w = w["optimiser_tolerance"]
+                if "iteration limit" in w["evidence"] and not (math.isfinite(tol_w) and tol_w <= 1e-3 * abs(w["max"])):
+                    cl.warnings.append(f"the worst case of {name} ({key} allocation) was still rising when the ascent "
+                                       f"stopped ({w['max']:.4g}, last gain {tol_w:.2g}): the values divided by it may "
+                                       "be loose (the unsafe direction); the declared workspace may reach a singularity.")
                 if "singular edge" in w["evidence"]:
                     cl.warnings.append(f"the worst case of {name} ({key} allocation) lies at the singular edge of the "
                                        "declared workspace, where it grows without bound: the values hold where the "
-                                       "passive Jacobian's relative conditioning is at least 1e-2 (declare a workspace "
-                                       "away from the singularity to relax them).")
+                                       "passive Jacobian's conditioning is at least 1e-2 of its median over the sample "
+                                       "(declare a workspace away from the singularity to relax them).")
         # the verdicts again with the worst-case configurations added (compensable means cancellable at every
         # configuration of the workspace, and the worst cases are where the coefficients peak)
         extra = [np.asarray(w["configuration"]) for a in (calibrated, uncalibrated) if a
