@@ -8,17 +8,18 @@ Units: mm and rad.
   task rows (``epsilon`` for position, ``delta`` for orientation, eq. 18), and the budget
   is the spec less what calibration noise leaves (:attr:`Classification.calibration`).
   The allocation divides by the *worst case* of each coefficient over the declared
-  workspace: the sample's maximum refined by bounded local optimisation
-  (:func:`hyperstat.solver.tolerances.worst_case.refine_extremes`, called with the task
-  rows and the tolerance directions, see :func:`task_extremes`), plus the optimiser's
-  stated tolerance; a sampled maximum is low by construction and would make the values
-  loose (the unsafe direction);
+  workspace: the sample's maximum refined by a batched ascent over the actuated variables
+  (:func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`; ``refine="slsqp"``
+  runs issue 24's :func:`hyperstat.solver.tolerances.worst_case.refine_extremes` on the
+  task rows instead, :func:`task_extremes`), plus the stated tolerance; a sampled maximum
+  is low by construction and would make the values loose (the unsafe direction);
 * **compensable**: the same allocation over every influential direction (accuracy-critical
   and compensable) without calibration: the value that keeps the spec on an
   uncalibrated machine; calibration lets it open;
 * **non-influent**: no value from accuracy (any value the assembly conditions allow);
 * **assembly**: the clearance-based worst-case assemblability of
-  :mod:`hyperstat.solver.tolerances.clearance`.
+  :mod:`hyperstat.solver.tolerances.clearance` over the given configurations and the
+  workspace checkpoints (:func:`hyperstat.solver.tolerances.classification.workspace_checkpoints`).
 
 Contribution (%): each tolerance's share of the first-order task-error variance at its
 value (uniform distribution in ``+-value``), over the sample: the position error when the
