@@ -66,7 +66,9 @@ DEFAULT_CLEARANCES = {
     "P": {"radial_mm": 0.0205, "axial_mm": 0.0, "tilt_rad": 0.041 / 40.0, "twist_rad": 0.041 / 40.0,
           "source": _ISO286 + " (40 mm guide); the twist about the guide as its tilt"},
 }
-#: joints of a machine tool or precision positioner on rolling elements (a template's ``clearances``).
+#: joints of a machine tool or precision positioner on rolling elements (the ``clearances`` the Tripteor, hexapod
+#: and SCARA templates declare, written out in each template so that a template stays readable on its own;
+#: tests/solver/tolerances/test_values.py checks that they agree with this).
 #: Revolute: ISO 5753-1:2009 radial internal clearance, Group 2 (C2), of a deep groove ball bearing with a bore
 #: over 18 up to 24 mm is 0 to 10 um (the same group and bore give 5 to 20 um in Group N): the inner ring moves
 #: +-5 um about the outer one; the tilt is two such bearings +-5 um each, 50 mm apart (the span is assumed), and

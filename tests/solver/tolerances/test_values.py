@@ -153,3 +153,15 @@ def test_tripteor_workspace_assembly_values_are_confirmed_nonlinearly_at_their_w
                                   model=model)
         assert check["below"]["closure_residual_mm"] < 1e-9 and check["below"]["largest_clearance_use"] <= 1 + 1e-9
         assert check["relative_difference"] < 5e-3, (t.statement, check)
+
+
+@pytest.mark.parametrize("name", ["tripteor_x7.py", "hexapod.py", "scara.py"])
+def test_machine_tool_templates_declare_the_sourced_clearances(name):
+    """The ISO 5753-1 C2 revolute play (+-5 um: half of 0-10 um; tilt 10 um over 50 mm), the prismatic play assumed."""
+    from hyperstat.solver.tolerances.declaration import MACHINE_TOOL_CLEARANCES
+
+    declared = load_template(TEMPLATES / name).TOLERANCING["clearances"]
+    assert declared == MACHINE_TOOL_CLEARANCES
+    r = declared["R"]
+    assert r["radial_mm"] == pytest.approx(0.010 / 2) and r["tilt_rad"] == pytest.approx(2 * 0.005 / 50.0)
+    assert "ISO 5753-1" in r["source"] and "assumed" in declared["P"]["source"]
