@@ -179,6 +179,10 @@ def render_html(doc: dict, images: dict) -> str:
             cells = [f"{k}: {('± %.3g %s' % (c['tolerance'], c['unit'])) if c['tolerance'] is not None else 'no limit'}"
                      f" ({len(c['parameters'])})" for k, c in a["classes"].items()]
             out.append(f"<p><b>{e(label)}</b>: " + e("; ".join(cells)) + "</p>")
+    if doc.get("worst_cases"):
+        out.append(_worst_cases_html(doc["worst_cases"]))
+    if doc.get("checked"):
+        out.append(f"<p class=\"note\">{e(_checked_text(doc['checked']))}</p>")
     acc = doc.get("accuracy")
     if acc and acc.get("coefficients"):
         out.append("<table><tr><th>coefficient (paper 2, eq. 18)</th><th>min</th><th>mean</th><th>max</th>"
@@ -305,6 +309,37 @@ def render_html(doc: dict, images: dict) -> str:
     return "\n".join(out) + "\n"
 
 
+def _worst_cases_html(rows: list) -> str:
+    """Where each maximum the allocation divides by is reached, with the optimiser's tolerance."""
+    e = html.escape
+    out = ["<table><tr><th>allocation</th><th>coefficient (task rows)</th><th>worst case</th><th>sampled max</th>"
+           "<th>optimiser tol.</th><th>where</th></tr>"]
+    for w in rows:
+        out.append(f"<tr><td>{e(w['allocation'])}</td><td>{e(w['coefficient'])}</td><td class=num>{w['max']:.6g}</td>"
+                   f"<td class=num>{w['sampled_max']:.6g}</td><td class=num>{w['optimiser_tolerance']:.1g}"
+                   f"{' (iteration limit)' if 'iteration limit' in w['evidence'] else ''}</td>"
+                   f"<td>{e(w['where'])}</td></tr>")
+    out.append("</table>")
+    return "".join(out)
+
+
+def _checked_text(c: dict) -> str:
+    """Where the classes and the assembly values were checked, in one sentence."""
+    of = c.get("of", {})
+    parts = [f"Classes checked at {c.get('configurations')} configurations ("
+             + ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in of.items()) + ")"]
+    if c.get("worst_cases"):
+        parts.append(f"and again with the {c['worst_cases']} accuracy worst cases "
+                     + ("(same classes)" if c.get("worst_cases_agree") else "(a class changes there: see the warnings)"))
+    if c.get("margin") is not None:
+        parts.append(f"; smallest margin between a verdict's evidence and its threshold: a factor {c['margin']:.2g}")
+    a = c.get("assembly")
+    if a:
+        parts.append(f". Assembly values: worst case over {a['total']} configurations ({a['analysis']} of the analysis, "
+                     f"{a['workspace']} sampled in the declared workspace, {a['box_corners']} corners of its actuated box)")
+    return " ".join(parts).replace(" ;", ";").replace(" .", ".") + "."
+
+
 def _montecarlo_html(mc: dict) -> str:
     e = html.escape
     out = [f"<p>{mc['samples']} samples through the nonlinear model, every accuracy-critical and compensable "
@@ -358,11 +393,21 @@ def render_markdown(doc: dict) -> str:
     for t in tol["items"]:
         lines.append(f"| {t['id']} | {t['feature']} | {t['words']} | `{t['statement']}` | {_value(t)} | {t['class']} | "
                      f"{t['summary']} | {_pct(t.get('contribution_percent'))} |")
+    if tol.get("warnings"):
+        lines += ["", "Warnings:", ""] + [f"* {w}" for w in tol["warnings"]]
     lines += ["", "## Assembly conditions", ""]
     lines += [f"* {a['id']}: {a['statement']} ({_value(a)})" for a in doc["assembly_conditions"]] or ["* none"]
     red = tol.get("redundant", {})
     if red:
         lines += ["", "Redundant shifts: " + ", ".join(f"{g} ≡ {r['equivalent']}" for g, r in red.items())]
+    if doc.get("worst_cases"):
+        lines += ["", "## Worst cases of the allocation", "",
+                  "| allocation | coefficient | worst case | sampled max | optimiser tol. | where |", "|---|---|---|---|---|---|"]
+        lines += [f"| {w['allocation']} | {w['coefficient']} | {w['max']:.6g} | {w['sampled_max']:.6g} | "
+                  f"{w['optimiser_tolerance']:.1g}{' (iteration limit)' if 'iteration limit' in w['evidence'] else ''} | "
+                  f"{w['where']} |" for w in doc["worst_cases"]]
+    if doc.get("checked"):
+        lines += ["", _checked_text(doc["checked"])]
     if doc.get("accuracy") and doc["accuracy"].get("coefficients"):
         lines += ["", "## Accuracy coefficients", "", "| coefficient | min | mean | max |", "|---|---|---|---|"]
         lines += [f"| {k} | {v['min']:.4g} | {v['mean']:.4g} | {v['max']:.4g} |"

@@ -25,11 +25,14 @@ TOLERANCING = {
     "task": ["position", "rz"],
     "measurements": {"kind": "poses", "targets_mm": [[0.0, 0.0, 0.0]], "noise_mm": 0.005, "noise_rad": 1e-5},
     "spec": {"position_mm": 0.05, "orientation_rad": 5e-4},
-    "clearances": {"R": {"radial_mm": 0.005, "axial_mm": 0.005, "tilt_rad": 1e-4, "twist_rad": 0.0,
-                         "source": "assumed: preloaded rolling bearings of a machine tool, play at most 5 um "
-                                   "over a 50 mm bearing span"},
+    "clearances": {"R": {"radial_mm": 0.005, "axial_mm": 0.005, "tilt_rad": 2e-4, "twist_rad": 0.0,
+                         "source": "ISO 5753-1 Group 2 (C2) radial internal clearance of a deep groove ball bearing, "
+                                   "bore over 18 to 24 mm: 0 to 10 um, i.e. +-5 um radial play; tilt: two such "
+                                   "bearings 50 mm apart (span assumed); axial play assumed equal to the radial; a "
+                                   "preloaded bearing has none"},
                    "P": {"radial_mm": 0.002, "axial_mm": 0.0, "tilt_rad": 2e-5, "twist_rad": 2e-5,
-                         "source": "assumed: preloaded linear guide or ball screw (no play; 2 um, 20 urad)"}},
+                         "source": "assumed (no public standard gives the play of a preloaded linear guide or ball "
+                                   "screw): 2 um and 20 urad"}},
 }
 
 @dataclass

@@ -138,7 +138,18 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
             assembly.append({"id": it["id"], "statement": it["statement"], "mathml": terms_mathml(it["terms"]),
                              "value": it["value"], "unit": it["unit"], "why": it["why"],
                              "value_source": it["value_source"], "feature": it["feature"],
-                             "limiting": it["evidence"].get("assemblability", {}).get("limiting", [])})
+                             "limiting": it["evidence"].get("assemblability", {}).get("limiting", []),
+                             "analysis_only_value": it["evidence"].get("assemblability", {}).get("reference_value"),
+                             "worst_in": it["evidence"].get("assemblability", {}).get("worst_in")})
+    alloc = tol.get("allocation") or {}
+    worst_cases = [{"allocation": key, "coefficient": name, "max": w["max"], "sampled_max": w["sampled_max"],
+                    "optimiser_tolerance": w["optimiser_tolerance"], "location": w["location"], "where": w["where"],
+                    "evidence": w["evidence"]}
+                   for key in ("calibrated", "uncalibrated") if alloc.get(key)
+                   for name, w in alloc[key].get("worst_cases", {}).items()]
+    checked = dict(tol.get("checked") or {})
+    if alloc.get("assembly_configurations"):
+        checked["assembly"] = dict(alloc["assembly_configurations"])
     doc = {
         "units": {"length": "mm", "angle": "rad"},
         "mechanism": mechanism.name,
@@ -164,6 +175,8 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
         "tolerance_class_meaning": dict(TOLERANCE_CLASSES),
         "tolerances": tol,
         "assembly_conditions": assembly,
+        "worst_cases": worst_cases,
+        "checked": checked,
         "joints": joints,
         "forced": [p.name for p in analysis.parameters if p.verdict == "forced"],
         "relations": [{"id": a["id"], "text": a["statement"], "terms": it["terms"], "mathml": a["mathml"]}

@@ -46,7 +46,8 @@ from hyperstat.solver.kinematics.model import Joint, Mechanism
 from hyperstat.solver.tolerances.accuracy import output_twist_maps
 from hyperstat.solver.tolerances.declaration import Declaration, declaration_of, n_rotation_rows, task_rows
 
-__all__ = ["CLASSES", "CLASS_MEANING", "Tolerance", "Classification", "classify", "format_terms"]
+__all__ = ["CLASSES", "CLASS_MEANING", "Tolerance", "Classification", "classify", "format_terms",
+           "workspace_checkpoints", "WORKSPACE_CHECKPOINTS"]
 
 CLASSES = ("assembly", "accuracy-critical", "compensable", "non-influent")
 CLASS_MEANING = {
@@ -62,6 +63,56 @@ _COMPONENT_WORDS = {"I": "axis tilt, x component", "J": "axis tilt, y component"
                     "a": "origin shift along x", "b": "origin shift along y", "c": "origin shift along z",
                     "G": "rotation about its own axis"}
 _REL = 1e-6  # relative threshold on task residuals (dimensionless, round-off is ~1e-12)
+#: workspace configurations (seed 0) checked besides the analysis' (classification, assemblability), whatever the command
+WORKSPACE_CHECKPOINTS = 64
+_CHECKPOINTS: dict = {}  # the last checkpoints computed (one mechanism per process, as the commands run)
+
+
+def workspace_checkpoints(mechanism: Mechanism, kin: Kinematics, workspace=None,
+                          n: int = WORKSPACE_CHECKPOINTS) -> tuple[np.ndarray, np.ndarray]:
+    """Fixed configurations of the declared workspace: a sample (seed 0) and the corners of the actuated box.
+
+    The same for every command (``analyze``, ``accuracy``, ``report``), so that the
+    assemblability values agree.  A revolute actuator turning a full circle has no bound:
+    it stays at its home value in the corners.  The corners are assembled from the nearest sample on its
+    branch and kept when they converge inside the workspace (the reachable set may cut a
+    corner off); at most 2^8 corners.
+
+    Returns
+    -------
+    sample, corners : ndarray, (K, n_q) each
+    """
+    from hyperstat.solver.tolerances.accuracy import sample_workspace
+    from hyperstat.solver.tolerances.continuation import assemble_from_nearest
+    from hyperstat.solver.tolerances.workspace import workspace_of
+
+    key = (id(mechanism), id(kin), n)
+    if workspace is None and _CHECKPOINTS.get("key") == key and _CHECKPOINTS.get("kin") is kin:
+        return _CHECKPOINTS["value"]
+    ws = workspace or workspace_of(mechanism)
+    sample = sample_workspace(mechanism, n, seed=0, kinematics=kin, workspace=ws)
+    lo, hi = ws.actuated_box(mechanism)
+    n_a = len(lo)
+    if not len(sample) or n_a > 8 or not np.all(np.isfinite(np.r_[lo, hi])):
+        out = (sample, np.zeros((0, kin.n_q)))
+    else:
+        # a revolute actuator turning a full circle has no boundary: it stays at home in the corners
+        turn = np.array([mechanism.joints[i].type == "R" and hi[a] - lo[a] >= 2 * np.pi - 1e-9
+                         for a, i in enumerate(mechanism.actuated)])
+        varied = np.nonzero(~turn)[0]
+        if not len(varied):
+            out = (sample, np.zeros((0, kin.n_q)))
+        else:
+            bits = (np.arange(2 ** len(varied))[:, None] >> np.arange(len(varied))[None, :]) & 1
+            qa = np.tile(mechanism.home[mechanism.actuated].astype(float), (len(bits), 1))
+            qa[:, varied] = np.where(bits == 1, hi[varied], lo[varied])
+            q, ok = assemble_from_nearest(kin, qa, mechanism.home, inside=ws.inside)
+            out = (sample, q[ok])
+    if workspace is None:
+        _CHECKPOINTS.update(key=key, kin=kin, value=out)
+    return out
+
+
 
 
 @dataclass
@@ -159,6 +210,9 @@ class Classification:
     warnings: list = field(default_factory=list)
     calibration: dict = field(default_factory=dict)
     allocation: dict = field(default_factory=dict)
+    checked: dict = field(default_factory=dict)
+    configurations: np.ndarray | None = field(default=None, repr=False)
+    analysis: object = field(default=None, repr=False)
 
     def counts(self) -> dict:
         """Number of tolerances per class (every class present, in :data:`CLASSES` order)."""
@@ -189,7 +243,7 @@ class Classification:
                 "redundant": {k: dict(v) for k, v in self.redundant.items()},
                 "task": list(d.task), "declaration": d.to_dict(), "configurations": self.n_configurations,
                 "calibration": dict(self.calibration), "allocation": dict(self.allocation),
-                "warnings": list(self.warnings)}
+                "checked": dict(self.checked), "warnings": list(self.warnings)}
 
 
 def _clean(c: float) -> float:
@@ -295,7 +349,9 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
         Task, measurements, spec, clearances; default: what the mechanism carries.
     configurations : ndarray, (K, n_q), optional
         Assembled configurations for the task and calibration tests; default: the
-        analysis' configurations.
+        analysis' configurations and the fixed checkpoints of the declared workspace
+        (:func:`workspace_checkpoints`: a sample and the corners of the actuated box), the
+        same for every command.
 
     Returns
     -------
@@ -308,6 +364,17 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
     >>> c.counts()  # doctest: +SKIP
     {'assembly': 6, 'accuracy-critical': 0, 'compensable': 3, 'non-influent': 1}
     """
+    from threadpoolctl import threadpool_limits
+
+    # a few hundred small matrices and one design of ~1000 rows: threaded BLAS only adds synchronisation
+    # (on a loaded 2-core machine it tripled the CPU time of the workspace checks)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _classify(mechanism, analysis, kinematics, declaration, configurations)
+
+
+def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kinematics | None,
+              declaration: Declaration | None, configurations: np.ndarray | None) -> Classification:
+    """Body of :func:`classify` (BLAS single-threaded by the caller)."""
     kin = kinematics or Kinematics(mechanism)
     decl = declaration or declaration_of(mechanism)
     m = mechanism
@@ -369,7 +436,15 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
             relation_of.setdefault(n, []).append(len(items) - 1)
 
     # ---------------------------------------------------------------- admissible directions
-    q = analysis.configurations if configurations is None else np.atleast_2d(configurations)
+    origin = {}
+    if configurations is None:
+        sample, corners = workspace_checkpoints(m, kin)
+        q = np.vstack([analysis.configurations] + [p for p in (sample, corners) if len(p)])
+        origin = {"analysis": int(len(analysis.configurations)), "workspace_sample": int(len(sample)),
+                  "actuated_box_corners": int(len(corners))}
+    else:
+        q = np.atleast_2d(configurations)
+        origin = {"given": int(len(q))}
     st = kin.evaluate(q, None, jacobians=True)
     try:  # undamped (round-off only) at the analysis' generic configurations; damped if one is singular
         k_xi, k_a = output_twist_maps(kin, st, damping=1e-16)
@@ -392,6 +467,14 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
     j_pinv = np.linalg.pinv(j_m, rcond=1e-10) if j_m.size else np.zeros((j_m.shape[1], j_m.shape[0]))
     sv = np.linalg.svd(j_m, compute_uv=False) if j_m.size else np.zeros(0)
     ka_pinv = np.linalg.pinv(task_a, rcond=1e-8)  # (K, n_a, r)
+    # task-singular configurations (a dead centre: the actuators lose a task direction there, so nothing is
+    # cancellable to first order) are left out of the residual test: their rank is below the generic one
+    if task_a.size:
+        sa = np.linalg.svd(task_a, compute_uv=False)
+        rank_a = np.sum(sa > 1e-6 * max(float(sa.max()), 1e-300), axis=1)
+        regular = rank_a == rank_a.max()
+    else:
+        regular = np.ones(len(q), dtype=bool)
     n_s = basis.shape[1]
 
     def task_of(d: np.ndarray) -> np.ndarray:
@@ -435,9 +518,9 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
             uncancelled = predicted - np.einsum("kra,ka->kr", task_a, delta_a)
             total = unseen + uncancelled
             ref = float(np.max(np.linalg.norm(task_of(d), axis=1)))
-            r_unseen = float(np.max(np.linalg.norm(unseen, axis=1))) / ref
-            r_unc = float(np.max(np.linalg.norm(uncancelled, axis=1))) / ref
-            r_total = float(np.max(np.linalg.norm(total, axis=1))) / ref
+            r_unseen = float(np.max(np.linalg.norm(unseen[regular], axis=1))) / ref
+            r_unc = float(np.max(np.linalg.norm(uncancelled[regular], axis=1))) / ref
+            r_total = float(np.max(np.linalg.norm(total[regular], axis=1))) / ref
             ev.update({"not_identified_share": r_unseen, "not_cancelled_share": r_unc, "residual_share": r_total})
             if r_total < _REL:
                 cls = "compensable"
@@ -528,7 +611,28 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
                 "unknowns": int(j_m.shape[1]),
                 "non_identifiable_share_max": max((t.evidence["residual_share"] for t in items
                                                    if t.cls == "compensable"), default=0.0)})
-    return Classification(m.name, items, params, appendix, red, decl, int(len(q)), warns, cal)
+    shares = {c: [t.evidence.get("residual_share") for t in items if t.cls == c and t.kind == "direction"]
+              for c in ("compensable", "accuracy-critical")}
+    infl = [t.evidence["task_influence"] / top for t in items if t.cls == "non-influent" and top > 0]
+    checked = {"configurations": int(len(q)), "of": origin, "task_singular_left_out": int(np.sum(~regular)),
+               "thresholds": {"residual_share": _REL,
+                                                                          "task_motion_ratio": 1e-9},
+               "compensable_largest_residual": max(shares["compensable"], default=None),
+               "accuracy_critical_smallest_residual": min(shares["accuracy-critical"], default=None),
+               "non_influent_largest_motion_ratio": max(infl, default=None)}
+    margins = []
+    if checked["compensable_largest_residual"] is not None:
+        margins.append(_REL / max(checked["compensable_largest_residual"], 1e-300))
+    if checked["accuracy_critical_smallest_residual"] is not None:
+        margins.append(checked["accuracy_critical_smallest_residual"] / _REL)
+    if checked["non_influent_largest_motion_ratio"] is not None:
+        margins.append(1e-9 / max(checked["non_influent_largest_motion_ratio"], 1e-300))
+    checked["margin"] = min(margins, default=None)
+    checked["margin_meaning"] = ("smallest factor between a verdict's evidence and its threshold over the checked "
+                                 "configurations (compensable: threshold / largest task residual; accuracy-critical: "
+                                 "smallest residual / threshold; non-influent: threshold / largest task motion)")
+    return Classification(m.name, items, params, appendix, red, decl, int(len(q)), warns, cal, checked=checked,
+                          configurations=q, analysis=analysis)
 
 
 def _measurement_maps(decl: Declaration, st, k_xi: np.ndarray, ls: float, pscale: np.ndarray):

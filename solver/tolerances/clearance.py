@@ -23,7 +23,10 @@ shifts and tilts of each joint's frame, its axial shift, a prismatic joint's twi
 ``c`` the clearances.  At one configuration, ``t(q) = 1 / s*`` with ``s*`` the linear
 programme ``min s`` subject to ``U0^T C diag(c) y = -U0^T A d`` and ``|y| <= s`` (HiGHS,
 through :func:`scipy.optimize.linprog`); the tolerance is the smallest ``t(q)`` over the
-configurations.  Each condition is taken alone (the others held).
+configurations, found as one block-diagonal programme with a common ``t`` and one
+displacement vector per configuration (:func:`_min_violation`), so a workspace sample of
+a few hundred configurations costs about one programme per condition.  Each condition
+is taken alone (the others held).
 
 :func:`confirm_nonlinear` checks a value with the full nonlinear model: the
 clearances become bounded extra variables of each joint's frame (small prismatic and
@@ -176,8 +179,71 @@ def _max_violation(cg: np.ndarray, av: np.ndarray) -> tuple[float, np.ndarray | 
     return float(res.x[-1]), res.x[:m]
 
 
+def _min_violation(blocks: list, d: np.ndarray) -> tuple:
+    """Smallest ``t(q)`` over the configurations, in one linear programme.
+
+    ``t(q)`` is the largest violation absorbed at ``q``; the violations absorbed at ``q`` form
+    the interval ``[0, t(q)]`` (the feasible set is convex and holds ``t = 0, y = 0``), so the
+    largest ``t`` absorbed at every configuration at once, each with its own displacements
+    ``y_q`` (``|y_q| <= 1``), is ``min_q t(q)``: one block-diagonal programme (HiGHS, sparse)
+    instead of one per configuration.  The worst configuration is the block whose
+    constraints carry the largest dual values; its own programme is then solved for the
+    displacements and checked against the common value.
+
+    Returns
+    -------
+    tuple
+        ``(t, worst index or None, y at the worst or None, extra)``; ``extra``:
+        ``own_programme_value``, ``t(q)`` of the worst configuration's own programme (equal
+        to ``t`` up to the solver's tolerance).
+    """
+    from scipy.optimize import linprog
+    from scipy.sparse import coo_matrix
+
+    rows, cols, vals, felt = [], [], [], []
+    n_rows, n_var = 0, 0
+    m = blocks[0][0].shape[1] if blocks else 0
+    for k, (cg, a) in enumerate(blocks):
+        av = a @ d
+        scale = max(float(np.max(np.abs(cg))) if cg.size else 0.0, float(np.max(np.abs(av))), 1e-300)
+        if float(np.linalg.norm(av)) <= 1e-12 * scale:
+            continue  # not felt at this configuration
+        mat = np.concatenate([cg, av[:, None]], axis=1)
+        _, s, vt = np.linalg.svd(mat, full_matrices=False)
+        r = int(np.sum(s > 1e-10 * s[0]))
+        eq = (s[:r, None] * vt[:r]) / scale
+        rr, cc = np.nonzero(np.abs(eq) > 0)
+        rows.append(rr + n_rows)
+        cols.append(np.where(cc < m, cc + n_var, -1))
+        vals.append(eq[rr, cc])
+        felt.append((k, n_rows, r))
+        n_rows += r
+        n_var += m
+    if not felt:
+        return float("inf"), None, None, {}
+    cols = np.concatenate(cols)
+    cols[cols < 0] = n_var  # the common violation t is the last variable
+    a_eq = coo_matrix((np.concatenate(vals), (np.concatenate(rows), cols)), shape=(n_rows, n_var + 1)).tocsr()
+    res = linprog(np.r_[np.zeros(n_var), -1.0], A_eq=a_eq, b_eq=np.zeros(n_rows),
+                  bounds=[(-1.0, 1.0)] * n_var + [(0.0, None)], method="highs")
+    if res.status == 3:
+        return float("inf"), None, None, {}
+    if not res.success:
+        return 0.0, None, None, {}
+    t = float(res.x[-1])
+    duals = np.asarray(res.eqlin.marginals) if res.eqlin is not None else np.zeros(n_rows)
+    weight = np.array([float(np.linalg.norm(duals[r0:r0 + r])) for _, r0, r in felt])
+    for j in np.argsort(-weight)[:4]:  # the binding blocks first
+        k = felt[j][0]
+        cg, a = blocks[k]
+        tk, yk = _max_violation(cg, a @ d)
+        if tk <= t * (1 + 1e-6) + 1e-300:
+            return t, k, yk, {"own_programme_value": tk}
+    return t, None, None, {}  # no block reproduced the common value: the value without a location
+
+
 def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declaration, configurations: np.ndarray,
-                        model: ClearanceModel | None = None) -> dict:
+                        model: ClearanceModel | None = None, reference: int | None = None) -> dict:
     """Tolerance of every assembly condition from the clearances (see the module docstring).
 
     Parameters
@@ -186,13 +252,17 @@ def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declarat
         Assembly conditions (``direction``: one unit of violation, rad / mm).
     configurations : ndarray, (K, n_q)
         Assembled configurations of the workspace.
+    reference : int, optional
+        The first ``reference`` configurations form a reference set (e.g. the analysis'
+        configurations) whose own worst case is reported beside the value
+        (``reference_value``), to show what the rest of the sample changed.
 
     Returns
     -------
     dict
         Tolerance id -> {"value", "worst_configuration", "limiting" (the four clearances at their
         bound with the largest effect at the worst configuration), "at_bound" (how many are at
-        their bound), "configurations"}.
+        their bound), "configurations", "reference_value" (with ``reference``)}.
     """
     model = model or clearance_model(mechanism, declaration)
     kin = Kinematics(model.mechanism)
@@ -200,22 +270,11 @@ def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declarat
     out = {}
     for it in items:
         d = _lift(model, it.direction)
-        # a feasible (minimum 2-norm) displacement bounds t(q) from below: configurations are solved
-        # in the order of that bound, and one whose bound is above the best value so far is skipped
-        lower = []
-        for cg, a in blocks:
-            av = a @ d
-            y2 = np.linalg.lstsq(cg, -av, rcond=1e-12)[0] if cg.size else np.zeros(0)
-            ok = cg.size and np.linalg.norm(cg @ y2 + av) <= 1e-9 * max(np.linalg.norm(av), 1e-300)
-            lower.append(1.0 / max(float(np.max(np.abs(y2))), 1e-300) if ok else 0.0)
-        best, worst, y_worst = float("inf"), None, None
-        for k in np.argsort(lower):
-            if lower[k] >= best:
-                break
-            cg, a = blocks[k]
-            t, y = _max_violation(cg, a @ d)
-            if t < best:
-                best, worst, y_worst = t, int(k), y
+        best, worst, y_worst, margins = _min_violation(blocks, d)
+        if reference:
+            ref = _min_violation(blocks[:reference], d)[0]
+            margins["reference_value"] = None if not np.isfinite(ref) else ref
+            margins["reference_configurations"] = min(reference, len(blocks))
         limiting, at_bound = [], 0
         if y_worst is not None:
             cg = blocks[worst][0]
@@ -223,7 +282,7 @@ def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declarat
             at_bound = int(np.sum(np.abs(y_worst) > 0.999))
             limiting = [model.labels[j] for j in np.argsort(-weight)[:4] if weight[j] > 0]
         out[it.id] = {"value": None if not np.isfinite(best) else best, "worst_configuration": worst,
-                      "limiting": limiting, "at_bound": at_bound, "configurations": len(blocks)}
+                      "limiting": limiting, "at_bound": at_bound, "configurations": len(blocks), **margins}
     return out
 
 

@@ -44,7 +44,7 @@ import numpy as np
 
 from hyperstat.solver.errors import ModelError
 
-__all__ = ["TASK_COMPONENTS", "DEFAULT_CLEARANCES", "DEFAULT_SPEC", "Declaration", "parse_declaration",
+__all__ = ["TASK_COMPONENTS", "DEFAULT_CLEARANCES", "MACHINE_TOOL_CLEARANCES", "DEFAULT_SPEC", "Declaration", "parse_declaration",
            "declaration_of", "task_rows"]
 
 #: task component -> meaning
@@ -65,6 +65,25 @@ DEFAULT_CLEARANCES = {
           "source": _ISO286 + " (20 mm); axially located by shoulders (no axial play)"},
     "P": {"radial_mm": 0.0205, "axial_mm": 0.0, "tilt_rad": 0.041 / 40.0, "twist_rad": 0.041 / 40.0,
           "source": _ISO286 + " (40 mm guide); the twist about the guide as its tilt"},
+}
+#: joints of a machine tool or precision positioner on rolling elements (the ``clearances`` the Tripteor, hexapod
+#: and SCARA templates declare, written out in each template so that a template stays readable on its own;
+#: tests/solver/tolerances/test_values.py checks that they agree with this).
+#: Revolute: ISO 5753-1:2009 radial internal clearance, Group 2 (C2), of a deep groove ball bearing with a bore
+#: over 18 up to 24 mm is 0 to 10 um (the same group and bore give 5 to 20 um in Group N): the inner ring moves
+#: +-5 um about the outer one; the tilt is two such bearings +-5 um each, 50 mm apart (the span is assumed), and
+#: the axial play is assumed equal to the radial one.  A preloaded bearing has no play (negative clearance): the
+#: assembly tolerance then comes from the structure's compliance, which this model does not contain.
+#: Prismatic: no public standard gives the play of a preloaded linear guide or ball screw (ISO 3408-3 classes
+#: the travel deviation of ball screws, not their play), so the values are assumed.
+MACHINE_TOOL_CLEARANCES = {
+    "R": {"radial_mm": 0.005, "axial_mm": 0.005, "tilt_rad": 0.010 / 50.0, "twist_rad": 0.0,
+          "source": "ISO 5753-1 Group 2 (C2) radial internal clearance of a deep groove ball bearing, bore over 18 "
+                    "to 24 mm: 0 to 10 um, i.e. +-5 um radial play; tilt: two such bearings 50 mm apart (span "
+                    "assumed); axial play assumed equal to the radial; a preloaded bearing has none"},
+    "P": {"radial_mm": 0.002, "axial_mm": 0.0, "tilt_rad": 2e-5, "twist_rad": 2e-5,
+          "source": "assumed (no public standard gives the play of a preloaded linear guide or ball screw): "
+                    "2 um and 20 urad"},
 }
 DEFAULT_SPEC = {"position_mm": 0.05, "orientation_rad": 5e-4}
 _CLEARANCE_KEYS = ("radial_mm", "axial_mm", "tilt_rad", "twist_rad")

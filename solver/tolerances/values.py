@@ -5,15 +5,21 @@ Units: mm and rad.
 * **accuracy-critical**: equal allocation of paper 2 (eqs. 19 and 30-31) against the spec
   over the workspace: the task-error coefficients of the accuracy-critical directions,
   split by kind (``gP``: lengths, ``gR``: angles), are the largest singular values of their
-  task rows (``epsilon`` for position, ``delta`` for orientation, eq. 18) at their worst
-  configuration of the given sample, and the budget is the spec less what calibration
-  noise leaves (:attr:`Classification.calibration`);
+  task rows (``epsilon`` for position, ``delta`` for orientation, eq. 18), and the budget
+  is the spec less what calibration noise leaves (:attr:`Classification.calibration`).
+  The allocation divides by the *worst case* of each coefficient over the declared
+  workspace: the sample's maximum refined by a batched ascent over the actuated variables
+  (:func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`; ``refine="slsqp"``
+  runs issue 24's :func:`hyperstat.solver.tolerances.worst_case.refine_extremes` on the
+  task rows instead, :func:`task_extremes`), plus the stated tolerance; a sampled maximum
+  is low by construction and would make the values loose (the unsafe direction);
 * **compensable**: the same allocation over every influential direction (accuracy-critical
   and compensable) without calibration: the value that keeps the spec on an
   uncalibrated machine; calibration lets it open;
 * **non-influent**: no value from accuracy (any value the assembly conditions allow);
 * **assembly**: the clearance-based worst-case assemblability of
-  :mod:`hyperstat.solver.tolerances.clearance`.
+  :mod:`hyperstat.solver.tolerances.clearance` over the given configurations and the
+  workspace checkpoints (:func:`hyperstat.solver.tolerances.classification.workspace_checkpoints`).
 
 Contribution (%): each tolerance's share of the first-order task-error variance at its
 value (uniform distribution in ``+-value``), over the sample: the position error when the
@@ -22,19 +28,23 @@ task has position components, else the orientation error.
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, output_twist_maps
-from hyperstat.solver.tolerances.classification import Classification
+from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
+from hyperstat.solver.tolerances.task_worst import TASK_COEFFICIENTS, TaskCoefficients, task_worst_cases
 
-__all__ = ["assign_values", "task_maps", "monte_carlo_at_values", "ASSEMBLY_SAMPLE"]
+__all__ = ["assign_values", "task_maps", "task_extremes", "monte_carlo_at_values", "ASSEMBLY_SAMPLE",
+           "TASK_COEFFICIENTS"]
 
 #: configurations of the stationarity sample on which the assemblability programme runs (report, accuracy)
 ASSEMBLY_SAMPLE = 8
-
 
 def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, task: tuple,
               directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -53,9 +63,8 @@ def _sigma_max(block: np.ndarray) -> np.ndarray:
     return np.linalg.svd(block, compute_uv=False)[:, 0]
 
 
-def _allocate(rot: np.ndarray, pos: np.ndarray, is_len: np.ndarray, names: list, position: float | None,
-              orientation: float | None) -> dict:
-    """Equal allocation (paper 2, eqs. 30-31) through :func:`hyperstat.solver.tolerances.accuracy.allocate`."""
+def _coefficients(rot: np.ndarray, pos: np.ndarray, is_len: np.ndarray, names: list, q: np.ndarray) -> AccuracyMaps:
+    """Task-restricted coefficients (eq. 18 on the task rows) at the sampled configurations, as AccuracyMaps."""
     coeffs = {}
     for kind, cols in (("P", is_len), ("R", ~is_len)):
         coeffs[f"delta_g{kind}"] = _sigma_max(rot[:, :, cols])
@@ -65,48 +74,184 @@ def _allocate(rot: np.ndarray, pos: np.ndarray, is_len: np.ndarray, names: list,
         coeffs[f"epsilon_{kind}"] = np.zeros(rot.shape[0])
     groups = {"fP": [], "fR": [], "gP": [n for n, b in zip(names, is_len) if b],
               "gR": [n for n, b in zip(names, is_len) if not b]}
-    maps = AccuracyMaps(coeffs, {}, groups, np.zeros((rot.shape[0], 0)), np.zeros((rot.shape[0], 3)))
-    return allocate(maps, orientation if rot.shape[1] else None, position if pos.shape[1] else None)
+    return AccuracyMaps(coeffs, {}, groups, np.atleast_2d(q), np.zeros((rot.shape[0], 3)))
+
+
+class _TaskColumns:
+    """The tolerance directions as the geometric coordinates of :func:`refine_extremes` (its ``analysis``)."""
+
+    def __init__(self, names: list, matrix: np.ndarray) -> None:
+        self.names, self.matrix = list(names), matrix
+
+    def parameterization(self, mechanism: Mechanism, influential_only: bool = True) -> tuple[list, np.ndarray]:
+        return list(self.names), self.matrix
+
+
+class _TaskKinematics:
+    """Kinematics whose output twists keep only the task components (the other rows projected out).
+
+    The task rows of :func:`task_rows` are orthonormal within the rotation block and within
+    the position block, so the largest singular value of the projected 3-row block equals
+    that of the task rows: the coefficients of :func:`refine_extremes` become the
+    task-restricted ones.  Everything else is the wrapped :class:`Kinematics`.
+    """
+
+    def __init__(self, kin: Kinematics, task: tuple) -> None:
+        self._kin, self._task = kin, tuple(task)
+
+    def __getattr__(self, name: str):
+        return getattr(self._kin, name)
+
+    def evaluate(self, q, xi=None, jacobians=True):
+        st = self._kin.evaluate(q, xi, jacobians)
+        if st.output_xi is None:
+            return st
+        sel = task_rows(self._task, st.output_pose)
+        proj = np.swapaxes(sel, 1, 2) @ sel  # (K, 6, 6), block diagonal
+        return dataclasses.replace(st, output_xi=proj @ st.output_xi,
+                                   output_q=None if st.output_q is None else proj @ st.output_q)
+
+
+def task_extremes(mechanism: Mechanism, kin: Kinematics, maps: AccuracyMaps, task: tuple, names: list,
+                  directions: np.ndarray, workspace=None, starts: int = 2) -> dict:
+    """Refined maxima of the task-restricted coefficients over the workspace.
+
+    :func:`hyperstat.solver.tolerances.worst_case.refine_extremes` (bounded SLSQP from the
+    best separate samples, closures as constraints, branch checked) run on the task rows
+    (:class:`_TaskKinematics`) and the tolerance directions (:class:`_TaskColumns`).
+
+    Parameters
+    ----------
+    maps : AccuracyMaps
+        The sampled task-restricted coefficients (their ``q``: the workspace sample).
+    names : list of str
+        The parameter each direction belongs to (its unit picks the class ``gP`` / ``gR``).
+    directions : ndarray, (n_xi, n)
+        Defect vector per unit of each tolerance (rad / mm).
+    workspace : Workspace, optional
+        Bounds (default: the mechanism's declared workspace).
+
+    Returns
+    -------
+    dict
+        Coefficient name -> :class:`hyperstat.solver.tolerances.worst_case.Extreme` (maxima only).
+    """
+    from hyperstat.solver.tolerances.worst_case import refine_extremes
+
+    present = tuple(n for n in TASK_COEFFICIENTS if len(maps.coefficients.get(n, ())) and
+                    float(np.max(maps.coefficients[n])) > 0)
+    if not present or len(maps.q) == 0:
+        return {}
+    ext = refine_extremes(mechanism, maps, _TaskColumns(names, directions), kinematics=_TaskKinematics(kin, task),
+                          workspace=workspace, kinds=("max",), starts=starts, names=present)
+    return {name: e for (name, kind), e in ext.items()}
+
+
+def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | None,
+              extremes: dict | None = None) -> dict:
+    """Equal allocation (paper 2, eqs. 30-31) through :func:`hyperstat.solver.tolerances.accuracy.allocate`.
+
+    With ``extremes``, each coefficient's maximum is the refined one plus its stated
+    tolerance (an upper bound when the tolerance estimate holds); the sampled maximum
+    otherwise.
+    """
+    maxima = {}
+    for name, e in (extremes or {}).items():
+        maxima[name] = e.value + (e.tolerance if math.isfinite(e.tolerance) else 0.0)
+    out = allocate(maps, orientation, position, maxima=maxima)
+    if extremes:
+        out["worst_cases"] = {name: {"max": e.value, "sampled_max": e.sampled, "optimiser_tolerance": e.tolerance,
+                                     "location": e.location, "where": e.where(),
+                                     "supremum_on_boundary": bool(getattr(e, "supremum", False)),
+                                     "actuated": dict(e.actuated), "agreeing_starts": e.agreeing, "starts": e.starts,
+                                     "evidence": e.evidence, "configuration": e.q.tolist()}
+                              for name, e in extremes.items()}
+    return out
 
 
 def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
                   position_accuracy: float | None = None, orientation_accuracy: float | None = None,
-                  assembly: bool = True, assembly_configurations: np.ndarray | None = None) -> Classification:
+                  assembly: bool = True, assembly_configurations: np.ndarray | None = None, refine: bool = True,
+                  workspace=None) -> Classification:
     """Fill ``value``, ``value_source`` and ``contribution`` of every tolerance of ``cl`` (in place).
 
     Parameters
     ----------
     configurations : ndarray, (K, n_q)
-        Workspace sample for the allocation (the worst case over it is used).
+        Workspace sample: the allocation's worst cases start from it, and the assemblability
+        check runs on it.
     position_accuracy, orientation_accuracy : float, optional
         Spec overriding the declaration's (mm, rad).
     assembly : bool
         Compute the assembly conditions' values from the clearances.
     assembly_configurations : ndarray, optional
-        Configurations for the assemblability check (default: ``configurations``).
+        Configurations checked for assemblability besides the fixed workspace checkpoints
+        (:func:`hyperstat.solver.tolerances.classification.workspace_checkpoints`: a sample of
+        the declared workspace and the corners of its actuated box): e.g. the analysis'
+        configurations, whose own worst case is reported beside the value.
+    refine : bool or "slsqp"
+        Refine the sampled maxima of the task-restricted coefficients: ``True``, the batched
+        ascent of :func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`;
+        ``"slsqp"``, :func:`task_extremes` (issue 24's SLSQP, slower); ``False``, the sampled
+        maxima (loose: a sampled maximum is low).
+    workspace : Workspace, optional
+        Bounds of the refinement (default: the mechanism's declared workspace).
     """
+    from threadpoolctl import threadpool_limits
+
+    # small batched matrices and one sparse programme per condition: threaded BLAS only adds synchronisation
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
+                              assembly_configurations, refine, workspace)
+
+
+def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
+                   assembly_configurations, refine, workspace) -> Classification:
+    """Body of :func:`assign_values` (BLAS single-threaded by the caller)."""
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
     spec_o = orientation_accuracy if orientation_accuracy is not None else decl.orientation_rad
     q = np.atleast_2d(configurations)
     influential = [t for t in cl.items if t.cls in ("accuracy-critical", "compensable")]
     info = {"spec": {"position_mm": spec_p, "orientation_rad": spec_o}, "configurations": int(len(q)),
-            "method": "equal allocation, paper 2 eqs. (19), (30)-(31), worst case over the sample"}
+            "method": "equal allocation, paper 2 eqs. (19), (30)-(31), on the worst case of each task-restricted "
+                      "coefficient over the declared workspace: " + (
+                          f"the maximum over {len(q)} sampled configurations refined by "
+                          + ("bounded local optimisation (SLSQP over all joints, closures as constraints, workspace "
+                             "ranges as bounds)" if refine == "slsqp" else
+                             "a projected-gradient ascent over the actuated variables within the workspace's actuated "
+                             "box, passive joints on the sample's branch")
+                          + ", plus the optimiser's stated tolerance" if refine else
+                          f"the maximum over {len(q)} sampled configurations (not refined: may be low, which makes "
+                          "the values loose)")}
     if influential:
         dirs = np.stack([t.direction for t in influential], axis=1)
         rot, pos = task_maps(mechanism, kin, q, decl.task, dirs)
         is_len = np.array([t.unit == "mm" for t in influential])
-        names = [t.id for t in influential]
+        names = [t.parameters[0] for t in influential]
+        has_r, has_p = rot.shape[1] > 0, pos.shape[1] > 0
         cal = cl.calibration
         left_p = None if spec_p is None else spec_p - cal.get("position_mm", 0.0)
         left_o = None if spec_o is None else spec_o - cal.get("orientation_rad", 0.0)
         if (left_p is not None and left_p <= 0) or (left_o is not None and left_o <= 0):
             cl.warnings.append("the calibration noise alone uses up the spec: no accuracy-critical tolerance fits.")
         crit = np.array([t.cls == "accuracy-critical" for t in influential])
-        calibrated = _allocate(rot[:, :, crit], pos[:, :, crit], is_len[crit], [n for n, c in zip(names, crit) if c],
-                               left_p if left_p is None or left_p > 0 else 0.0,
-                               left_o if left_o is None or left_o > 0 else 0.0) if crit.any() else None
-        uncalibrated = _allocate(rot, pos, is_len, names, spec_p, spec_o)
+
+        def allocation(cols: np.ndarray, p_budget, o_budget) -> dict:
+            maps = _coefficients(rot[:, :, cols], pos[:, :, cols], is_len[cols], [n for n, c in zip(names, cols) if c], q)
+            sub = [n for n, c in zip(names, cols) if c]
+            if refine == "slsqp":
+                ext = task_extremes(mechanism, kin, maps, decl.task, sub, dirs[:, cols], workspace)
+            elif refine:
+                ext = task_worst_cases(mechanism, kin, q, TaskCoefficients(kin, decl.task, dirs[:, cols], is_len[cols]),
+                                       workspace, sampled=maps.coefficients)
+            else:
+                ext = {}
+            return _allocate(maps, p_budget if has_p else None, o_budget if has_r else None, ext)
+
+        calibrated = allocation(crit, left_p if left_p is None or left_p > 0 else 0.0,
+                                left_o if left_o is None or left_o > 0 else 0.0) if crit.any() else None
+        uncalibrated = allocation(np.ones(len(influential), dtype=bool), spec_p, spec_o)
         info["calibrated"] = calibrated
         info["uncalibrated"] = uncalibrated
         for t, length in zip(influential, is_len):
@@ -114,12 +259,49 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
             src = calibrated if t.cls == "accuracy-critical" else uncalibrated
             v = src["classes"].get(kind, {}).get("tolerance") if src else None
             t.value = v
+            worst = ""
+            if src and src.get("worst_cases"):
+                key = "calibrated" if t.cls == "accuracy-critical" else "uncalibrated"
+                moved = [f"{n} max {w['max']:.6g} (sampled {w['sampled_max']:.6g})"
+                         for n, w in src["worst_cases"].items() if w["location"] != "constant"]
+                if moved:
+                    worst = "; " + ", ".join(moved) + f" (where: allocation.{key}.worst_cases)"
             if t.cls == "accuracy-critical":
                 t.value_source = ("equal allocation against the spec less the calibration residual, worst case "
-                                  f"over {len(q)} configurations (paper 2, eqs. 30-31)")
+                                  f"over the declared workspace (paper 2, eqs. 30-31){worst}")
             else:
-                t.value_source = ("equal allocation against the spec without calibration (paper 2, eqs. 30-31); "
-                                  "calibration lets it open")
+                t.value_source = ("equal allocation against the spec without calibration (paper 2, eqs. 30-31), "
+                                  f"worst case over the declared workspace; calibration lets it open{worst}")
+        for key, a in (("calibrated", calibrated), ("uncalibrated", uncalibrated)):
+            for name, w in ((a or {}).get("worst_cases") or {}).items():
+                tol_w = w["optimiser_tolerance"]
+                if "iteration limit" in w["evidence"] and not (math.isfinite(tol_w) and tol_w <= 1e-3 * abs(w["max"])):
+                    cl.warnings.append(f"the worst case of {name} ({key} allocation) was still rising when the ascent "
+                                       f"stopped ({w['max']:.4g}, last gain {tol_w:.2g}): the values divided by it may "
+                                       "be loose (the unsafe direction); the declared workspace may reach a singularity.")
+                if "singular edge" in w["evidence"]:
+                    cl.warnings.append(f"the worst case of {name} ({key} allocation) lies at the singular edge of the "
+                                       "declared workspace, where it grows without bound: the values hold where the "
+                                       "passive Jacobian's conditioning is at least 1e-2 of its median over the sample "
+                                       "(declare a workspace away from the singularity to relax them).")
+        # the verdicts again with the worst-case configurations added (compensable means cancellable at every
+        # configuration of the workspace, and the worst cases are where the coefficients peak)
+        extra = [np.asarray(w["configuration"]) for a in (calibrated, uncalibrated) if a
+                 for w in a.get("worst_cases", {}).values() if w["location"] != "constant"]
+        if extra and cl.analysis is not None and cl.configurations is not None:
+            from hyperstat.solver.tolerances.classification import classify
+
+            # identification from the analysis configurations (as analyze did before the workspace checks), the
+            # residual test at them and at the worst cases
+            again = classify(mechanism, cl.analysis, kin, decl,
+                             configurations=np.vstack([cl.analysis.configurations] + extra))
+            changed = [f"{t.id} ({t.cls} -> {u.cls})" for t, u in zip(cl.items, again.items) if t.cls != u.cls]
+            cl.checked["worst_cases"] = len(extra)
+            cl.checked["worst_case_margin"] = again.checked.get("margin")
+            cl.checked["worst_cases_agree"] = not changed
+            if changed:
+                cl.warnings.append("at the accuracy worst cases the verdict changes for " + ", ".join(changed) +
+                                   ": the class shown holds at the sampled configurations only.")
         # contributions: first-order variance at the values (uniform: t^2 / 3)
         rows = pos if pos.shape[1] else rot
         vals = np.array([t.value or 0.0 for t in influential])
@@ -137,15 +319,36 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
 
         items = cl.by_class("assembly")
         if items:
-            qa = q if assembly_configurations is None else np.atleast_2d(assembly_configurations)
-            vals = assembly_tolerances(mechanism, items, decl, qa)
+            # the same configurations whatever the command: the given ones (the reference set), a fixed
+            # sample of the declared workspace and the corners of its actuated box that assemble on its branch
+            ref = None if assembly_configurations is None else np.atleast_2d(assembly_configurations)
+            ws_part, corners = workspace_checkpoints(mechanism, kin, workspace)
+            parts = ([ref] if ref is not None else []) + [p for p in (ws_part, corners) if len(p)]
+            qa = np.vstack(parts) if parts else q
+            vals = assembly_tolerances(mechanism, items, decl, qa, reference=None if ref is None else len(ref))
+            n_ref = 0 if ref is None else len(ref)
+            info["assembly_configurations"] = {"total": int(len(qa)), "analysis": n_ref, "workspace": int(len(ws_part)),
+                                               "box_corners": int(len(corners))}
             for t in items:
                 v = vals[t.id]
                 t.value = v["value"]
-                t.evidence["assemblability"] = {k: v[k] for k in ("worst_configuration", "limiting", "at_bound",
-                                                                  "configurations")}
+                t.evidence["assemblability"] = {k: v.get(k) for k in ("worst_configuration", "limiting", "at_bound",
+                                                                      "configurations", "reference_value")}
+                wc = v["worst_configuration"]
+                if wc is not None:
+                    t.evidence["assemblability"]["worst_actuated"] = {
+                        mechanism.joints[i].name: float(qa[wc, i]) for i in mechanism.actuated}
+                    t.evidence["assemblability"]["worst_in"] = ("analysis" if wc < n_ref else "workspace sample"
+                                                                if wc < n_ref + len(ws_part) else "actuated box corner")
                 t.value_source = (f"largest violation the joint clearances absorb at every one of {v['configurations']} "
-                                  "configurations (worst-case assemblability, linear programme)")
+                                  f"configurations ({n_ref} of the analysis, {len(ws_part)} sampled in the declared "
+                                  f"workspace, {len(corners)} corners of its actuated box; worst-case assemblability, "
+                                  "linear programme)")
+                rv = v.get("reference_value")
+                if v["value"] is not None and rv is not None and n_ref:
+                    t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
+                                       f"({100 * (rv / v['value'] - 1):.0f} % looser)" if rv > v["value"] * (1 + 1e-9)
+                                       else "; the analysis configurations alone give the same value")
                 if v["value"] is None:
                     t.value_source = "the clearances absorb any small violation (no limit to first order)"
     cl.allocation = info
