@@ -716,6 +716,12 @@ def continue_nearest(
     node_q[:nodes], node_b[:nodes], node_t[:nodes], node_p[:nodes] = roots[good], rc.bp[good], rc.tangent[good], \
         rc.pinv[good]
     node_qb[:nodes] = rc.q_b[good]
+    if len(act) == 0:  # nothing is actuated (a rigid structure): every target is the certified start itself
+        q[:] = node_q[0]
+        cert.certified[:] = True
+        cert.reason = [""] * k
+        cert.min_condition[:] = cert.end_condition[:] = rc.cond[0]
+        return q, cert
     code = np.full(k, _NOT_REACHED)  # why a target is not certified (index into _REASONS); 0 = certified
     last_d = np.full(k, np.inf)
 

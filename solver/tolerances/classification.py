@@ -83,7 +83,7 @@ def workspace_checkpoints(mechanism: Mechanism, kin: Kinematics, workspace=None,
     sample, corners : ndarray, (K, n_q) each
     """
     from hyperstat.solver.tolerances.accuracy import sample_workspace
-    from hyperstat.solver.tolerances.continuation import assemble_from_nearest
+    from hyperstat.solver.kinematics.continuation import continue_nearest
     from hyperstat.solver.tolerances.workspace import workspace_of
 
     key = (id(mechanism), id(kin), n)
@@ -106,8 +106,10 @@ def workspace_checkpoints(mechanism: Mechanism, kin: Kinematics, workspace=None,
             bits = (np.arange(2 ** len(varied))[:, None] >> np.arange(len(varied))[None, :]) & 1
             qa = np.tile(mechanism.home[mechanism.actuated].astype(float), (len(bits), 1))
             qa[:, varied] = np.where(bits == 1, hi[varied], lo[varied])
-            q, ok = assemble_from_nearest(kin, qa, mechanism.home, inside=ws.inside)
-            out = (sample, q[ok])
+            # certified continuation from the nearest sample (the sample is the pool), on home's branch
+            q, cert = continue_nearest(kin, qa, None, mechanism.home, pool=sample if len(sample) else None,
+                                       inside=ws.inside)
+            out = (sample, q[cert.certified])
     if workspace is None:
         _CHECKPOINTS.update(key=key, kin=kin, value=out)
     return out
