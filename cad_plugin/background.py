@@ -9,12 +9,17 @@ while the parent verifies, diagnoses and allocates.  The result is the same byte
 in-process: off Linux (fork without exec is unsafe with macOS' system libraries, Windows has
 no fork), with ``HYPERSTAT_NO_FORK`` set, or when the child fails or hangs,
 :meth:`Background.result` draws in-process, so an error is raised exactly as without the child.
+
+The child hands its result back as JSON (bytes as base64) in a directory only this user can
+enter: never as a pickle, whose loading runs code (the trust boundary of the README).
 """
 
 from __future__ import annotations
 
+import base64
+import json
 import os
-import pickle
+import shutil
 import sys
 import tempfile
 from typing import Any, Callable
@@ -22,12 +27,38 @@ from typing import Any, Callable
 __all__ = ["Background"]
 
 
+def _encode(value: Any) -> Any:
+    """JSON-ready form of a result made of bytes, str, numbers, lists, tuples and str-keyed dicts."""
+    if isinstance(value, (bytes, bytearray)):
+        return {"bytes": base64.b64encode(bytes(value)).decode("ascii")}
+    if isinstance(value, dict):
+        if not all(isinstance(k, str) for k in value):
+            raise TypeError("a background result's dict keys must be strings")
+        return {"dict": {k: _encode(v) for k, v in value.items()}}
+    if isinstance(value, (list, tuple)):
+        return {"list": [_encode(v) for v in value]}
+    if value is None or isinstance(value, (str, bool, int, float)):
+        return {"value": value}
+    raise TypeError(f"a background result cannot hold a {type(value).__name__}")
+
+
+def _decode(doc: Any) -> Any:
+    (kind, value), = doc.items()
+    if kind == "bytes":
+        return base64.b64decode(value)
+    if kind == "dict":
+        return {k: _decode(v) for k, v in value.items()}
+    if kind == "list":
+        return [_decode(v) for v in value]
+    return value
+
+
 def _child(fn: Callable, args: tuple, path: str) -> None:
-    """Body of the forked process: the result pickled to ``path``; no traceback, no flush of inherited buffers."""
+    """Body of the forked process: the result written to ``path`` as JSON; no traceback, no flush of inherited buffers."""
     try:
         result = fn(*args)
-        with open(path + ".part", "wb") as fh:
-            pickle.dump(result, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        with open(path + ".part", "w", encoding="utf-8") as fh:
+            json.dump(_encode(result), fh)
         os.replace(path + ".part", path)
     except BaseException:  # noqa: BLE001 - the parent redoes the work in-process and raises there
         os._exit(1)
@@ -41,7 +72,8 @@ class Background:
     ----------
     fn : callable
         A function of what exists at the time of the call (the child sees a snapshot of
-        the parent's memory); its result must pickle.
+        the parent's memory); its result is made of bytes, str, numbers, lists, tuples
+        (given back as lists) and str-keyed dicts.
     *args
         Its arguments.
 
@@ -49,12 +81,14 @@ class Background:
     --------
     >>> Background(sum, [1, 2, 3]).result()
     6
+    >>> Background(lambda: {"views.png": b"PNG"}).result()
+    {'views.png': b'PNG'}
     """
 
     def __init__(self, fn: Callable, *args: Any) -> None:
         self._fn, self._args = fn, args
         self._proc = None
-        self._path = None
+        self._path = self._dir = None
         if os.environ.get("HYPERSTAT_NO_FORK") or not sys.platform.startswith("linux"):
             return  # fork without exec is not safe with macOS' system libraries; Windows has none
         import multiprocessing
@@ -63,9 +97,8 @@ class Background:
             ctx = multiprocessing.get_context("fork")
         except ValueError:  # pragma: no cover - platforms without fork
             return
-        fd, self._path = tempfile.mkstemp(prefix="hyperstat-", suffix=".pickle")
-        os.close(fd)
-        os.unlink(self._path)
+        self._dir = tempfile.mkdtemp(prefix="hyperstat-")  # mode 0700: no other user can put a file there
+        self._path = os.path.join(self._dir, "result.json")
         for stream in (sys.stdout, sys.stderr):  # nothing buffered may be written twice
             try:
                 stream.flush()
@@ -88,12 +121,10 @@ class Background:
             self._proc = None
             try:
                 if ok:
-                    with open(self._path, "rb") as fh:
-                        return pickle.load(fh)
-            except (OSError, pickle.UnpicklingError, EOFError):
+                    with open(self._path, encoding="utf-8") as fh:
+                        return _decode(json.load(fh))
+            except (OSError, ValueError, TypeError, AttributeError):
                 pass
             finally:
-                for p in (self._path, self._path + ".part"):
-                    if os.path.exists(p):
-                        os.unlink(p)
+                shutil.rmtree(self._dir, ignore_errors=True)
         return self._fn(*self._args)
