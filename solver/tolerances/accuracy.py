@@ -38,7 +38,7 @@ from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
 
 __all__ = ["COEFFICIENT_NAMES", "AccuracyMaps", "accuracy_maps", "allocate", "compensable", "grid_slice", "report_section",
            "sample_workspace", "weighted_allocation", "geometric_parameters", "largest_singular_value",
-           "output_twist_maps"]
+           "output_twist_maps", "in_chunks"]
 
 COEFFICIENT_NAMES = ("delta_fP", "delta_fR", "delta_gP", "delta_gR", "epsilon_fP", "epsilon_fR", "epsilon_gP",
                      "epsilon_gR")
@@ -156,6 +156,30 @@ class AccuracyMaps:
                 for k, v in self.coefficients.items()}
 
 
+def in_chunks(block, n: int, chunk: int = 10000, workers: int | None = None) -> None:
+    """Run ``block(start)`` for ``start = 0, chunk, 2 chunk, ... < n``, on threads when there are several blocks.
+
+    numpy releases the GIL in its array loops, so blocks of batched kinematics overlap; each
+    block must write only its own rows, which keeps the result independent of the threads.
+    ``workers`` defaults to the number of CPUs (at most 8).
+
+    Examples
+    --------
+    >>> starts = []
+    >>> in_chunks(starts.append, 25, chunk=10, workers=1)
+    >>> starts
+    [0, 10, 20]
+    """
+    starts = range(0, n, chunk)
+    threads = min(workers or min(os.cpu_count() or 1, 8), len(starts))
+    if threads > 1:
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(block, starts))  # list(): re-raises an exception of any block
+    else:
+        for start in starts:
+            block(start)
+
+
 def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics: Kinematics | None = None,
                   chunk: int = 10000, workers: int | None = None) -> AccuracyMaps:
     """The accuracy coefficients at assembled configurations ``q`` (vectorised, in chunks).
@@ -212,14 +236,7 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
                 per[n]["rotation"][sl] = rot[:, j]
                 per[n]["position"][sl] = pos[:, j]
 
-    starts = range(0, len(q), chunk)
-    threads = min(workers or min(os.cpu_count() or 1, 8), len(starts))
-    if threads > 1:
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(block, starts))  # list(): re-raises an exception of any block
-    else:
-        for start in starts:
-            block(start)
+    in_chunks(block, len(q), chunk, workers)
     unit_of = {"delta_fP": "rad/mm", "delta_fR": "rad/rad", "delta_gP": "rad/mm", "delta_gR": "rad/rad",
                "epsilon_fP": "mm/mm", "epsilon_fR": "mm/rad", "epsilon_gP": "mm/mm", "epsilon_gR": "mm/rad"}
     return AccuracyMaps(coeffs, per, groups, q, position, unit_of)

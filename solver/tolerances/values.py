@@ -35,7 +35,7 @@ import numpy as np
 
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
-from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, output_twist_maps
+from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, in_chunks, output_twist_maps
 from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
 from hyperstat.solver.tolerances.task_worst import TASK_COEFFICIENTS, TaskCoefficients, task_worst_cases
@@ -48,13 +48,23 @@ ASSEMBLY_SAMPLE = 8
 
 def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, task: tuple,
               directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Task rotation rows (rad) and position rows (mm) per unit of each direction, (K, r, n)."""
-    st = kin.evaluate(configurations, None, jacobians=True)
-    k_xi, _ = output_twist_maps(kin, st)
-    sel = task_rows(task, st.output_pose)
+    """Task rotation rows (rad) and position rows (mm) per unit of each direction, (K, r, n).
+
+    Evaluated in blocks of 10,000 configurations on threads (:func:`in_chunks`, as the accuracy maps).
+    """
+    q = np.atleast_2d(np.asarray(configurations, dtype=float))
     n_rot = n_rotation_rows(task)
-    t = sel @ k_xi @ directions
-    return t[:, :n_rot], t[:, n_rot:]
+    rows = task_rows(task, np.eye(4)[None]).shape[1]  # as many task rows at every pose
+    out = np.zeros((len(q), rows, directions.shape[1]))
+
+    def block(start: int) -> None:
+        sl = slice(start, start + 10000)
+        st = kin.evaluate(q[sl], None, jacobians=True)
+        k_xi, _ = output_twist_maps(kin, st)
+        out[sl] = task_rows(task, st.output_pose) @ k_xi @ directions
+
+    in_chunks(block, len(q))
+    return out[:, :n_rot], out[:, n_rot:]
 
 
 def _sigma_max(block: np.ndarray) -> np.ndarray:
