@@ -11,6 +11,7 @@ from pathlib import Path
 
 from hyperstat.solver import cli as solver_cli
 from hyperstat.solver.kinematics.model import Mechanism
+from hyperstat.solver.threads import limited_blas
 
 __all__ = ["main"]
 
@@ -312,33 +313,14 @@ def build_parser():
     return parser
 
 
-def _blas_threads() -> int | None:
-    """Threads of the BLAS library for a command: ``HYPERSTAT_BLAS_THREADS`` (default 1; 0 leaves BLAS as it is)."""
-    import os
-
-    text = os.environ.get("HYPERSTAT_BLAS_THREADS", "1").strip()
-    try:
-        value = int(text)
-    except ValueError:
-        value = 1
-    return None if value <= 0 else value
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``hyperstat`` command.
 
-    BLAS runs single-threaded (``HYPERSTAT_BLAS_THREADS`` to change it): the commands do many
-    small dense solves (tens to a few hundred rows), where OpenBLAS's threads only add
-    synchronisation; the large batched work runs on the commands' own thread pools.  Measured
-    on the Tripteor report (2 cores): 7.5-8.0 s of CPU with two BLAS threads, 5.6-6.0 s with one.
+    BLAS runs single-threaded (``HYPERSTAT_BLAS_THREADS`` to change it, see
+    :mod:`hyperstat.solver.threads`): the commands do many small dense solves, where
+    OpenBLAS's threads only add synchronisation.
     """
-    threads = _blas_threads()
-    if threads is None:
-        return solver_cli.main(argv, build_parser())
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=threads, user_api="blas"):
-        return solver_cli.main(argv, build_parser())
+    return limited_blas(solver_cli.main)(argv, build_parser())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -52,6 +52,7 @@ from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.frames import so3_log
 from hyperstat.solver.kinematics.model import Joint, Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult, gauge_parameters
+from hyperstat.solver.threads import limited_blas
 
 __all__ = ["Check", "Correction", "verify", "combination_checks", "closing_correction", "exact_closure_check",
            "reassembly_residual", "gauge_equivalent"]
@@ -165,6 +166,7 @@ def _dimensionless_residual(kin: Kinematics, residual: np.ndarray) -> np.ndarray
     return r.reshape(residual.shape)
 
 
+@limited_blas
 def closing_correction(
     kin: Kinematics,
     q0: np.ndarray,
@@ -208,10 +210,7 @@ def closing_correction(
     -------
     Correction
     """
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):  # small dense problems: see verify()
-        return _closing_correction(kin, q0, xi, max_iter)
+    return _closing_correction(kin, q0, xi, max_iter)
 
 
 def _closing_correction(kin: Kinematics, q0: np.ndarray, xi: np.ndarray, max_iter: int) -> Correction:
@@ -335,6 +334,7 @@ def gauge_equivalent(mechanism: Mechanism, name: str, size: float) -> np.ndarray
     raise ValueError(f"'{name}' belongs to no element of '{mechanism.name}'.")
 
 
+@limited_blas
 def verify(
     mechanism: Mechanism,
     result: StationarityResult,
@@ -368,15 +368,10 @@ def verify(
     -------
     list of Check
     """
-    from threadpoolctl import threadpool_limits
-
     kin = kinematics or Kinematics(mechanism)
-    # small dense problems (a few hundred rows): threaded BLAS only adds synchronisation, which on a
-    # loaded 2-core machine made one 864 x 87 SVD take 0.3 s of CPU instead of 5 ms
-    with threadpool_limits(limits=1, user_api="blas"):
-        checks = _single_checks(mechanism, result, n_configurations, delta, kin)
-        if combinations:
-            checks += combination_checks(mechanism, result, delta=delta, kinematics=kin, seed=seed)
+    checks = _single_checks(mechanism, result, n_configurations, delta, kin)
+    if combinations:
+        checks += combination_checks(mechanism, result, delta=delta, kinematics=kin, seed=seed)
     return checks
 
 

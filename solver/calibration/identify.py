@@ -25,7 +25,6 @@ weighted by the tracker noise model when the data state it.
 
 from __future__ import annotations
 
-import functools
 import time
 from dataclasses import dataclass, field
 
@@ -37,6 +36,7 @@ from hyperstat.solver.kinematics.frames import so3_exp, so3_left_jacobian, so3_l
 from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
+from hyperstat.solver.threads import limited_blas
 
 __all__ = ["MeasurementModel", "Prediction", "IdentificationResult", "identify", "error_stats", "kabsch", "register_targets",
            "observability_indices"]
@@ -775,26 +775,7 @@ def _unidentifiable(model: MeasurementModel, js: np.ndarray, base: list, visible
     return out
 
 
-def _one_blas_thread(func):
-    """Run ``func`` with BLAS limited to one thread.
-
-    The fit's matrices are small (hundreds to a few thousand rows, tens of columns): a
-    multi-threaded OpenBLAS spends more time synchronising than computing, and on a loaded
-    machine its spinning threads cost far more (measured: lstsq + svd of a 450 x 41 matrix,
-    4.7 ms CPU with one thread, 234 ms with two, while other processes used both cores).
-    """
-
-    @functools.wraps(func)
-    def wrapper(*args, **kwargs):
-        from threadpoolctl import threadpool_limits
-
-        with threadpool_limits(limits=1, user_api="blas"):
-            return func(*args, **kwargs)
-
-    return wrapper
-
-
-@_one_blas_thread
+@limited_blas
 def identify(
     mechanism: Mechanism,
     analysis: StationarityResult,

@@ -62,6 +62,7 @@ from hyperstat.solver.calibration.identify import IdentificationResult, Measurem
 from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
+from hyperstat.solver.threads import limited_blas
 
 __all__ = ["Diagnosis", "diagnose", "region_blocks", "structure_tests", "describe_where", "format_outcome", "OUTCOMES"]
 
@@ -636,6 +637,7 @@ def _bounded_fit(screen: _Screen, jac_e: np.ndarray, prior_e: np.ndarray, effect
 
 
 # ---------------------------------------------------------------------------- main entry
+@limited_blas
 def diagnose(
     mechanism: Mechanism,
     analysis: StationarityResult,
@@ -679,13 +681,7 @@ def diagnose(
     DataError
         If the data state no noise model (the gap test needs one) or name an unknown effect.
     """
-    from threadpoolctl import threadpool_limits
-
-    # The diagnosis is thousands of small linear-algebra calls (F-tests, fold refits, QR of a
-    # few hundred rows): threaded BLAS only adds synchronisation, which on a loaded 2-core
-    # machine doubled the CPU time (4.4 s -> 2.1 s single-threaded on the Tripteor).
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_blocks, seed, max_effects,
+    return _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_blocks, seed, max_effects,
                          progress)
 
 

@@ -46,6 +46,7 @@ from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Joint, Mechanism
 from hyperstat.solver.tolerances.accuracy import output_twist_maps
 from hyperstat.solver.tolerances.declaration import Declaration, declaration_of, n_rotation_rows, task_rows
+from hyperstat.solver.threads import limited_blas
 
 __all__ = ["CLASSES", "CLASS_MEANING", "Tolerance", "Classification", "classify", "format_terms",
            "workspace_checkpoints", "WORKSPACE_CHECKPOINTS"]
@@ -342,6 +343,7 @@ def _physical_terms(terms: dict, redundant: dict, order: list) -> dict:
     return {n: c for n, c in out.items() if c != 0.0}
 
 
+@limited_blas
 def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kinematics | None = None,
              declaration: Declaration | None = None, configurations: np.ndarray | None = None) -> Classification:
     """Classify the tolerances of ``mechanism`` (see the module docstring).
@@ -371,12 +373,7 @@ def classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kin
     >>> c.counts()  # doctest: +SKIP
     {'assembly': 6, 'accuracy-critical': 0, 'compensable': 3, 'non-influent': 1}
     """
-    from threadpoolctl import threadpool_limits
-
-    # a few hundred small matrices and one design of ~1000 rows: threaded BLAS only adds synchronisation
-    # (on a loaded 2-core machine it tripled the CPU time of the workspace checks)
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _classify(mechanism, analysis, kinematics, declaration, configurations)
+    return _classify(mechanism, analysis, kinematics, declaration, configurations)
 
 
 def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Kinematics | None,

@@ -39,6 +39,7 @@ from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, in_chun
 from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
 from hyperstat.solver.tolerances.task_worst import TASK_COEFFICIENTS, TaskCoefficients, task_worst_cases
+from hyperstat.solver.threads import limited_blas
 
 __all__ = ["assign_values", "task_maps", "task_extremes", "monte_carlo_at_values", "ASSEMBLY_SAMPLE",
            "TASK_COEFFICIENTS"]
@@ -179,6 +180,7 @@ def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | N
     return out
 
 
+@limited_blas
 def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
                   position_accuracy: float | None = None, orientation_accuracy: float | None = None,
                   assembly: bool = True, assembly_configurations: np.ndarray | None = None, refine: bool = True,
@@ -207,11 +209,7 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
     workspace : Workspace, optional
         Bounds of the refinement (default: the mechanism's declared workspace).
     """
-    from threadpoolctl import threadpool_limits
-
-    # small batched matrices and one sparse programme per condition: threaded BLAS only adds synchronisation
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
+    return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
                               assembly_configurations, refine, workspace)
 
 
