@@ -40,7 +40,7 @@ about 0.5 s here).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -49,6 +49,7 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import output_twist_maps
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
 from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
+from hyperstat.solver.tolerances.worst_case import Extreme, branch_conditioning
 
 __all__ = ["TaskExtreme", "TaskCoefficients", "task_worst_cases", "TASK_COEFFICIENTS"]
 
@@ -57,57 +58,20 @@ TASK_COEFFICIENTS = ("delta_gP", "delta_gR", "epsilon_gP", "epsilon_gR")
 
 
 @dataclass
-class TaskExtreme:
+class TaskExtreme(Extreme):
     """The worst case (maximum) of one task-restricted coefficient over the workspace.
+
+    The fields of :class:`~hyperstat.solver.tolerances.worst_case.Extreme` (``kind`` is
+    ``"max"``; ``location`` is ``interior``, ``boundary`` when an actuated bound is active, or
+    ``constant``; ``tolerance`` is NaN when the ascent was interrupted), and:
 
     Attributes
     ----------
-    coefficient : str
-        One of :data:`TASK_COEFFICIENTS`.
-    value, sampled : float
-        Refined maximum and the sample's maximum (coefficient unit).
-    q : ndarray
-        Configuration where ``value`` is reached (mm / rad).
-    actuated : dict
-        Actuated joint -> value there.
-    position : list
-        Output point there (mm).
-    location : str
-        ``interior``, ``boundary`` (an actuated bound is active) or ``constant``.
-    bounds : list of str
-        Active bounds, in words.
-    tolerance : float
-        Estimated distance of ``value`` from the local maximum (coefficient unit); NaN when
-        the ascent was interrupted.
-    starts, agreeing : int
-        Paths run, and how many reached ``value`` within the tolerance (or 1e-7 relative).
     iterations : int
-        Iterations of the path that gave ``value``.
-    evidence : str
-        What supports the value, in words.
+        Iterations of the ascent path that gave ``value``.
     """
 
-    coefficient: str
-    value: float
-    sampled: float
-    q: np.ndarray
-    actuated: dict = field(default_factory=dict)
-    position: list = field(default_factory=list)
-    location: str = "interior"
-    bounds: list = field(default_factory=list)
-    tolerance: float = 0.0
-    starts: int = 0
-    agreeing: int = 0
     iterations: int = 0
-    evidence: str = ""
-
-    def where(self) -> str:
-        """One line saying where the maximum is reached."""
-        if self.location == "constant":
-            return "constant over the workspace"
-        at = ", ".join(f"{k}={v:.6g}" for k, v in self.actuated.items())
-        text = f"{self.location} at {at} (O_p = {', '.join(f'{v:.4g}' for v in self.position)} mm)"
-        return text + ("; " + "; ".join(self.bounds) if self.bounds else "")
 
     def as_dict(self) -> dict:
         """JSON-ready (lengths in mm, angles in rad)."""
@@ -154,16 +118,6 @@ class TaskCoefficients:
 #: a step is refused where the relative smallest singular value of the scaled passive Jacobian falls below this
 #: fraction of its median over the sample: at a singular edge of the workspace a coefficient can grow without bound
 CONDITIONING_FLOOR = 1e-2
-
-
-def _conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
-    """Relative smallest singular value of the scaled passive closure Jacobian at each configuration (K,)."""
-    m = kin.mechanism
-    if not (len(m.passive) and len(m.closures)):
-        return np.ones(len(q))
-    b = kin.scaled_rows(kin.evaluate(q, None, "joints").closure_q)[:, :, m.passive]
-    s = np.linalg.svd(b, compute_uv=False)
-    return s[:, min(b.shape[1:]) - 1] / np.maximum(s[:, 0], 1e-300)
 
 
 def _passive_motion(kin: Kinematics, q: np.ndarray) -> np.ndarray:
@@ -239,7 +193,7 @@ def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, 
         return np.array([c[n][k] for k, n in enumerate(who)])
 
     val = f(q, names)
-    floor_at = CONDITIONING_FLOOR * float(np.median(_conditioning(kin, sample)))
+    floor_at = CONDITIONING_FLOOR * float(np.median(branch_conditioning(kin, sample)))
     step = np.full(p, 0.05)
     gain = np.full(p, np.nan)  # last accepted increase
     active = np.ones(p, dtype=bool)
@@ -289,7 +243,7 @@ def task_worst_cases(mechanism: Mechanism, kin: Kinematics, sample: np.ndarray, 
         ok = res.converged & ws.inside(q_new) & (corr <= 0.1 * pred + 1e-9)
         if ok.any():
             cond = np.ones(len(idx))
-            cond[ok] = _conditioning(kin, q_new[ok])
+            cond[ok] = branch_conditioning(kin, q_new[ok])
             edge = ok & (cond < floor_at)
             floor[idx[edge]] = True
             ok &= ~edge
@@ -348,7 +302,8 @@ def _describe(m: Mechanism, kin: Kinematics, ws: Workspace, name: str, value: fl
             if abs(q[i] - edge) <= 1e-9 * max(width, 1e-300) and not (j.type == "R" and width >= 2 * math.pi - 1e-9):
                 bounds.append(f"actuated joint {j.name} at its {side} workspace bound ({edge:.6g} {unit})")
     st = kin.evaluate(q[None], None, False)
-    return TaskExtreme(name, value, sampled, np.asarray(q, float), {m.joints[i].name: float(q[i]) for i in m.actuated},
-                       [float(v) for v in st.output_pose[0, :3, 3]],
-                       location or ("boundary" if bounds else "interior"), bounds, tol, starts, agreeing, iterations,
-                       evidence)
+    return TaskExtreme(name, "max", value, sampled, np.asarray(q, float),
+                       actuated={m.joints[i].name: float(q[i]) for i in m.actuated},
+                       position=[float(v) for v in st.output_pose[0, :3, 3]],
+                       location=location or ("boundary" if bounds else "interior"), bounds=bounds, tolerance=tol,
+                       starts=starts, agreeing=agreeing, evidence=evidence, iterations=iterations)

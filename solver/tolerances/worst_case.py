@@ -39,16 +39,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hyperstat.solver.kinematics.continuation import ContinuationOptions, continue_path
-from scipy.linalg import qr
-from scipy.optimize import minimize
-
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import (COEFFICIENT_NAMES, AccuracyMaps, geometric_parameters,
                                                   largest_singular_value, output_twist_maps)
 from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
 
-__all__ = ["Extreme", "refine_extremes", "coefficient_at"]
+__all__ = ["Extreme", "refine_extremes", "coefficient_at", "branch_conditioning"]
 
 #: passive bounds are moved inwards by this much (rad; times the length scale for mm)
 MARGIN = 1e-4
@@ -158,19 +155,34 @@ def coefficient_at(mechanism: Mechanism, q: np.ndarray, name: str, analysis=None
     return _Coefficient(kinematics or Kinematics(mechanism), analysis, name)(np.atleast_2d(q))
 
 
-def _passive_conditioning(kin: Kinematics, q: np.ndarray) -> float:
+def branch_conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
+    """Relative smallest singular value of the scaled passive closure Jacobian at configurations ``q`` (K,).
+
+    1 where there is no passive joint or no loop; 0 where the Jacobian vanishes.  Below
+    :data:`SINGULAR` a configuration is at the singular edge of its assembly branch.  The
+    smallest singular value is the one of full column rank, so an exactly singular point reads
+    0; :func:`hyperstat.solver.kinematics.sampling.passive_conditioning`, which screens samples,
+    counts the generic rank of the batch instead (a passive self-motion does not read singular).
+    """
+    q = np.atleast_2d(q)
     m = kin.mechanism
     if not (len(m.passive) and len(m.closures)):
-        return 1.0
-    b = kin.scaled_rows(kin.evaluate(q[None], None, "joints").closure_q)[0][:, m.passive]
+        return np.ones(len(q))
+    b = kin.scaled_rows(kin.evaluate(q, None, "joints").closure_q)[:, :, m.passive]
     s = np.linalg.svd(b, compute_uv=False)
-    rank_full = min(b.shape)
-    return float(s[rank_full - 1] / s[0]) if s[0] > 0 else 0.0
+    return s[:, min(b.shape[1:]) - 1] / np.maximum(s[:, 0], 1e-300)
+
+
+def _passive_conditioning(kin: Kinematics, q: np.ndarray) -> float:
+    return float(branch_conditioning(kin, q[None])[0])
 
 
 def _optimise(f: _Coefficient, kin: Kinematics, q0: np.ndarray, lb: np.ndarray, ub: np.ndarray, sign: float,
               h: float = 1e-7, maxiter: int | None = None):
     """SLSQP over all joints: extremise ``f`` subject to the closure (independent rows) and the bounds."""
+    from scipy.linalg import qr  # here, not at import: the report imports this module for Extreme only
+    from scipy.optimize import minimize
+
     n = kin.n_q
     jac0 = kin.scaled_rows(kin.evaluate(q0[None], None, "joints").closure_q)[0]
     if jac0.shape[0]:
