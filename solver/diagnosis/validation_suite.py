@@ -27,7 +27,7 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.calibration.virtual import VirtualMachine, workshop_metadata
 
-__all__ = ["CaseResult", "run_suite", "suite_cases", "summarize", "to_markdown", "VIOLATION_MAGNITUDE", "IndependentCase",
+__all__ = ["CaseResult", "run_suite", "suite_cases", "summarize", "with_declared_mass", "to_markdown", "VIOLATION_MAGNITUDE", "IndependentCase",
            "load_independent_generator", "run_independent", "summarize_independent", "independent_markdown"]
 
 VIOLATION_MAGNITUDE = 1e-2  # rad or mm: a grossly violated forced defect (see docs/diagnosis.md)
@@ -85,8 +85,8 @@ def _violated_choice(mechanism, analysis, kin) -> str:
     parameters; this picks the forced defect with the largest part left over (its effect
     columns after projection on the rigid model's, at 60 poses of the nominal machine).
     """
-    from hyperstat.solver.diagnosis.diagnose import _absorbed, _effect_columns, _folds, _Screen
     from hyperstat.solver.calibration.identify import _weights, identify
+    from hyperstat.solver.diagnosis.screening import Screen, absorbed, effect_columns, folds
 
     vm = VirtualMachine.random(mechanism, analysis, seed=0, kinematics=kin, angle_tolerance=0.0,
                                length_tolerance=0.0)
@@ -94,16 +94,16 @@ def _violated_choice(mechanism, analysis, kin) -> str:
     rigid = identify(mechanism, analysis, data, kinematics=kin)
     base_idx = [rigid.model.names.index(b) for b in rigid.base]
     full = rigid.model.predict(rigid.theta, data, jacobian=True)
-    screen = _Screen(_weights(data), rigid.residuals, full.jacobian[:, :, base_idx], np.ones(len(base_idx)),
-                     _folds(data, 4, 0))
+    screen = Screen(_weights(data), rigid.residuals, full.jacobian[:, :, base_idx], np.ones(len(base_idx)),
+                    folds(data, 4, 0))
     best, best_name = -1.0, None
     for p in analysis.parameters:
         if p.verdict != "forced":
             continue
         effect = make_effect("violated-constraint", mechanism, analysis, data, only=[p.name])
-        cols, _ = _effect_columns(mechanism, analysis, kin, rigid, data, effect)
+        cols, _ = effect_columns(mechanism, analysis, kin, rigid, data, effect)
         size = float(np.sqrt(np.mean(np.sum(cols[:, :, 0] ** 2, axis=1))))
-        seen = size * _absorbed(screen, cols)
+        seen = size * absorbed(screen, cols)
         if seen > best:
             best, best_name = seen, p.name
     return best_name
@@ -154,11 +154,34 @@ def run_case(mechanism, analysis, kin, case: tuple, seed: int, violated: str | N
                       () if d.violated_defect is None else tuple(d.violated_defect["ambiguous_with"]), d.outcome)
 
 
+SUITE_MOVING_MASS = 50.0  # kg: the mass the suite declares on a machine that declares none (its virtual machine's)
+
+
+def with_declared_mass(mechanism: Mechanism) -> Mechanism:
+    """The mechanism with a declared moving mass when it declares no mass at all.
+
+    The diagnosis never assumes a mass; the suite's virtual machine needs one to draw its
+    gravity-driven effects, so it declares :data:`SUITE_MOVING_MASS` at the output
+    (``metadata.moving_mass``) and gives the same declaration to the diagnosis, as a user
+    of that machine would.
+    """
+    import dataclasses
+
+    from hyperstat.solver.diagnosis.effects import gravity_source
+
+    if gravity_source(mechanism) is not None or mechanism.metadata.get("masses"):
+        return mechanism
+    meta = {**mechanism.metadata, "moving_mass": SUITE_MOVING_MASS,
+            "moving_mass_note": "declared by the validation suite's virtual machine (kg at the output)"}
+    return dataclasses.replace(mechanism, metadata=meta)
+
+
 def run_suite(sources: list[tuple[Mechanism, StationarityResult]], seeds: int = 5, pairs: bool = True,
               only: tuple | None = None, progress=None) -> list[CaseResult]:
     """Run every case over ``seeds`` seeds for each (mechanism, analysis); ``only`` restricts the cases."""
     results = []
     for mechanism, analysis in sources:
+        mechanism = with_declared_mass(mechanism)
         kin = Kinematics(mechanism)
         cases = suite_cases(mechanism, analysis, pairs)
         if only is not None:

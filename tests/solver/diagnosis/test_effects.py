@@ -25,10 +25,13 @@ def tripteor_data(tripteor, tripteor_analysis):
     return vm.measure(q, metadata=workshop_metadata(tripteor, 10, seed=2), noise=False)
 
 
-@pytest.mark.parametrize("name", EFFECT_NAMES)
+@pytest.mark.parametrize("name", [n for n in EFFECT_NAMES if n != "link-bending"] + ["angle-harmonic-2.75"])
 def test_effect_jacobian_matches_finite_differences(tripteor, tripteor_analysis, tripteor_data, name):
+    from hyperstat.solver.diagnosis.validation_suite import with_declared_mass
+
     data = tripteor_data
     options = {"only": ["dK13"]} if name == "violated-constraint" else {}
+    tripteor = with_declared_mass(tripteor)  # the gravity-driven effects need a declared mass (none is assumed)
     effect = make_effect(name, tripteor, tripteor_analysis, data, **options)
     model = MeasurementModel(tripteor, tripteor_analysis, effects=(effect,))
     theta = model.initial(data.tracker, data.target)
