@@ -297,6 +297,12 @@ class MeasurementModel:
                 rows = tidx == t
                 c0 = self.sl_target_rotation.start + 3 * t
                 rot_jac[rows, :, c0:c0 + 3] = np.einsum("ji,kjl,lm->kim", r_trk, rot_out[rows], jt[t])
+            # effects turn the output through the actuated values (and defect-type effects through the
+            # geometry); thermal growth, tracker scale and drift move points, they turn nothing
+            if self.effects:
+                rot_jac += np.einsum("ji,kjn->kin", r_trk, np.einsum("kan,knj->kaj", k_a[:, :3, :], dqa_dtheta))
+            for sl, directions in self._effect_defects:
+                rot_jac[:, :, sl] += np.einsum("ji,kjn->kin", r_trk, k_xi[:, :3, :] @ directions)
         return Prediction(position, jac, q, res.converged, world, rot_pred, rot_jac)
 
     def _target_index(self, data: MeasurementSet) -> np.ndarray:
@@ -884,7 +890,7 @@ def identify(
     """
     t0 = time.perf_counter()
     imposed = base
-    oriented = data.rotation is not None and not effects
+    oriented = data.rotation is not None
     model = model or MeasurementModel(mechanism, analysis, kinematics, effects, targets=list(data.target_names),
                                       orientation=oriented)
     oriented = model.orientation and data.rotation is not None

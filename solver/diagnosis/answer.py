@@ -187,8 +187,9 @@ def format_outcome(diag) -> str:
         if len(s["members"]) > 1:
             lines.append(f"  equivalence set of {s['effect']}: {', '.join(s['members'])}; separated by "
                          f"{s['separating_measurement']}")
-    for c in diag.cannot_size:
-        lines.append(f"  cannot size {c['effect']}: {c['reason']}")
+    if diag.cannot_size:
+        lines.append(f"  cannot size {', '.join(c['effect'] for c in diag.cannot_size)}: "
+                     f"{diag.cannot_size[0]['reason']}")
     if diag.per_target:
         lines.append("  per target: " + "; ".join(
             f"{t['target']}: {t['outcome']}" + (f" by {' + '.join(t['named_effects'])}" if t["named_effects"] else "")

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hyperstat.solver.analysis.stationarity import StationarityResult
-from hyperstat.solver.calibration.identify import IdentificationResult, MeasurementModel, _weights, identify
+from hyperstat.solver.calibration.identify import IdentificationResult, MeasurementModel, identify
 from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
 from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, MASS_FIELD, applicable_effects, available_effects,
@@ -44,7 +44,8 @@ from hyperstat.solver.diagnosis.periodic import periodic_gate, spectral_candidat
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, black_box_ceiling,
                                                   cv_rms, folds, plugin_guard, region_blocks, screen_candidates,
                                                   select_effects)
-from hyperstat.solver.diagnosis.targets import as_points, per_target_check, real_targets, targets_agree
+from hyperstat.solver.diagnosis.observations import oriented, residual_rows, row_view, stack_rows
+from hyperstat.solver.diagnosis.targets import per_target_check, targets_to_check, targets_agree
 from hyperstat.solver.diagnosis.where import describe_where, spectrum_peaks, structure_tests, where_summary
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.closure import Kinematics
@@ -221,20 +222,24 @@ def _cannot_size(mechanism: Mechanism, names) -> list:
                         f"none; declare them in {MASS_FIELD}")} for n in GRAVITY_EFFECTS if n in names]
 
 
-def _rigid_jacobians(mechanism, analysis, kin, rigid: IdentificationResult, data: MeasurementSet):
-    """Base columns, assembled configurations, ``d position / d q_a`` and ``d position / d target`` at the rigid fit."""
+def _rigid_rows(mechanism, analysis, kin, rigid: IdentificationResult, data: MeasurementSet):
+    """Rows at the rigid fit: residuals, weights, base columns, ``d row / d q_a``, ``d row / d target offset``."""
+    six_d = oriented(rigid.model, data)
     base_idx = [rigid.model.names.index(b) for b in rigid.base]
-    full = rigid.model.predict(rigid.theta, data, jacobian=True, q_start=rigid.configurations)
+    resid, w, jac, full = residual_rows(rigid.model, rigid.theta, data, jacobian=True, q_start=rigid.configurations)
     n_act = data.q.shape[1]
     unit_model = MeasurementModel(mechanism, analysis, kin, effects=(UnitActuators(n_act),),
-                                  targets=list(data.target_names))
+                                  targets=list(data.target_names), orientation=six_d)
     theta_u = unit_model.initial()
     theta_u[: rigid.model.n] = rigid.theta
-    act_jac = unit_model.predict(theta_u, data, jacobian=True, q_start=full.q).jacobian[:, :, rigid.model.n:]
+    pred = unit_model.predict(theta_u, data, jacobian=True, q_start=full.q)
+    n = rigid.model.n
+    act_jac = stack_rows(pred.jacobian[:, :, n:], pred.rotation_jacobian[:, :, n:] if six_d else None)
     k = len(data)
     tj = full.jacobian[:, :, rigid.model.sl_target].reshape(k, 3, -1, 3)
     target_jac = tj[np.arange(k), :, np.asarray(data.target_index, dtype=int), :]
-    return base_idx, full, act_jac, target_jac
+    target_jac = stack_rows(target_jac, np.zeros_like(target_jac) if six_d else None)  # an offset turns nothing
+    return resid, w, jac[:, :, base_idx], full, act_jac, target_jac, base_idx
 
 
 def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_blocks, seed, max_effects,
@@ -252,11 +257,9 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         if not is_known_effect(c):
             raise DataError(f"unknown effect '{c}'; effects are {', '.join(known)} and angle-harmonic-<k> for any "
                             f"positive k.")
-    data, validation = as_points(data), as_points(validation)
     kin = kinematics or Kinematics(mechanism)
     step("rigid fit")
     rigid = identify(mechanism, analysis, data, validation, kinematics=kin)
-    w = _weights(data)
     test = gap_test(rigid, data, validation)
     significant = test.pop("significant")
     cannot_size = _cannot_size(mechanism, names)
@@ -269,19 +272,25 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
                          time.perf_counter() - t0, outcome, words, [], [], cannot_size, {})
 
     step("where")
-    schemes = folds(data, n_blocks, seed)
-    base_idx, full, act_jac, target_jac = _rigid_jacobians(mechanism, analysis, kin, rigid, data)
+    six_d = oriented(rigid.model, data)
+    rows = row_view(data, six_d)  # one row per position, and per orientation for 6-D data
+    k = len(data)
+    schemes = folds(rows, n_blocks, seed)
+    resid, w, base_jac, full, act_jac, target_jac, base_idx = _rigid_rows(mechanism, analysis, kin, rigid, data)
     units, kinds = rigid.model.units, rigid.model.kinds
     prior = np.array([(PRIOR_ANGLE if units[j] == "rad" else PRIOR_LENGTH) if kinds[j] == "geometry" else 1e3
                       for j in base_idx])
-    screen = Screen(w, rigid.residuals, full.jacobian[:, :, base_idx], prior, schemes, full.q)
+    cv_scale = None
+    if six_d:  # orientation rows count in the cross-validated RMS at the lever where both noises are alike
+        cv_scale = stack_rows(np.ones(k), np.full(k, float(np.median(1.0 / w[:k])) / data.rotation_noise))
+    screen = Screen(w, resid, base_jac, prior, schemes, full.q, cv_scale=cv_scale)
     r_trk, _ = rigid.model.tracker_pose(rigid.theta)
     base_cv, base_bic, _, _ = cv_rms(screen, None, None)
     qb = screen.prepared()["qb"]
-    plain = structure_tests(mechanism, data, rigid.residuals, w, qb, r_trk, act_jac, target_jac)
+    plain = structure_tests(mechanism, rows, resid, w, qb, r_trk, act_jac, target_jac, positions=k)
     options = {}
     if not explicit:  # the periodic orders the spectrum shows join the candidates
-        for name, spec in spectral_candidates(plain, data, act_jac).items():
+        for name, spec in spectral_candidates(plain, rows, act_jac).items():
             names.append(name)
             options[name] = {"joints": spec["joints"]}
 
@@ -292,8 +301,8 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     ranking, columns, effects, rejected, violated = (scr["ranking"], scr["columns"], scr["effects"], scr["rejected"],
                                                      scr["violated"])
     signatures = {e["effect"]: columns[e["effect"]][0] for e in ranking if not e.get("note")}
-    structure = structure_tests(mechanism, data, rigid.residuals, w, qb, r_trk, act_jac, target_jac, signatures)
-    where = where_summary(rigid, data, schemes[0][1], structure)
+    structure = structure_tests(mechanism, rows, resid, w, qb, r_trk, act_jac, target_jac, signatures, positions=k)
+    where = where_summary(rigid, data, schemes[0][1][:k], structure)
     # the structure tests are a second, scale-free gap test: under a right model they hold at
     # 1e-3 whatever the noise, so a structured residual is a gap even below the chi-square's power
     test["structure"] = {"p_value": structure["best"]["p_value"] if structure["best"] else 1.0,
@@ -306,7 +315,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     entries = {e["effect"]: e for e in ranking}
 
     def refuse(name: str, _selected: list) -> dict | None:
-        return periodic_gate(name, effects[name], entries[name], plain, data, act_jac) \
+        return periodic_gate(name, effects[name], entries[name], plain, rows, act_jac) \
             if harmonic_order(name) is not None or name == "angle-scale" else None
 
     selected, ties, refused = (select_effects(screen, ranking, columns, base_cv, base_bic, max_effects, refuse)
@@ -342,7 +351,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     after_rms = validation_after["rms"] if validation_after else None
     if after_rms is not None and noise is not None and reference**2 > noise**2:
         share = float((reference**2 - after_rms**2) / (reference**2 - noise**2))
-    ceiling = _ceiling(screen, data, rigid, base_cv, current_cv, noise, seed)
+    ceiling = _ceiling(resid[:k], data, folds(data, n_blocks, seed), base_cv, current_cv, noise, seed)
     for entry in ranking:
         entry["validation_rms"] = entry["cv_rms"]  # blocked cross-validation on the identification data
 
@@ -350,15 +359,15 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     after_structure = None
     sets = []
     if final is not None:
-        k = len(w)
-        ew = (np.concatenate([columns[n][0] for n in selected], axis=2) * w[:, None, None]).reshape(3 * k, -1)
+        ew = screen.weighted(np.concatenate([columns[n][0] for n in selected], axis=2))
         both = np.concatenate([screen.prepared()["jw"], ew], axis=1)
         basis, _ = np.linalg.qr(both / np.linalg.norm(both, axis=0).clip(min=1e-300))
         r_f, _ = final.model.tracker_pose(final.theta)
         others = {e["effect"]: columns[e["effect"]][0] for e in ranking
                   if not e.get("note") and e["effect"] not in selected}
-        after_structure = structure_tests(mechanism, data, final.residuals, w, basis, r_f, act_jac, target_jac,
-                                          others)
+        resid_f, _, _, _ = residual_rows(final.model, final.theta, data, q_start=final.configurations)
+        after_structure = structure_tests(mechanism, rows, resid_f, w, basis, r_f, act_jac, target_jac, others,
+                                          positions=k)
         masses = gravity_source(mechanism) == "link masses"
         family = gravity_family(mechanism, kin, data, act_jac, masses)
         refused_prior = {r["effect"] for r in rejected if r["stage"] in ("screening", "nonlinear fit", "validation")}
@@ -371,11 +380,12 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     diag = Diagnosis(significant, test, where, ranking, selected, ties, not_applicable, before, validation_after,
                      share, ceiling, effect_parameters, violated, rigid, final, 0.0, outcome, words, rejected, sets,
                      cannot_size, spectrum_peaks(plain))
-    if per_target and len(real_targets(data)) > 1:
+    checks = targets_to_check(data, validation) if per_target else []
+    if checks:
         step("per target")
         diag.per_target = per_target_check(
             lambda d, v: _diagnose(mechanism, analysis, d, v, candidates, kin, n_blocks, seed, max_effects, None,
-                                   per_target=False), data, validation)
+                                   per_target=False), checks)
         whole = {"outcome": diag.outcome, "named_effects": diag.named_effects,
                  "equivalence_sets": diag.equivalence_sets}
         diag.targets_agree, diag.targets_evidence = targets_agree(whole, diag.per_target)
@@ -424,12 +434,13 @@ def is_library(name: str) -> bool:
     return name in EFFECT_NAMES or harmonic_order(name) is not None
 
 
-def _ceiling(screen: Screen, data, rigid, base_cv: float, current_cv: float, noise: float | None, seed: int) -> dict:
-    """What a black-box regression of the residuals reaches under the same folds, beside the selected effects."""
-    bb = black_box_ceiling(screen, data)
-    rms_resid = float(np.sqrt(np.mean(np.sum(rigid.residuals**2, axis=1))))
+def _ceiling(resid: np.ndarray, data, schemes: list, base_cv: float, current_cv: float, noise: float | None,
+             seed: int) -> dict:
+    """What a black-box regression of the position residuals reaches under the same folds, beside the effects."""
+    bb = black_box_ceiling(resid, data, schemes)
+    rms_resid = float(np.sqrt(np.mean(np.sum(resid**2, axis=1))))
     random_folds = [("random", np.random.default_rng(seed).permutation(len(data)) % 5)]
-    bb_random = black_box_ceiling(screen, data, random_folds)
+    bb_random = black_box_ceiling(resid, data, random_folds)
     ceiling = {"cv_rms_rigid": base_cv, "cv_rms_black_box": bb, "cv_rms_selected": current_cv,
                "method": "ridge quadratic regression of the residuals on joint values and metadata, same folds",
                "black_box_share_of_residual": float(1.0 - bb_random**2 / rms_resid**2) if rms_resid > 0 else 0.0,

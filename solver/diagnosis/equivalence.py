@@ -82,6 +82,7 @@ def gravity_family(mech, kin, data, act_jac: np.ndarray, masses_known: bool) -> 
         if not np.any(keep):
             continue
         y = _orth(y[:, keep], 1e-8) * np.sqrt(len(data))
+        y = np.tile(y, (len(act_jac) // len(data), 1))  # the same load on a pose's orientation row (6-D)
         cols.append(act_jac[:, :, a, None] * y[:, None, :])
         if a in nxt:
             cols.append(act_jac[:, :, nxt[a], None] * y[:, None, :])

@@ -2,8 +2,9 @@
 
 Units: lengths in mm; noise factors are dimensionless (``sqrt(chi2 / dof)``).
 
-* The gap test (:func:`gap_test`): the weighted residuals of a fit follow a chi-square
-  law with ``3K - rank`` degrees of freedom when the file's noise model is right and
+* The gap test (:func:`gap_test`): the weighted residuals of a fit (position rows, and
+  orientation rows for 6-D data: :mod:`.observations`) follow a chi-square law with
+  ``3 rows - rank`` degrees of freedom when the file's noise model is right and
   nothing is missing; the validation points give a second, independent test (their
   variance inflated by ``1 + rank / 3K`` for the fitted model's own uncertainty).
 * Inputs wrong (:func:`inputs_wrong`): sigma in the hundreds, or residuals of a
@@ -22,6 +23,7 @@ from scipy.special import chdtrc, fdtrc
 
 from hyperstat.solver.calibration.identify import IdentificationResult, _weights
 from hyperstat.solver.calibration.measurements import MeasurementSet
+from hyperstat.solver.diagnosis.observations import oriented, residual_rows
 from hyperstat.solver.diagnosis.where import P_THRESHOLD
 
 __all__ = ["gap_test", "noise_statement", "overfitting", "inputs_wrong", "OVERFIT_RATIO"]
@@ -37,21 +39,29 @@ def gap_test(result: IdentificationResult, data: MeasurementSet, validation: Mea
     Returns ``identification`` and ``validation`` (chi2, dof, p_value, noise_factor),
     ``threshold`` (1e-3 over the number of tests) and ``significant``.
     """
-    w = _weights(data)
-    chi_id = float(np.sum((result.residuals * w[:, None]) ** 2))
-    dof = max(3 * len(data) - result.rank, 1)
+    resid, w = _rows(result, data, result.residuals)
+    chi_id = float(np.sum((resid * w[:, None]) ** 2))
+    dof = max(3 * len(w) - result.rank, 1)
     test = {"identification": {"chi2": chi_id, "dof": dof, "p_value": float(chdtrc(dof, chi_id)),
                                "noise_factor": float(np.sqrt(chi_id / dof))}}
     if validation is not None and len(validation) and result.validation_residuals is not None:
-        wv = _weights(validation)
-        chi_v = float(np.sum((result.validation_residuals * wv[:, None]) ** 2))
-        scale = 1.0 + result.rank / (3.0 * len(data))
-        dof_v = 3 * len(validation)
+        rv, wv = _rows(result, validation, result.validation_residuals)
+        chi_v = float(np.sum((rv * wv[:, None]) ** 2))
+        scale = 1.0 + result.rank / (3.0 * len(w))
+        dof_v = 3 * len(wv)
         test["validation"] = {"chi2": chi_v, "dof": dof_v, "p_value": float(chdtrc(dof_v, chi_v / scale)),
                               "variance_inflation": scale, "noise_factor": float(np.sqrt(chi_v / scale / dof_v))}
     test["threshold"] = P_THRESHOLD / (len(test))
     test["significant"] = bool(min(v["p_value"] for k, v in test.items() if isinstance(v, dict)) < test["threshold"])
     return test
+
+
+def _rows(result: IdentificationResult, data: MeasurementSet, positions: np.ndarray) -> tuple:
+    """Residual rows and weights of a fit on ``data``: its position residuals, and orientation rows for 6-D data."""
+    if oriented(result.model, data):
+        resid, w, _, _ = residual_rows(result.model, result.theta, data)
+        return resid, w
+    return positions, _weights(data)
 
 
 def noise_statement(data: MeasurementSet, factor: float) -> dict:

@@ -28,6 +28,7 @@ import numpy as np
 from hyperstat.solver.calibration.identify import IdentificationResult, MeasurementModel
 from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.effects import EFFECT_NAMES, Effect, harmonic_order, make_effect
+from hyperstat.solver.diagnosis.observations import oriented, stack_rows
 from hyperstat.solver.errors import DataError
 
 __all__ = ["Screen", "folds", "region_blocks", "cv_rms", "absorbed", "effect_columns", "bounded_fit", "name_violated",
@@ -112,6 +113,9 @@ class Screen:
     schemes: list
     q: np.ndarray | None = None  # assembled configurations at the rigid solution (warm start)
     cache: dict = field(default_factory=dict)
+    #: factor of each row in the cross-validated RMS: 1 for position rows (mm); for orientation
+    #: rows (rad) the position noise over the orientation noise (mm/rad), so that both count alike
+    cv_scale: np.ndarray | None = None
 
     def prepared(self) -> dict:
         """Weighted base columns, their QR basis and per-fold Gram matrices (computed once)."""
@@ -176,6 +180,8 @@ def cv_rms(screen: Screen, extra: np.ndarray | None, extra_prior: np.ndarray | N
         delta = np.linalg.solve(gram - gt + reg, -(rhs - rt))
         jac_t = np.concatenate([screen.base_jac[test], extra[test]], axis=2) if ne else screen.base_jac[test]
         held = screen.resid[test] + jac_t @ delta
+        if screen.cv_scale is not None:
+            held = held * screen.cv_scale[test][:, None]
         sq += float(np.sum(held**2))
         count += int(test.sum())
     inv = np.linalg.inv(gram + reg)
@@ -237,24 +243,29 @@ class UnitActuators(Effect):
 
 def effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effect,
                    q_start: np.ndarray | None = None, act_jac: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Unweighted Jacobian columns (K, 3, n_e) of ``effect`` at the rigid solution, and their prior std.
+    """Unweighted Jacobian columns (R, 3, n_e) of ``effect`` on the rows at the rigid solution, and their prior std.
 
-    An effect entering through the actuated values alone is ``d position / d q_a`` times
-    its ``d dq / d theta`` (``act_jac`` given): no new evaluation of the model.
+    The rows are the position rows of ``data``, then its orientation rows for a 6-D rigid
+    model (:mod:`.observations`).  An effect entering through the actuated values alone is
+    ``d row / d q_a`` times its ``d dq / d theta`` (``act_jac`` given, on the same rows):
+    no new evaluation of the model.
     """
     prior = 1000.0 * np.maximum(effect.magnitude, 1e-12)
+    six_d = oriented(rigid.model, data)
     with plugin_guard(effect.name, "columns"):
         if act_jac is not None and _only_actuator(effect):
             model = MeasurementModel(mech, analysis, kin)
             theta0 = np.zeros(len(effect.parameter_names(None)))
             _, dt = effect.actuator_correction(model, theta0, data)
-            return np.einsum("kia,kae->kie", act_jac, np.asarray(dt, float)), prior
-        model = MeasurementModel(mech, analysis, kin, effects=(effect,), targets=list(data.target_names))
+            dt = np.asarray(dt, float)
+            return np.einsum("kia,kae->kie", act_jac, stack_rows(dt, dt if six_d else None)), prior
+        model = MeasurementModel(mech, analysis, kin, effects=(effect,), targets=list(data.target_names),
+                                 orientation=six_d)
         theta = model.initial()
         theta[: rigid.model.n] = rigid.theta
         pred = model.predict(theta, data, jacobian=True, q_start=q_start)
         sl = model._effect_slices[0]
-        cols = pred.jacobian[:, :, sl]
+        cols = stack_rows(pred.jacobian[:, :, sl], pred.rotation_jacobian[:, :, sl] if six_d else None)
     if not np.all(np.isfinite(cols)):
         raise DataError(f"the effect '{effect.name}' gives non-finite derivatives on these poses.")
     return cols, prior
@@ -275,8 +286,8 @@ def bounded_fit(screen: Screen, jac_e: np.ndarray, prior_e: np.ndarray, effect: 
     return lsq_linear(a, b, bounds=(lo, hi), method="bvls").x[nb:]
 
 
-def black_box_ceiling(screen: Screen, data: MeasurementSet, schemes: list | None = None) -> float:
-    """CV RMS of the rigid residuals after a ridge regression on joints (quadratic) and metadata (mm)."""
+def black_box_ceiling(resid: np.ndarray, data: MeasurementSet, schemes: list) -> float:
+    """CV RMS of the rigid position residuals after a ridge regression on joints (quadratic) and metadata (mm)."""
     def scaled(v):
         return (v - v.mean()) / max(float(v.std()), 1e-12)
 
@@ -292,17 +303,17 @@ def black_box_ceiling(screen: Screen, data: MeasurementSet, schemes: list | None
     lams = (1e-1, 1.0, 10.0, 100.0)
     sq = np.zeros(len(lams))
     count = 0
-    for _, labels in (screen.schemes if schemes is None else schemes):
+    for _, labels in schemes:
         for g in np.unique(labels):
             test = labels == g
             if test.all():
                 continue
             a = f[~test]
             evals, evecs = np.linalg.eigh(a.T @ a)
-            proj = evecs.T @ (a.T @ screen.resid[~test])
+            proj = evecs.T @ (a.T @ resid[~test])
             for n, lam in enumerate(lams):
                 coef = evecs @ (proj / (evals + lam)[:, None])
-                sq[n] += float(np.sum((screen.resid[test] - f[test] @ coef) ** 2))
+                sq[n] += float(np.sum((resid[test] - f[test] @ coef) ** 2))
             count += int(test.sum())
     return float(np.sqrt(sq.min() / max(count, 1)))
 
@@ -382,7 +393,7 @@ def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac:
         cv, bic, _, est, cov, chi = cv_rms(screen, jac_e, prior_e, with_cov=True)
         columns[name] = (jac_e, prior_e)
         effects[name] = effect
-        dof = max(3 * len(data) - rigid.rank - len(prior_e), 1)
+        dof = max(3 * len(screen.w) - rigid.rank - len(prior_e), 1)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None) * max(1.0, chi / dof))
         entry = {"effect": name, "cv_rms": cv, "criterion": bic - base_bic, "criterion_name": "delta BIC",
                  "parameters": len(prior_e), "unexplained_by_geometry": free,

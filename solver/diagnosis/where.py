@@ -92,7 +92,7 @@ class ResidualField:
 
 def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w: np.ndarray, basis: np.ndarray,
                     r_trk: np.ndarray, act_jac: np.ndarray, target_jac: np.ndarray | None = None,
-                    candidates: dict | None = None) -> dict:
+                    candidates: dict | None = None, positions: int | None = None) -> dict:
     """Does the residual field have structure?  F-tests of regressions the fit cannot absorb, and isotropy.
 
     Three families of regressors, each projected off the fitted columns (``basis``, an
@@ -137,6 +137,9 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
         ``d position / d target offset`` (the output frame's axes in the tracker frame).
     candidates : dict, optional
         Effect name -> its columns (K, 3, n_e) (tracker frame, unweighted).
+    positions : int, optional
+        With 6-D data the rows are the positions then the orientations (:mod:`.observations`);
+        the first ``positions`` rows are positions (directions and isotropy use them alone).
 
     Returns
     -------
@@ -148,6 +151,7 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
         ``resolution_cycles_per_revolution``) and ``field`` (the :class:`ResidualField`).
     """
     k = len(w)
+    npos = k if positions is None else positions
     field = ResidualField(resid, w, basis)
     tests = []
     fits: dict = {}
@@ -164,7 +168,7 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
         """Dominant base-frame direction of a fitted field (first right singular vector)."""
         if key < 0:
             return [0.0, 0.0, 0.0]
-        field_base = (fits[key].reshape(k, 3) / w[:, None]) @ r_trk.T
+        field_base = (fits[key].reshape(k, 3)[:npos] / w[:npos, None]) @ r_trk.T
         _, _, vt = np.linalg.svd(field_base, full_matrices=False)
         return (vt[0] * np.sign(vt[0][np.argmax(np.abs(vt[0]))])).tolist()
 
@@ -241,11 +245,11 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
     for t in tests:
         t["direction"] = direction(t["direction"])
     # isotropy (Bartlett), leverage-corrected components, base-frame directions
-    lev = np.sum(basis**2, axis=1).reshape(k, 3) @ (r_trk.T**2)
-    z = ((resid * w[:, None]) @ r_trk.T) / np.sqrt(1.0 - np.clip(lev, 0.0, 0.95))
-    s2 = np.sum(z**2, axis=0) / k
+    lev = np.sum(basis**2, axis=1).reshape(k, 3)[:npos] @ (r_trk.T**2)
+    z = ((resid[:npos] * w[:npos, None]) @ r_trk.T) / np.sqrt(1.0 - np.clip(lev, 0.0, 0.95))
+    s2 = np.sum(z**2, axis=0) / npos
     pooled = float(np.mean(s2))
-    stat = (3 * k * np.log(pooled) - float(np.sum(k * np.log(s2)))) / (1.0 + (3.0 / k - 1.0 / (3 * k)) / 6.0)
+    stat = (3 * npos * np.log(pooled) - float(np.sum(npos * np.log(s2)))) / (1.0 + (3.0 / npos - 1.0 / (3 * npos)) / 6.0)
     iso = {"statistic": float(stat), "p_value": float(chdtrc(2, stat)),
            "weighted_variance": dict(zip("xyz", map(float, s2))), "threshold": P_THRESHOLD}
     return {"tests": tests, "n_tests": n_tests, "threshold": threshold,

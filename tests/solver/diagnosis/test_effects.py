@@ -103,3 +103,30 @@ def test_applicability_and_errors(scara, scara_analysis):
         make_effect("gravity", scara)
     with pytest.raises(DataError, match="needs the column"):
         make_effect("backlash", scara).actuator_correction(None, np.zeros(len(scara.actuated)), bare)
+
+
+@pytest.mark.parametrize("name", ["angle-scale", "backlash"])
+def test_effect_turns_the_measured_orientation_as_its_jacobian_says(tripteor, tripteor_analysis, tripteor_data, name):
+    """6-D rows: the orientation Jacobian of an effect (tracker-frame angular velocity per unit parameter) against
+    central differences of the predicted orientation, ``log(R(theta + h) R(theta - h)^T) / 2h``."""
+    from hyperstat.solver.kinematics.frames import so3_log
+
+    effect = make_effect(name, tripteor, tripteor_analysis, tripteor_data)
+    model = MeasurementModel(tripteor, tripteor_analysis, effects=(effect,), orientation=True)
+    theta = model.initial(tripteor_data.tracker, tripteor_data.target)
+    sl = model._effect_slices[0]
+    theta[sl] = 0.7 * effect.magnitude
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = model.predict(theta, tripteor_data, jacobian=True)
+        for j in range(sl.start, sl.stop):
+            h = 1e-3 * abs(theta[j])
+            plus, minus = theta.copy(), theta.copy()
+            plus[j] += h
+            minus[j] -= h
+            rp = model.predict(plus, tripteor_data, q_start=ref.q).rotation
+            rm = model.predict(minus, tripteor_data, q_start=ref.q).rotation
+            fd = so3_log(rp @ np.swapaxes(rm, -1, -2)) / (2 * h)
+            scale = np.abs(fd).max()
+            assert scale > 0, model.names[j]
+            assert np.abs(fd - ref.rotation_jacobian[:, :, j]).max() <= 1e-5 * scale, model.names[j]

@@ -280,6 +280,35 @@ def test_negative_compliance_rejects_the_effect(arm_model):
     assert d.outcome != "explained"
 
 
+def test_a_gear_harmonic_beyond_its_prior_is_rejected_in_words(arm_model):
+    """A 1.7 mrad once-per-revolution error of the shoulder: 2.9x the largest plausible gear harmonic (2 arcmin, the
+    strain-wave catalogues' worst transmission error); the candidate is refused with that sentence."""
+    from hyperstat.solver.calibration.virtual import VirtualMachine, workshop_metadata
+    from hyperstat.solver.diagnosis.effects import make_effect
+    from hyperstat.solver.diagnosis.effects.priors import PRIORS
+
+    mech, analysis, kin = arm_model
+    effect = make_effect("angle-harmonic-1", mech)
+    truth = np.zeros(12)
+    truth[2] = 1.7e-3  # joint 2, sine term (rad)
+    vm = VirtualMachine.random(mech, analysis, seed=0, kinematics=kin, effects=(effect.with_truth(truth),))
+    meta = workshop_metadata(mech, 137, seed=0)
+    q = vm.poses(137, seed=1)
+    data = vm.measure(q[:107], seed=2, metadata={k: v[:107] for k, v in meta.items()})
+    val = vm.measure(q[107:], seed=3, prefix="V", metadata={k: v[107:] for k, v in meta.items()})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = diagnose(mech, analysis, data, val, kinematics=kin)
+    assert "angle-harmonic-1" not in d.named_effects
+    entry = next(e for e in d.ranking if e["effect"] == "angle-harmonic-1")
+    amp = float(np.hypot(entry["estimates"]["harmonic1_2_sin"], entry["estimates"]["harmonic1_2_cos"]))
+    assert amp == pytest.approx(1.7e-3, rel=0.1)
+    why = entry["rejected"]
+    ratio = amp / PRIORS["angle-harmonic"].plausible
+    assert f"{1e3 * amp:.2g} mrad: {ratio:.1f}x the largest plausible gear harmonic" in why
+    assert "Harmonic Drive" in why and any(r["effect"] == "angle-harmonic-1" for r in d.rejected)
+
+
 def test_an_effect_that_makes_validation_worse_is_not_selected(scara_model):
     """Validation points whose approach directions are reversed: the fitted backlash predicts them worse."""
     mech, analysis, kin = scara_model
