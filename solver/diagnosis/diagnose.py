@@ -37,7 +37,7 @@ from hyperstat.solver.calibration.identify import IdentificationResult, Measurem
 from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
 from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, MASS_FIELD, applicable_effects, available_effects,
-                                                gravity_source, harmonic_order, is_known_effect)
+                                                gravity_source, harmonic_order, is_known_effect, is_library_effect)
 from hyperstat.solver.diagnosis.equivalence import equivalence_sets, gravity_family
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
 from hyperstat.solver.diagnosis.periodic import periodic_gate, spectral_candidates
@@ -374,7 +374,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         members = [e["effect"] for e in ranking if not e.get("note") and e["effect"] not in refused_prior]
         sets = equivalence_sets(screen, selected, columns, members, family, data, spectrum_peaks(plain), effects,
                                 masses)
-    overfit = overfitting(test, rigid, 3 * len(data))
+    overfit = overfitting(test, rigid, 3 * len(w), structure["structured"])
     outcome, words = verdict(data, validation, significant, test, final, selected, structure, after_structure, ceiling,
                              noise, share, sets, rejected, cannot_size, overfit, None)
     diag = Diagnosis(significant, test, where, ranking, selected, ties, not_applicable, before, validation_after,
@@ -401,7 +401,7 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
     final = None
     while selected:
         chosen = tuple(effects[n] for n in selected)
-        with plugin_guard(next((n for n in selected if not is_library(n)), selected[0]), "fit"):
+        with plugin_guard(next((n for n in selected if not is_library_effect(n)), selected[0]), "fit"):
             final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin)
         dropped = None
         for eff, sl in zip(final.model.effects, final.model._effect_slices):
@@ -425,13 +425,6 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
                 entry["rejected"] = dropped[2]
         final = None
     return final, selected
-
-
-def is_library(name: str) -> bool:
-    """Whether ``name`` is a library effect (not a plug-in)."""
-    from hyperstat.solver.diagnosis.effects import EFFECT_NAMES
-
-    return name in EFFECT_NAMES or harmonic_order(name) is not None
 
 
 def _ceiling(resid: np.ndarray, data, schemes: list, base_cv: float, current_cv: float, noise: float | None,

@@ -71,7 +71,7 @@ def noise_statement(data: MeasurementSet, factor: float) -> dict:
             "text": f"{factor * a:.3g} mm + {factor * b:.3g} mm/m ({factor:.2f}x the header's {data.noise.text()})"}
 
 
-def overfitting(test: dict, rigid: IdentificationResult, n_rows: int) -> dict | None:
+def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured: bool = False) -> dict | None:
     """Evidence of over-fitting of the rigid fit, or None.
 
     Over-fitting when
@@ -81,7 +81,10 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int) -> dict | 
     * the validation noise factor is at least :data:`OVERFIT_RATIO` times the
       identification's, and either the F-test of the two variances is below 1e-3 or the fit
       spends more than a quarter of its equations on parameters (where the variance
-      inflation ``1 + rank / 3K`` of the gap test underrates what extrapolating costs);
+      inflation ``1 + rank / 3K`` of the gap test underrates what extrapolating costs), and
+      the identification residual has no structure (``structured`` false: a structured
+      residual is a missing effect seen in sample, whose extrapolation also degrades the
+      held-out poses);
     * or the calibrated model predicts the held-out poses :data:`NOMINAL_MARGIN` times worse
       than the nominal one (only the tracker frame and targets fitted).
     """
@@ -95,7 +98,7 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int) -> dict | 
         rigid.validation["rms"] > NOMINAL_MARGIN * nominal["rms"]
     load = rigid.rank / max(n_rows, 1)
     few = load > 1.0 / FEW_EQUATIONS
-    ratio = fv >= OVERFIT_RATIO * fi and (p < P_THRESHOLD or load > 0.25)
+    ratio = fv >= OVERFIT_RATIO * fi and (p < P_THRESHOLD or load > 0.25) and not structured
     if not (few or ratio or worse):
         return None
     words = (f"the rigid fit predicts held-out poses at {fv:.2f}x the stated noise against {fi:.2f}x on the poses it "

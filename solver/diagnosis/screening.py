@@ -27,7 +27,7 @@ import numpy as np
 
 from hyperstat.solver.calibration.identify import IdentificationResult, MeasurementModel
 from hyperstat.solver.calibration.measurements import MeasurementSet
-from hyperstat.solver.diagnosis.effects import EFFECT_NAMES, Effect, harmonic_order, make_effect
+from hyperstat.solver.diagnosis.effects import Effect, is_library_effect, make_effect
 from hyperstat.solver.diagnosis.observations import oriented, stack_rows
 from hyperstat.solver.errors import DataError
 
@@ -47,7 +47,7 @@ def plugin_guard(name: str, stage: str):
 
     Library effects are not guarded: their failures are bugs and must show.
     """
-    if name in EFFECT_NAMES or harmonic_order(name) is not None:
+    if is_library_effect(name):
         yield
         return
     try:

@@ -33,6 +33,7 @@ __all__ = ["CaseResult", "run_suite", "suite_cases", "summarize", "with_declared
 VIOLATION_MAGNITUDE = 1e-2  # rad or mm: a grossly violated forced defect (see docs/diagnosis.md)
 PAIRS = (("thermal", "backlash"), ("screw-periodic", "tracker-drift"))
 VISIBLE = 1.15  # a case whose validation RMS before is below 1.15x the noise RMS has no gap to find
+LIBRARY_SINCE_28 = ("link-bending", "angle-harmonic-3")  # out of the library before issue 28, in it since
 ABSORBED = ("tracker-scale",)  # absorbed by the geometric parameters at realistic magnitudes
 
 
@@ -309,6 +310,15 @@ class IndependentCase:
     noise_factor_true: float
     noise_factor_found: float | None
     elapsed: float
+    members: tuple = ()  # every member of the answer's equivalence sets (named effects included)
+    ambiguous: bool = False
+
+    @property
+    def library_name(self) -> str | None:
+        """The truth's name in the library of issue 28 (link bending and any periodic order joined it), or None."""
+        if self.kind == "in-library" or self.case in LIBRARY_SINCE_28:
+            return self.case
+        return None
 
     @property
     def visible(self) -> bool:
@@ -376,10 +386,12 @@ def run_independent(generator, seeds: int = 3, arms: tuple | None = None, cases:
                 words = generator.where_words(arm, case, truth) if kind == "out-of-library" else []
                 where_right = (any(w in where for w in words) if where else False) if words else None
                 found = d.verdict.get("noise_consistent", {}).get("factor")
+                members = tuple(dict.fromkeys(m for st in d.equivalence_sets for m in st["members"]))
                 res = IndependentCase(arm, case, kind, seed, d.outcome, named, tuple(d.selected), where, where_right,
                                       d.validation_before["rms"],
                                       None if d.validation_after is None else d.validation_after["rms"],
-                                      d.rigid.noise_rms, truth["noise_factor"], found, time.perf_counter() - t0)
+                                      d.rigid.noise_rms, truth["noise_factor"], found, time.perf_counter() - t0,
+                                      members, d.ambiguous)
                 results.append(res)
                 if progress is not None:
                     progress(res)
@@ -397,7 +409,19 @@ def summarize_independent(results: list[IndependentCase]) -> dict:
     under = [r for r in results if r.case == "understated-noise"]
     null = [r for r in results if r.case == "none"]
     hidden = [r for r in results if r.kind != "noise" and not r.visible]
+    # the library of issue 28 names link bending and any periodic order: those cases are right when the answer
+    # names the truth or puts it in an equivalence set; the others stay out of the library
+    lib = [r for r in results if r.library_name and r.visible]
+    outside = [r for r in results if r.kind == "out-of-library" and not r.library_name and r.visible]
     return {
+        "library_28_named": _rate([r.library_name in r.selected for r in lib]),
+        "library_28_named_or_in_set": _rate([r.library_name in r.selected or r.library_name in r.members
+                                             for r in lib]),
+        "library_28_explained": _rate([r.outcome == "explained" and r.library_name in r.selected for r in lib]),
+        "library_28_ambiguous": _rate([r.ambiguous for r in lib]),
+        "library_28_n": len(lib),
+        "outside_28_honest": _rate([r.outcome in ("unexplained", "partly explained") for r in outside]),
+        "outside_28_n": len(outside),
         "cases": len(results),
         "in_library_right_first": _rate([r.named == r.case for r in inlib]), "in_library_n": len(inlib),
         "in_library_explained": _rate([r.named == r.case and r.outcome == "explained" for r in inlib]),
@@ -437,7 +461,17 @@ def independent_markdown(results: list[IndependentCase], summary: dict, command:
              f"| understated noise (1.6x the header) flagged 'understated noise' | "
              f"{pct(s['understated_noise_flagged'])} | {s['understated_noise_n']} |",
              f"| false alarm (noise-only campaigns not answered 'no significant gap') | {pct(s['false_alarm'])} | "
-             f"{s['false_alarm_n']} |", ""]
+             f"{s['false_alarm_n']} |",
+             f"| library of issue 28 (the in-library cases, link bending, three cycles per revolution): truth named "
+             f"| {pct(s['library_28_named'])} | {s['library_28_n']} |",
+             f"| library of issue 28: truth named or in the answer's equivalence set | "
+             f"{pct(s['library_28_named_or_in_set'])} | {s['library_28_n']} |",
+             f"| library of issue 28: answered 'explained' by the truth | {pct(s['library_28_explained'])} | "
+             f"{s['library_28_n']} |",
+             f"| library of issue 28: answer ambiguous (an equivalence set with several members) | "
+             f"{pct(s['library_28_ambiguous'])} | {s['library_28_n']} |",
+             f"| still outside the library (coupling, tool growth): honest | {pct(s['outside_28_honest'])} | "
+             f"{s['outside_28_n']} |", ""]
     outcomes = list(OUTCOMES_ORDER)
     for arm in sorted({r.arm for r in results}):
         lines += [f"#### {arm}: true case (rows) against the outcome (columns)", "",
@@ -445,7 +479,8 @@ def independent_markdown(results: list[IndependentCase], summary: dict, command:
         for case in dict.fromkeys(r.case for r in results if r.arm == arm):
             rows = [r for r in results if r.arm == arm and r.case == case]
             counts = [str(sum(r.outcome == o for r in rows) or "") for o in outcomes]
-            named = sorted({"+".join(r.selected) for r in rows if r.selected})
+            named = sorted({"+".join(r.selected) + (" {" + ", ".join(r.members) + "}" if r.ambiguous else "")
+                            for r in rows if r.selected})
             lines.append(f"| {case} | " + " | ".join(counts) + f" | {', '.join(named) or '-'} |")
         lines.append("")
     lines += ["#### Every campaign", "",

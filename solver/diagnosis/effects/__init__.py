@@ -25,7 +25,7 @@ __all__ = ["Effect", "AngleHarmonic", "AngleScale", "Backlash", "Compliance", "G
            "ScrewPeriodic", "ScrewPitch", "Thermal", "TrackerDrift", "TrackerScale", "ViolatedConstraint",
            "EFFECT_NAMES", "GRAVITY_EFFECTS", "ENTRY_POINT_GROUP", "MASS_FIELD", "available_effects", "make_effect",
            "applicable_effects", "plugin_effects", "gravity_loads", "gravity_regressor", "gravity_source",
-           "harmonic_name", "harmonic_order", "is_known_effect"]
+           "harmonic_name", "harmonic_order", "is_known_effect", "is_library_effect"]
 
 EFFECT_NAMES = ("compliance", "link-bending", "violated-constraint", "thermal", "screw-pitch", "screw-periodic",
                 "angle-scale", "angle-harmonic-1", "angle-harmonic-2", "backlash", "backlash-gravity",
@@ -50,9 +50,14 @@ def harmonic_order(name: str) -> float | None:
     return k if k > 0 and k == k and k != float("inf") else None
 
 
+def is_library_effect(name: str) -> bool:
+    """Whether ``name`` is an effect of the library (any ``angle-harmonic-<k>`` included), not a plug-in."""
+    return name in EFFECT_NAMES or harmonic_order(name) is not None
+
+
 def is_known_effect(name: str) -> bool:
     """Whether ``name`` is a library effect (any ``angle-harmonic-<k>`` included) or a plug-in."""
-    return name in EFFECT_NAMES or harmonic_order(name) is not None or name in plugin_effects()
+    return is_library_effect(name) or name in plugin_effects()
 
 
 def plugin_effects() -> dict:

@@ -38,18 +38,29 @@ def test_effect_jacobian_matches_finite_differences(tripteor, tripteor_analysis,
     theta[model.sl_geometry] = np.random.default_rng(0).uniform(-1, 1, model.sl_geometry.stop) * 1e-4
     sl = model._effect_slices[0]
     theta[sl] = 0.7 * effect.magnitude
+    _check_against_central_differences(model, theta, data, sl, "position")
+
+
+def _check_against_central_differences(model, theta, data, sl: slice, what: str) -> None:
+    """Every effect column of ``what`` ("position" or "rotation") against central differences (relative 1e-5)."""
+    from hyperstat.solver.kinematics.frames import so3_log
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ref = model.predict(theta, data, jacobian=True)
+        analytic = ref.jacobian if what == "position" else ref.rotation_jacobian
         for j in range(sl.start, sl.stop):
             h = 1e-3 * abs(theta[j])
             plus, minus = theta.copy(), theta.copy()
             plus[j] += h
             minus[j] -= h
-            fd = (model.predict(plus, data, q_start=ref.q).position
-                  - model.predict(minus, data, q_start=ref.q).position) / (2 * h)
+            p, m = model.predict(plus, data, q_start=ref.q), model.predict(minus, data, q_start=ref.q)
+            if what == "position":
+                fd = (p.position - m.position) / (2 * h)
+            else:  # tracker-frame angular velocity: log(R(theta + h) R(theta - h)^T) / 2h
+                fd = so3_log(p.rotation @ np.swapaxes(m.rotation, -1, -2)) / (2 * h)
             assert np.abs(fd).max() > 0, model.names[j]
-            assert np.abs(fd - ref.jacobian[:, :, j]).max() <= 1e-5 * np.abs(fd).max(), model.names[j]
+            assert np.abs(fd - analytic[:, :, j]).max() <= 1e-5 * np.abs(fd).max(), model.names[j]
 
 
 def test_violated_constraint_deformation_closes_the_loops(tripteor, tripteor_analysis):
@@ -108,25 +119,10 @@ def test_applicability_and_errors(scara, scara_analysis):
 @pytest.mark.parametrize("name", ["angle-scale", "backlash"])
 def test_effect_turns_the_measured_orientation_as_its_jacobian_says(tripteor, tripteor_analysis, tripteor_data, name):
     """6-D rows: the orientation Jacobian of an effect (tracker-frame angular velocity per unit parameter) against
-    central differences of the predicted orientation, ``log(R(theta + h) R(theta - h)^T) / 2h``."""
-    from hyperstat.solver.kinematics.frames import so3_log
-
+    central differences of the predicted orientation."""
     effect = make_effect(name, tripteor, tripteor_analysis, tripteor_data)
     model = MeasurementModel(tripteor, tripteor_analysis, effects=(effect,), orientation=True)
     theta = model.initial(tripteor_data.tracker, tripteor_data.target)
     sl = model._effect_slices[0]
     theta[sl] = 0.7 * effect.magnitude
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ref = model.predict(theta, tripteor_data, jacobian=True)
-        for j in range(sl.start, sl.stop):
-            h = 1e-3 * abs(theta[j])
-            plus, minus = theta.copy(), theta.copy()
-            plus[j] += h
-            minus[j] -= h
-            rp = model.predict(plus, tripteor_data, q_start=ref.q).rotation
-            rm = model.predict(minus, tripteor_data, q_start=ref.q).rotation
-            fd = so3_log(rp @ np.swapaxes(rm, -1, -2)) / (2 * h)
-            scale = np.abs(fd).max()
-            assert scale > 0, model.names[j]
-            assert np.abs(fd - ref.rotation_jacobian[:, :, j]).max() <= 1e-5 * scale, model.names[j]
+    _check_against_central_differences(model, theta, tripteor_data, sl, "rotation")

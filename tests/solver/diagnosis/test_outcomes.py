@@ -256,13 +256,11 @@ def test_understated_noise_gives_the_consistent_noise_level(scara_model):
     assert not d.verdict["structure"]["structured"] and d.verdict["structure"]["isotropic"]
 
 
-def test_negative_compliance_rejects_the_effect(arm_model):
-    """A machine whose joints move against their gravity load: compliance would need c < 0, so it is refused."""
+def _virtual_machine_campaign(arm_model, effect):
+    """107 + 30 poses of the project's virtual machine of the 6R with ``effect`` (its truth set), diagnosed."""
     from hyperstat.solver.calibration.virtual import VirtualMachine, workshop_metadata
-    from hyperstat.solver.diagnosis.effects import make_effect
 
     mech, analysis, kin = arm_model
-    effect = make_effect("compliance", mech).with_truth(np.full(6, -5e-10))  # rad/(N mm), unphysical
     vm = VirtualMachine.random(mech, analysis, seed=0, kinematics=kin, effects=(effect,))
     meta = workshop_metadata(mech, 137, seed=0)
     q = vm.poses(137, seed=1)
@@ -270,7 +268,16 @@ def test_negative_compliance_rejects_the_effect(arm_model):
     val = vm.measure(q[107:], seed=3, prefix="V", metadata={k: v[107:] for k, v in meta.items()})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        d = diagnose(mech, analysis, data, val, kinematics=kin)
+        return diagnose(mech, analysis, data, val, kinematics=kin)
+
+
+def test_negative_compliance_rejects_the_effect(arm_model):
+    """A machine whose joints move against their gravity load: compliance would need c < 0, so it is refused."""
+    from hyperstat.solver.diagnosis.effects import make_effect
+
+    mech, analysis, kin = arm_model
+    effect = make_effect("compliance", mech).with_truth(np.full(6, -5e-10))  # rad/(N mm), unphysical
+    d = _virtual_machine_campaign(arm_model, effect)
     assert d.gap_significant
     assert "compliance" not in d.selected
     entry = next(e for e in d.ranking if e["effect"] == "compliance")
@@ -283,7 +290,6 @@ def test_negative_compliance_rejects_the_effect(arm_model):
 def test_a_gear_harmonic_beyond_its_prior_is_rejected_in_words(arm_model):
     """A 1.7 mrad once-per-revolution error of the shoulder: 2.9x the largest plausible gear harmonic (2 arcmin, the
     strain-wave catalogues' worst transmission error); the candidate is refused with that sentence."""
-    from hyperstat.solver.calibration.virtual import VirtualMachine, workshop_metadata
     from hyperstat.solver.diagnosis.effects import make_effect
     from hyperstat.solver.diagnosis.effects.priors import PRIORS
 
@@ -291,14 +297,7 @@ def test_a_gear_harmonic_beyond_its_prior_is_rejected_in_words(arm_model):
     effect = make_effect("angle-harmonic-1", mech)
     truth = np.zeros(12)
     truth[2] = 1.7e-3  # joint 2, sine term (rad)
-    vm = VirtualMachine.random(mech, analysis, seed=0, kinematics=kin, effects=(effect.with_truth(truth),))
-    meta = workshop_metadata(mech, 137, seed=0)
-    q = vm.poses(137, seed=1)
-    data = vm.measure(q[:107], seed=2, metadata={k: v[:107] for k, v in meta.items()})
-    val = vm.measure(q[107:], seed=3, prefix="V", metadata={k: v[107:] for k, v in meta.items()})
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        d = diagnose(mech, analysis, data, val, kinematics=kin)
+    d = _virtual_machine_campaign(arm_model, effect.with_truth(truth))
     assert "angle-harmonic-1" not in d.named_effects
     entry = next(e for e in d.ranking if e["effect"] == "angle-harmonic-1")
     amp = float(np.hypot(entry["estimates"]["harmonic1_2_sin"], entry["estimates"]["harmonic1_2_cos"]))
@@ -342,33 +341,10 @@ def test_gravity_loads_match_the_potential_energy_derivative(arm_model):
 
 def test_user_effect_from_an_entry_point(arm_model, tmp_path, monkeypatch):
     """A plug-in effect registered in the 'hyperstat.effects' group is loaded and can explain the gap."""
-    pkg = tmp_path / "h3effect.py"
-    pkg.write_text('''
-import numpy as np
-from hyperstat.solver.diagnosis.effects import Effect
+    from tests.solver.diagnosis.test_plugins import PLUGIN, install_plugin
 
-
-class ThreePerRev(Effect):
-    """Angle error of every revolute actuator at three cycles per revolution (rad)."""
-
-    def __init__(self, mechanism, analysis=None, data=None):
-        self.axes = [a for a, i in enumerate(mechanism.actuated) if mechanism.joints[i].type == "R"]
-        names = [f"h3_{mechanism.joints[mechanism.actuated[a]].name}_{t}" for a in self.axes for t in ("sin", "cos")]
-        super().__init__(names, ["rad"] * len(names), [1e-4] * len(names), plausible=2e-3)
-
-    def actuator_correction(self, model, theta, data):
-        k, na = data.q.shape
-        dt = np.zeros((k, na, len(theta)))
-        for e, a in enumerate(self.axes):
-            dt[:, a, 2 * e] = np.sin(3 * data.q[:, a])
-            dt[:, a, 2 * e + 1] = np.cos(3 * data.q[:, a])
-        return np.einsum("kae,e->ka", dt, theta), dt
-''')
-    info = tmp_path / "h3effect-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: h3effect\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[hyperstat.effects]\nthree-per-rev = h3effect:ThreePerRev\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
+    install_plugin(tmp_path, monkeypatch, "h3effect", "three-per-rev",
+                   PLUGIN.format(top="", init="pass", columns="pass"))
     from hyperstat.solver.diagnosis.effects import available_effects
 
     assert "three-per-rev" in available_effects()

@@ -20,7 +20,7 @@ from hyperstat.solver.diagnosis.effects import Effect
 
 
 class Periodic(Effect):
-    """Angle error of every revolute at three cycles per revolution (rad), broken at one stage."""
+    """Angle error of every revolute at three cycles per revolution (rad) (broken at one stage in test_plugins)."""
 
     def __init__(self, mechanism, analysis=None, data=None):
         {init}
@@ -46,22 +46,23 @@ STAGES = {
 }
 
 
-def _install(tmp_path, monkeypatch, stage: str) -> str:
-    module = f"broken_{stage}"
-    (tmp_path / f"{module}.py").write_text(PLUGIN.format(**STAGES[stage]))
+def install_plugin(tmp_path, monkeypatch, module: str, name: str, text: str) -> str:
+    """Install module ``text`` as a package declaring the effect ``name`` (class ``Periodic``) in ``hyperstat.effects``."""
+    (tmp_path / f"{module}.py").write_text(text)
     info = tmp_path / f"{module}-0.1.dist-info"
     info.mkdir()
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text(f"[hyperstat.effects]\nbroken-{stage} = {module}:Periodic\n")
+    (info / "entry_points.txt").write_text(f"[hyperstat.effects]\n{name} = {module}:Periodic\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    return f"broken-{stage}"
+    return name
 
 
 @pytest.mark.parametrize("stage", list(STAGES))
 def test_a_broken_plugin_is_named_with_its_stage(tmp_path, monkeypatch, capsys, stage):
     from hyperstat.cad_plugin.cli import main
 
-    name = _install(tmp_path, monkeypatch, stage)
+    name = install_plugin(tmp_path, monkeypatch, f"broken_{stage}", f"broken-{stage}",
+                          PLUGIN.format(**STAGES[stage]))
     id_text, val_text, _ = gen.campaign(gen.ARM_6R, "angle-harmonic-3", 0)
     (tmp_path / "d.csv").write_text(id_text)
     (tmp_path / "v.csv").write_text(val_text)

@@ -2,9 +2,8 @@
 
 Units: lengths in mm, angles in rad.  The data are measurements, so no truth is known:
 what is tested is what must hold whatever the truth is.  The answer does not depend on
-which point of the target frame is read (the check per target), nor on which poses are
-held out; and the diagnosis never leaves a model that predicts the held-out poses worse
-than the rigid one.  ``docs/diagnosis.md`` gives the figures.
+which point of the target frame is read (the check per target), and the diagnosis never
+leaves a model that predicts the held-out poses worse than the rigid one.  ``docs/diagnosis.md`` gives the figures.
 """
 
 from __future__ import annotations
@@ -14,11 +13,10 @@ import warnings
 import pytest
 
 from hyperstat.solver.analysis.stationarity import analyze
-from hyperstat.solver.calibration.measurements import parse_measurements
-from hyperstat.solver.diagnosis.diagnose import diagnose
 from hyperstat.solver.kinematics.robot_import import import_robot
 
 from tests.solver.diagnosis.real_data import UR10_TIP, UR10_URDF, ur10_measurements
+from tests.solver.diagnosis.test_targets import diagnose_texts
 
 
 @pytest.fixture(scope="module")
@@ -30,13 +28,7 @@ def ur10():
 
 
 def _diagnose(ur10, n_identification: int):
-    mech, analysis = ur10
-    id_text, val_text = ur10_measurements(mech.name, n_identification)
-    data = parse_measurements(id_text, mech, "ur10.csv")
-    val = parse_measurements(val_text, mech, "ur10.validation.csv")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return diagnose(mech, analysis, data, val)
+    return diagnose_texts(ur10, *ur10_measurements(ur10[0].name, n_identification))
 
 
 def test_the_urdf_masses_reach_the_diagnosis(ur10):
@@ -49,15 +41,17 @@ def test_the_urdf_masses_reach_the_diagnosis(ur10):
     assert d.cannot_size == []
 
 
-def test_the_answer_is_stable_across_targets_and_held_out_poses(ur10):
-    """One answer whichever point of the target frame is read and whichever poses are held out; never a model
-    worse than the rigid one on the held-out poses."""
-    answers = []
-    for n_id in (12, 15, 18):
-        d = _diagnose(ur10, n_id)
-        assert len(d.per_target) == 3 and d.targets_agree is True, d.targets_evidence
-        assert all(t["outcome"] != "not diagnosed" for t in d.per_target)
-        if d.validation_after is not None:
-            assert d.validation_after["rms"] <= d.validation_before["rms"]
-        answers.append((d.outcome, tuple(d.named_effects)))
-    assert len(set(answers)) == 1, answers
+def test_the_answer_is_stable_across_targets_and_never_worse_than_rigid(ur10):
+    """One answer whichever point of the target frame is read; never a model worse than the rigid one on the
+    held-out poses (15 poses identify, 8 are held out, in the source's order)."""
+    d = _diagnose(ur10, 15)
+    assert len(d.per_target) == 3 and d.targets_agree is True, d.targets_evidence
+    assert all(t["outcome"] != "not diagnosed" for t in d.per_target)
+    assert all(set(t["named_effects"]) <= set(d.named_effects) for t in d.per_target)
+    if d.validation_after is not None:
+        assert d.validation_after["rms"] <= d.validation_before["rms"]
+    # the rigid calibration itself does not beat the nominal model on these held-out poses (a camera, 15 poses):
+    # no answer may claim an explained gap without the held-out poses improving
+    nominal = d.rigid.nominal["validation"]["rms"]
+    if d.outcome == "explained":
+        assert d.validation_after["rms"] < min(nominal, d.validation_before["rms"])

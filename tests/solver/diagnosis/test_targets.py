@@ -43,7 +43,8 @@ def robot(tmp_path_factory):
         return mech, analyze(mech, n_configurations=24, seed=0)
 
 
-def _diagnose(robot, text_id: str, text_val: str):
+def diagnose_texts(robot, text_id: str, text_val: str):
+    """Diagnose two measurement files given as text with ``robot = (mechanism, analysis)``."""
     mech, analysis = robot
     data = parse_measurements(text_id, mech, "id.csv")
     val = parse_measurements(text_val, mech, "val.csv")
@@ -56,7 +57,7 @@ def test_three_reflectors_diagnosed_in_one_run(robot):
     """36 poses with 3 SMRs each (24 to identify, 12 held out): one answer for the robot, and each SMR alone
     tells the same story."""
     c = GearCampaign(5)
-    d = _diagnose(robot, c.csv(c.poses(24), "P"), c.csv(c.poses(12), "V"))
+    d = diagnose_texts(robot, c.csv(c.poses(24), "P"), c.csv(c.poses(12), "V"))
     assert d.outcome == "explained" and d.named_effects == ["angle-harmonic-2"]
     assert len(d.rigid.residuals) == 72  # every (pose, SMR) observation in the one fit
     assert [t["target"] for t in d.per_target] == list(TARGETS)
@@ -116,6 +117,6 @@ def test_six_d_rows_are_diagnosed_as_three_points_of_the_target_frame(robot):
     np.testing.assert_allclose(np.linalg.norm(points.position[1::3] - points.position[0::3], axis=1), lever)
     sigma_p = data.noise.sigma(np.linalg.norm(data.position, axis=1))
     np.testing.assert_allclose(points.row_sigma[1::3], np.sqrt(sigma_p**2 + 2 / 3 * (lever * sigma_rad) ** 2))
-    d = _diagnose(robot, text, six_d(c.poses(12), "V"))
+    d = diagnose_texts(robot, text, six_d(c.poses(12), "V"))
     assert d.outcome == "explained" and d.named_effects == ["angle-harmonic-2"]
     assert [t["target"] for t in d.per_target] == ["T.o", "T.x", "T.y"] and d.targets_agree
