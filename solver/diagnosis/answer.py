@@ -46,8 +46,7 @@ def _cannot_size_words(cannot_size: list) -> str:
     if not cannot_size:
         return ""
     names = ", ".join(c["effect"] for c in cannot_size)
-    return (f"; {names} could not be sized: the model declares no mass ({cannot_size[0]['field']}), and no "
-            f"mass is assumed")
+    return f"; {names} could not be sized: the model declares no mass, and no mass is assumed (see cannot_size)"
 
 
 def _spectrum_words(rejected: list) -> str:

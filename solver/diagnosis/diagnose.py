@@ -36,8 +36,9 @@ from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.calibration.identify import IdentificationResult, MeasurementModel, identify
 from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
-from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, MASS_FIELD, applicable_effects, available_effects,
-                                                gravity_source, harmonic_order, is_known_effect, is_library_effect)
+from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, MASS_FIELD, MASS_FIELD_SHORT, applicable_effects,
+                                                available_effects, gravity_source, harmonic_order, is_known_effect,
+                                                is_library_effect)
 from hyperstat.solver.diagnosis.equivalence import equivalence_sets, gravity_family
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
 from hyperstat.solver.diagnosis.periodic import periodic_gate, spectral_candidates
@@ -219,7 +220,7 @@ def _cannot_size(mechanism: Mechanism, names) -> list:
         return []
     return [{"effect": n, "field": MASS_FIELD,
              "reason": (f"the gravity loads need the link masses and centres of mass, and '{mechanism.name}' declares "
-                        f"none; declare them in {MASS_FIELD}")} for n in GRAVITY_EFFECTS if n in names]
+                        f"none; declare them in {MASS_FIELD_SHORT}")} for n in GRAVITY_EFFECTS if n in names]
 
 
 def _rigid_rows(mechanism, analysis, kin, rigid: IdentificationResult, data: MeasurementSet):

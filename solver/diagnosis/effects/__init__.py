@@ -14,7 +14,7 @@ priors and their sources: :mod:`.priors`.
 from __future__ import annotations
 
 from hyperstat.solver.errors import DataError
-from hyperstat.solver.diagnosis.effects.actuator import (MASS_FIELD, AngleHarmonic, AngleScale, Backlash, Compliance,
+from hyperstat.solver.diagnosis.effects.actuator import (MASS_FIELD, MASS_FIELD_SHORT, AngleHarmonic, AngleScale, Backlash, Compliance,
                                                          GravityBacklash, LinkBending, ScrewPeriodic, ScrewPitch,
                                                          gravity_loads, gravity_regressor, gravity_source,
                                                          harmonic_name)
@@ -23,7 +23,7 @@ from hyperstat.solver.diagnosis.effects.other import Thermal, TrackerDrift, Trac
 
 __all__ = ["Effect", "AngleHarmonic", "AngleScale", "Backlash", "Compliance", "GravityBacklash", "LinkBending",
            "ScrewPeriodic", "ScrewPitch", "Thermal", "TrackerDrift", "TrackerScale", "ViolatedConstraint",
-           "EFFECT_NAMES", "GRAVITY_EFFECTS", "ENTRY_POINT_GROUP", "MASS_FIELD", "available_effects", "make_effect",
+           "EFFECT_NAMES", "GRAVITY_EFFECTS", "ENTRY_POINT_GROUP", "MASS_FIELD", "MASS_FIELD_SHORT", "available_effects", "make_effect",
            "applicable_effects", "plugin_effects", "gravity_loads", "gravity_regressor", "gravity_source",
            "harmonic_name", "harmonic_order", "is_known_effect", "is_library_effect"]
 
@@ -163,7 +163,7 @@ def applicable_effects(mechanism, analysis, data) -> dict:
             "link masses are declared, but distributed masses are supported on serial mechanisms only")
     elif gravity_source(mechanism) is None:
         for name in GRAVITY_EFFECTS:
-            reasons.setdefault(name, "cannot be sized: the model declares no mass (" + MASS_FIELD + ")")
+            reasons.setdefault(name, "cannot be sized: the model declares no mass (" + MASS_FIELD_SHORT + ")")
     if "session" not in data.metadata or len(set(data.metadata["session"].tolist())) < 2:
         reasons["tracker-drift"] = "fewer than two measurement sessions in the 'session' column"
     return reasons

@@ -18,11 +18,13 @@ from hyperstat.solver.diagnosis.effects.priors import PRIORS, compliance_bounds
 
 __all__ = ["ScrewPitch", "ScrewPeriodic", "AngleScale", "AngleHarmonic", "Backlash", "GravityBacklash", "Compliance",
            "LinkBending", "LinkBendingAlternative", "gravity_loads", "gravity_source", "gravity_regressor",
-           "harmonic_name", "MASS_FIELD"]
+           "harmonic_name", "MASS_FIELD", "MASS_FIELD_SHORT"]
 
 #: where link masses come from (named in every "cannot size" answer)
 MASS_FIELD = ("metadata.masses of the model file (per joint: the body it moves, 'mass' kg and 'com' mm), the URDF "
               "links' <inertial> (kept by import-robot), or the template's sk.material(...) for the CadQuery solids")
+#: the same, short (for the text output)
+MASS_FIELD_SHORT = "metadata.masses, the URDF links' <inertial> or the template's sk.material(...)"
 
 GRAVITY = 9.81  # m/s^2
 
