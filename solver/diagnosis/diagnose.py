@@ -243,155 +243,195 @@ def _rigid_rows(mechanism, analysis, kin, rigid: IdentificationResult, data: Mea
     return resid, w, jac[:, :, base_idx], full, act_jac, target_jac, base_idx
 
 
-def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_blocks, seed, max_effects,
-              progress, per_target=True) -> Diagnosis:
-    """Body of :func:`diagnose` (BLAS single-threaded by the caller)."""
-    t0 = time.perf_counter()
-    step = progress or (lambda _name: None)
+class _Run:
+    """What the steps of one diagnosis share (filled step by step)."""
+
+    def __init__(self, mechanism, analysis, data, validation, kin, n_blocks: int, seed: int) -> None:
+        self.mechanism, self.analysis, self.data, self.validation, self.kin = mechanism, analysis, data, validation, kin
+        self.n_blocks, self.seed = n_blocks, seed
+
+
+def _candidate_names(data, candidates) -> list:
+    """The candidate effect names (the library and plug-ins by default), checked; the data must state a noise."""
     if data.noise is None:
         raise DataError(f"{data.source}: the diagnosis needs the header line '# noise: A mm + B mm/m' (the tracker's "
                         f"noise model) to tell a gap from noise.")
     known = available_effects()
-    explicit = candidates is not None
     names = list(known if candidates is None else candidates)
     for c in names:
         if not is_known_effect(c):
             raise DataError(f"unknown effect '{c}'; effects are {', '.join(known)} and angle-harmonic-<k> for any "
                             f"positive k.")
-    kin = kinematics or Kinematics(mechanism)
-    step("rigid fit")
-    rigid = identify(mechanism, analysis, data, validation, kinematics=kin)
-    test = gap_test(rigid, data, validation)
-    significant = test.pop("significant")
-    cannot_size = _cannot_size(mechanism, names)
-    wrong = inputs_wrong(rigid, kin.length_scale)
-    if wrong is not None:  # a wrong joint map or unit is no missing effect: say so, try nothing
-        outcome, words = verdict(data, validation, True, test, None, [], {}, None, {}, rigid.noise_rms, None, [], [],
-                                 cannot_size, None, wrong)
-        where = {"regions": [], "direction_rms": {}, "explained_by": [], "spectra": [], "revolute_spectra": []}
-        return Diagnosis(True, test, where, [], [], [], {}, rigid.validation, None, None, {}, [], None, rigid, None,
-                         time.perf_counter() - t0, outcome, words, [], [], cannot_size, {})
+    return names
 
+
+def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_blocks, seed, max_effects,
+              progress, per_target=True) -> Diagnosis:
+    """Body of :func:`diagnose` (BLAS single-threaded by the caller): the steps in order."""
+    t0 = time.perf_counter()
+    step = progress or (lambda _name: None)
+    names = _candidate_names(data, candidates)
+    run = _Run(mechanism, analysis, data, validation, kinematics or Kinematics(mechanism), n_blocks, seed)
+    step("rigid fit")
+    run.rigid = identify(mechanism, analysis, data, validation, kinematics=run.kin)
+    run.test = gap_test(run.rigid, data, validation)
+    run.significant = run.test.pop("significant")
+    run.cannot_size = _cannot_size(mechanism, names)
+    wrong = inputs_wrong(run.rigid, run.kin.length_scale)
+    if wrong is not None:  # a wrong joint map or unit is no missing effect: say so, try nothing
+        outcome, words = verdict(data, validation, True, run.test, None, [], {}, None, {}, run.rigid.noise_rms, None,
+                                 [], [], run.cannot_size, None, wrong)
+        where = {"regions": [], "direction_rms": {}, "explained_by": [], "spectra": [], "revolute_spectra": []}
+        return Diagnosis(True, run.test, where, [], [], [], {}, run.rigid.validation, None, None, {}, [], None,
+                         run.rigid, None, time.perf_counter() - t0, outcome, words, [], [], run.cannot_size, {})
     step("where")
-    six_d = oriented(rigid.model, data)
-    rows = row_view(data, six_d)  # one row per position, and per orientation for 6-D data
-    k = len(data)
-    schemes = folds(rows, n_blocks, seed)
-    resid, w, base_jac, full, act_jac, target_jac, base_idx = _rigid_rows(mechanism, analysis, kin, rigid, data)
-    units, kinds = rigid.model.units, rigid.model.kinds
-    prior = np.array([(PRIOR_ANGLE if units[j] == "rad" else PRIOR_LENGTH) if kinds[j] == "geometry" else 1e3
-                      for j in base_idx])
-    cv_scale = None
-    if six_d:  # orientation rows count in the cross-validated RMS at the lever where both noises are alike
-        cv_scale = stack_rows(np.ones(k), np.full(k, float(np.median(1.0 / w[:k])) / data.rotation_noise))
-    screen = Screen(w, resid, base_jac, prior, schemes, full.q, cv_scale=cv_scale)
-    r_trk, _ = rigid.model.tracker_pose(rigid.theta)
-    base_cv, base_bic, _, _ = cv_rms(screen, None, None)
-    qb = screen.prepared()["qb"]
-    plain = structure_tests(mechanism, rows, resid, w, qb, r_trk, act_jac, target_jac, positions=k)
+    _rows_and_screen(run)
     options = {}
-    if not explicit:  # the periodic orders the spectrum shows join the candidates
-        for name, spec in spectral_candidates(plain, rows, act_jac).items():
+    if candidates is None:  # the periodic orders the spectrum shows join the candidates
+        for name, spec in spectral_candidates(run.plain, run.rows, run.act_jac).items():
             names.append(name)
             options[name] = {"joints": spec["joints"]}
-
     step("candidates")
-    not_applicable = {k: v for k, v in applicable_effects(mechanism, analysis, data).items() if k in names}
-    scr = screen_candidates(mechanism, analysis, kin, rigid, data, screen, act_jac, base_cv, base_bic, names,
-                            not_applicable, options)
-    ranking, columns, effects, rejected, violated = (scr["ranking"], scr["columns"], scr["effects"], scr["rejected"],
-                                                     scr["violated"])
-    signatures = {e["effect"]: columns[e["effect"]][0] for e in ranking if not e.get("note")}
-    structure = structure_tests(mechanism, rows, resid, w, qb, r_trk, act_jac, target_jac, signatures, positions=k)
-    where = where_summary(rigid, data, schemes[0][1][:k], structure)
-    # the structure tests are a second, scale-free gap test: under a right model they hold at
-    # 1e-3 whatever the noise, so a structured residual is a gap even below the chi-square's power
-    test["structure"] = {"p_value": structure["best"]["p_value"] if structure["best"] else 1.0,
-                         "threshold": structure["threshold"], "tests": structure["n_tests"]}
-    if structure["structured"] and not significant:
-        significant = True
-        test["significant_by"] = "structure"
-
+    _screen_candidates(run, names, options)
     step("selection")
-    entries = {e["effect"]: e for e in ranking}
-
-    def refuse(name: str, _selected: list) -> dict | None:
-        return periodic_gate(name, effects[name], entries[name], plain, rows, act_jac) \
-            if harmonic_order(name) is not None or name == "angle-scale" else None
-
-    selected, ties, refused = (select_effects(screen, ranking, columns, base_cv, base_bic, max_effects, refuse)
-                               if significant else ([], [], []))
-    rejected += refused
-
+    _select(run, max_effects)
     step("nonlinear fit")
-    before = rigid.validation
-    final, selected = _nonlinear_fit(mechanism, analysis, kin, data, validation, selected, effects, before, rejected,
-                                     ranking)
-    if selected:
-        extra = np.concatenate([columns[n][0] for n in selected], axis=2)
-        current_cv, _, _, _ = cv_rms(screen, extra, np.concatenate([columns[n][1] for n in selected]))
-    else:
-        current_cv = base_cv
-    effect_parameters = []
-    validation_after = None
-    if "violated-constraint" not in selected:
-        violated = None
-    if final is not None:
-        validation_after = final.validation
-        for p in final.parameters:
-            if p["kind"].startswith("effect:"):
-                effect_parameters.append({"effect": p["kind"][7:], **{k: p[k] for k in ("name", "unit", "estimate",
-                                                                                           "std", "identifiable")}})
-        if violated is not None:
-            est = next(p for p in final.parameters if p["name"] == f"violated_{violated['defect']}")
-            violated.update({"estimate": est["estimate"], "std": est["std"], "unit": est["unit"],
-                             "times_realistic": abs(est["estimate"]) / violated["realistic_magnitude"]})
-    noise = rigid.noise_rms
-    share = None
-    reference = before["rms"] if before else base_cv
-    after_rms = validation_after["rms"] if validation_after else None
-    if after_rms is not None and noise is not None and reference**2 > noise**2:
-        share = float((reference**2 - after_rms**2) / (reference**2 - noise**2))
-    ceiling = _ceiling(resid[:k], data, folds(data, n_blocks, seed), base_cv, current_cv, noise, seed)
-    for entry in ranking:
-        entry["validation_rms"] = entry["cv_rms"]  # blocked cross-validation on the identification data
-
+    _shrink(run)
     step("verdict")
-    after_structure = None
-    sets = []
-    if final is not None:
-        ew = screen.weighted(np.concatenate([columns[n][0] for n in selected], axis=2))
-        both = np.concatenate([screen.prepared()["jw"], ew], axis=1)
-        basis, _ = np.linalg.qr(both / np.linalg.norm(both, axis=0).clip(min=1e-300))
-        r_f, _ = final.model.tracker_pose(final.theta)
-        others = {e["effect"]: columns[e["effect"]][0] for e in ranking
-                  if not e.get("note") and e["effect"] not in selected}
-        resid_f, _, _, _ = residual_rows(final.model, final.theta, data, q_start=final.configurations)
-        after_structure = structure_tests(mechanism, rows, resid_f, w, basis, r_f, act_jac, target_jac, others,
-                                          positions=k)
-        masses = gravity_source(mechanism) == "link masses"
-        family = gravity_family(mechanism, kin, data, act_jac, masses)
-        refused_prior = {r["effect"] for r in rejected if r["stage"] in ("screening", "nonlinear fit", "validation")}
-        members = [e["effect"] for e in ranking if not e.get("note") and e["effect"] not in refused_prior]
-        sets = equivalence_sets(screen, selected, columns, members, family, data, spectrum_peaks(plain), effects,
-                                masses)
-    overfit = overfitting(test, rigid, 3 * len(w), structure["structured"])
-    outcome, words = verdict(data, validation, significant, test, final, selected, structure, after_structure, ceiling,
-                             noise, share, sets, rejected, cannot_size, overfit, None)
-    diag = Diagnosis(significant, test, where, ranking, selected, ties, not_applicable, before, validation_after,
-                     share, ceiling, effect_parameters, violated, rigid, final, 0.0, outcome, words, rejected, sets,
-                     cannot_size, spectrum_peaks(plain))
+    diag = _answer(run)
     checks = targets_to_check(data, validation) if per_target else []
     if checks:
         step("per target")
         diag.per_target = per_target_check(
-            lambda d, v: _diagnose(mechanism, analysis, d, v, candidates, kin, n_blocks, seed, max_effects, None,
+            lambda d, v: _diagnose(mechanism, analysis, d, v, candidates, run.kin, n_blocks, seed, max_effects, None,
                                    per_target=False), checks)
         whole = {"outcome": diag.outcome, "named_effects": diag.named_effects,
                  "equivalence_sets": diag.equivalence_sets}
         diag.targets_agree, diag.targets_evidence = targets_agree(whole, diag.per_target)
     diag.elapsed = time.perf_counter() - t0
     return diag
+
+
+def _rows_and_screen(run: _Run) -> None:
+    """Step 2: the rows, their Jacobians at the rigid fit, the screening set-up and the plain structure tests."""
+    rigid, data = run.rigid, run.data
+    six_d = oriented(rigid.model, data)
+    run.rows = row_view(data, six_d)  # one row per position, and per orientation for 6-D data
+    run.k = k = len(data)
+    schemes = folds(run.rows, run.n_blocks, run.seed)
+    resid, w, base_jac, full, run.act_jac, run.target_jac, base_idx = _rigid_rows(run.mechanism, run.analysis,
+                                                                                   run.kin, rigid, data)
+    units, kinds = rigid.model.units, rigid.model.kinds
+    prior = np.array([(PRIOR_ANGLE if units[j] == "rad" else PRIOR_LENGTH) if kinds[j] == "geometry" else 1e3
+                      for j in base_idx])
+    cv_scale = None
+    if six_d:  # orientation rows count in the cross-validated RMS at the lever where both noises are alike
+        cv_scale = stack_rows(np.ones(k), np.full(k, float(np.median(1.0 / w[:k])) / data.rotation_noise))
+    run.screen = Screen(w, resid, base_jac, prior, schemes, full.q, cv_scale=cv_scale)
+    run.r_trk, _ = rigid.model.tracker_pose(rigid.theta)
+    run.base_cv, run.base_bic, _, _ = cv_rms(run.screen, None, None)
+    run.plain = structure_tests(run.mechanism, run.rows, resid, w, run.screen.prepared()["qb"], run.r_trk,
+                                run.act_jac, run.target_jac, positions=k)
+
+
+def _screen_candidates(run: _Run, names: list, options: dict) -> None:
+    """Step 3: every candidate scored and checked; the structure tests with their signatures; where."""
+    data, screen = run.data, run.screen
+    run.not_applicable = {k: v for k, v in applicable_effects(run.mechanism, run.analysis, data).items()
+                          if k in names}
+    scr = screen_candidates(run.mechanism, run.analysis, run.kin, run.rigid, data, screen, run.act_jac, run.base_cv,
+                            run.base_bic, names, run.not_applicable, options)
+    run.ranking, run.columns, run.effects = scr["ranking"], scr["columns"], scr["effects"]
+    run.rejected, run.violated = scr["rejected"], scr["violated"]
+    signatures = {e["effect"]: run.columns[e["effect"]][0] for e in run.ranking if not e.get("note")}
+    run.structure = structure_tests(run.mechanism, run.rows, screen.resid, screen.w, screen.prepared()["qb"],
+                                    run.r_trk, run.act_jac, run.target_jac, signatures, positions=run.k)
+    run.where = where_summary(run.rigid, data, screen.schemes[0][1][:run.k], run.structure)
+    # the structure tests are a second, scale-free gap test: under a right model they hold at
+    # 1e-3 whatever the noise, so a structured residual is a gap even below the chi-square's power
+    st = run.structure
+    run.test["structure"] = {"p_value": st["best"]["p_value"] if st["best"] else 1.0, "threshold": st["threshold"],
+                             "tests": st["n_tests"]}
+    if st["structured"] and not run.significant:
+        run.significant = True
+        run.test["significant_by"] = "structure"
+
+
+def _select(run: _Run, max_effects: int) -> None:
+    """Step 3: forward selection; periodic effects and scale errors pass the spectrum's gate when they are added."""
+    entries = {e["effect"]: e for e in run.ranking}
+
+    def refuse(name: str, _selected: list) -> dict | None:
+        return periodic_gate(name, run.effects[name], entries[name], run.plain, run.rows, run.act_jac) \
+            if harmonic_order(name) is not None or name == "angle-scale" else None
+
+    run.selected, run.ties, refused = (
+        select_effects(run.screen, run.ranking, run.columns, run.base_cv, run.base_bic, max_effects, refuse)
+        if run.significant else ([], [], []))
+    run.rejected += refused
+
+
+def _shrink(run: _Run) -> None:
+    """Step 4: the nonlinear fit with the selected effects, their estimates, how far the gap shrinks."""
+    rigid, screen, columns = run.rigid, run.screen, run.columns
+    run.final, run.selected = _nonlinear_fit(run.mechanism, run.analysis, run.kin, run.data, run.validation,
+                                             run.selected, run.effects, rigid.validation, run.rejected, run.ranking)
+    current_cv = run.base_cv
+    if run.selected:
+        extra = np.concatenate([columns[n][0] for n in run.selected], axis=2)
+        current_cv, _, _, _ = cv_rms(screen, extra, np.concatenate([columns[n][1] for n in run.selected]))
+    run.effect_parameters, run.validation_after = [], None
+    if "violated-constraint" not in run.selected:
+        run.violated = None
+    if run.final is not None:
+        run.validation_after = run.final.validation
+        for p in run.final.parameters:
+            if p["kind"].startswith("effect:"):
+                run.effect_parameters.append({"effect": p["kind"][7:], **{k: p[k] for k in (
+                    "name", "unit", "estimate", "std", "identifiable")}})
+        if run.violated is not None:
+            est = next(p for p in run.final.parameters if p["name"] == f"violated_{run.violated['defect']}")
+            run.violated.update({"estimate": est["estimate"], "std": est["std"], "unit": est["unit"],
+                                 "times_realistic": abs(est["estimate"]) / run.violated["realistic_magnitude"]})
+    noise, before = rigid.noise_rms, rigid.validation
+    run.share = None
+    reference = before["rms"] if before else run.base_cv
+    if run.validation_after is not None and noise is not None and reference**2 > noise**2:
+        run.share = float((reference**2 - run.validation_after["rms"] ** 2) / (reference**2 - noise**2))
+    run.ceiling = _ceiling(screen.resid[:run.k], run.data, folds(run.data, run.n_blocks, run.seed), run.base_cv,
+                           current_cv, noise, run.seed)
+    for entry in run.ranking:
+        entry["validation_rms"] = entry["cv_rms"]  # blocked cross-validation on the identification data
+
+
+def _answer(run: _Run) -> Diagnosis:
+    """Steps 4 and 5: the structure left after the effects, the equivalence sets, the outcome in words."""
+    screen, columns, final, selected = run.screen, run.columns, run.final, run.selected
+    after_structure, sets = None, []
+    if final is not None:
+        ew = screen.weighted(np.concatenate([columns[n][0] for n in selected], axis=2))
+        both = np.concatenate([screen.prepared()["jw"], ew], axis=1)
+        basis, _ = np.linalg.qr(both / np.linalg.norm(both, axis=0).clip(min=1e-300))
+        r_f, _ = final.model.tracker_pose(final.theta)
+        others = {e["effect"]: columns[e["effect"]][0] for e in run.ranking
+                  if not e.get("note") and e["effect"] not in selected}
+        resid_f, _, _, _ = residual_rows(final.model, final.theta, run.data, q_start=final.configurations)
+        after_structure = structure_tests(run.mechanism, run.rows, resid_f, screen.w, basis, r_f, run.act_jac,
+                                          run.target_jac, others, positions=run.k)
+        masses = gravity_source(run.mechanism) == "link masses"
+        family = gravity_family(run.mechanism, run.kin, run.data, run.act_jac, masses)
+        refused = {r["effect"] for r in run.rejected if r["stage"] in ("screening", "nonlinear fit", "validation")}
+        members = [e["effect"] for e in run.ranking if not e.get("note") and e["effect"] not in refused]
+        sets = equivalence_sets(screen, selected, columns, members, family, run.data, spectrum_peaks(run.plain),
+                                run.effects, masses)
+    overfit = overfitting(run.test, run.rigid, 3 * len(screen.w), run.structure["structured"])
+    outcome, words = verdict(run.data, run.validation, run.significant, run.test, final, selected, run.structure,
+                             after_structure, run.ceiling, run.rigid.noise_rms, run.share, sets, run.rejected,
+                             run.cannot_size, overfit, None)
+    return Diagnosis(run.significant, run.test, run.where, run.ranking, selected, run.ties, run.not_applicable,
+                     run.rigid.validation, run.validation_after, run.share, run.ceiling, run.effect_parameters,
+                     run.violated, run.rigid, final, 0.0, outcome, words, run.rejected, sets, run.cannot_size,
+                     spectrum_peaks(run.plain))
 
 
 def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, effects: dict, before: dict | None,
