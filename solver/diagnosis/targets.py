@@ -143,15 +143,18 @@ def per_target_check(run, checks: list) -> list:
     """Diagnose each target alone with ``run(data, validation) -> Diagnosis`` (``checks`` of :func:`targets_to_check`).
 
     Returns ``[{"target", "outcome", "named_effects", "validation_before", "validation_after"}]``
-    (RMS in mm); a target with too few rows to fit is reported with the reason.
+    (RMS in mm); a target with too few rows to fit alone is reported as ``over-fitting`` (fewer
+    equations than parameters) with the ``reason``.
     """
     out = []
     for t, d_t, v_t in checks:
         entry = {"target": t}
         try:
             diag = run(d_t, v_t)
-        except (HyperstatError, np.linalg.LinAlgError, ValueError) as exc:  # too few rows to fit: the whole stands
-            entry.update(outcome="not diagnosed", named_effects=[], reason=f"{type(exc).__name__}: {exc}")
+        except (HyperstatError, np.linalg.LinAlgError, ValueError) as exc:
+            # too few rows to fit this target alone: fewer equations than parameters, i.e. over-fitting; the
+            # whole file's answer stands
+            entry.update(outcome="over-fitting", named_effects=[], reason=f"not diagnosed alone: {exc}")
         else:
             entry.update(outcome=diag.outcome, named_effects=list(diag.named_effects),
                          validation_before=(diag.validation_before or {}).get("rms"),
