@@ -36,10 +36,10 @@ from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.calibration.identify import IdentificationResult, MeasurementModel, identify
 from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
-from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, MASS_FIELD, MASS_FIELD_SHORT, applicable_effects,
+from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MASS_FIELD, MASS_FIELD_SHORT, applicable_effects,
                                                 available_effects, gravity_source, harmonic_order, is_known_effect,
                                                 is_library_effect)
-from hyperstat.solver.diagnosis.equivalence import equivalence_sets, gravity_family
+from hyperstat.solver.diagnosis.equivalence import bending_alternatives, equivalence_sets, gravity_family
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
 from hyperstat.solver.diagnosis.periodic import periodic_gate, spectral_candidates
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, black_box_ceiling,
@@ -422,8 +422,10 @@ def _answer(run: _Run) -> Diagnosis:
         family = gravity_family(run.mechanism, run.kin, run.data, run.act_jac, masses)
         refused = {r["effect"] for r in run.rejected if r["stage"] in ("screening", "nonlinear fit", "validation")}
         members = [e["effect"] for e in run.ranking if not e.get("note") and e["effect"] not in refused]
+        pairs = LinkBending(run.mechanism, run.kin).pairs if masses and "compliance" in selected else {}
+        bending = bending_alternatives(run.mechanism, run.kin, run.data, run.act_jac, pairs) if "compliance" in selected else []
         sets = equivalence_sets(screen, selected, columns, members, family, run.data, spectrum_peaks(run.plain),
-                                run.effects, masses)
+                                run.effects, masses, bending)
     overfit = overfitting(run.test, run.rigid, 3 * len(screen.w), run.structure["structured"])
     outcome, words = verdict(run.data, run.validation, run.significant, run.test, final, selected, run.structure,
                              after_structure, run.ceiling, run.rigid.noise_rms, run.share, sets, run.rejected,

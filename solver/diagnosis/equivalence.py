@@ -29,7 +29,8 @@ from hyperstat.solver.diagnosis.effects import MASS_FIELD, gravity_loads, gravit
 from hyperstat.solver.diagnosis.periodic import EQUIVALENT_CHI2
 from hyperstat.solver.diagnosis.screening import Screen
 
-__all__ = ["equivalence_sets", "gravity_family", "separating_measurement", "GRAVITY_FAMILY", "DEFORMATIONS"]
+__all__ = ["equivalence_sets", "gravity_family", "bending_alternatives", "separating_measurement", "GRAVITY_FAMILY",
+           "DEFORMATIONS", "BEAM_BENDING"]
 
 GRAVITY_FAMILY = "gravity-deformation"
 DEFORMATIONS = ("compliance", "link-bending")  # gravity-driven deformations of the library
@@ -91,6 +92,57 @@ def gravity_family(mech, kin, data, act_jac: np.ndarray, masses_known: bool) -> 
     return np.concatenate(cols, axis=2)
 
 
+#: Joint rotations equivalent to the bending of a link between parallel revolutes ``a`` and ``b``
+#: (Euler-Bernoulli, bending compliance ``c = L / EI``), as fractions of ``c tau_a`` and ``c tau_b``:
+#: the bending moment is ``tau_a`` at the link's root and ``tau_b`` (the next joint's gravity
+#: torque, a couple from the links beyond) at its end.  The root turns by the end deflection over
+#: the length (``w / L``), the next joint by the rest of the end slope.  A moment linear along the
+#: link (the weights beyond its end) gives ``w / L = c (tau_a / 3 + tau_b / 6)`` and a slope
+#: ``c (tau_a + tau_b) / 2``; a parabolic one (the link's own weight) ``w / L = c (tau_a + tau_b) / 4``
+#: and a slope ``c (tau_a + 2 tau_b) / 3``.  Rows: ((root from tau_a, root from tau_b),
+#: (next from tau_a, next from tau_b)).
+BEAM_BENDING = {
+    "bending of the links under the weights beyond them (linear bending moment)": ((1 / 3, 1 / 6), (1 / 6, 1 / 3)),
+    "bending of the links under their own weight (parabolic bending moment)": ((1 / 4, 1 / 4), (1 / 12, 5 / 12)),
+}
+
+
+def bending_alternatives(mech, kin, data, act_jac: np.ndarray, pairs: dict) -> list:
+    """Columns of "the deformation is link bending, not joint yield", one set per beam load of :data:`BEAM_BENDING`.
+
+    Each actuated joint ``a`` that starts a link to a parallel revolute ``b`` (``pairs``: ``a -> b``)
+    has its compliance column replaced by the bending of that link, one bending compliance per
+    link; the other loaded joints keep their compliance.  As many parameters as joint compliance,
+    so the two fits compare by their chi-square.  Needs declared masses (returns [] otherwise).
+
+    Returns
+    -------
+    list of (str, ndarray)
+        The beam load in words and the columns (K, 3, n).
+    """
+    if not pairs:
+        return []
+    payload = data.metadata.get("payload", np.zeros(len(data)))
+    tau = gravity_loads(mech, kin, data.q, payload)
+    tau = np.tile(tau, (len(act_jac) // len(data), 1))  # the same load on a pose's orientation row (6-D)
+    out = []
+    for words, ((ra, rb), (na, nb)) in BEAM_BENDING.items():
+        cols, bends = [], False
+        for a in range(tau.shape[1]):
+            if np.abs(tau[:, a]).max() <= ZERO_LOAD:
+                continue
+            if a in pairs:
+                b = pairs[a]
+                root, nxt = ra * tau[:, a] + rb * tau[:, b], na * tau[:, a] + nb * tau[:, b]
+                cols.append(act_jac[:, :, a] * root[:, None] + act_jac[:, :, b] * nxt[:, None])
+                bends = True
+            else:
+                cols.append(act_jac[:, :, a] * tau[:, a, None])
+        if bends:  # no loaded link (a SCARA's arms turn about the vertical): nothing but compliance itself
+            out.append((words, np.stack(cols, axis=2)))
+    return out
+
+
 def separating_measurement(x: str, y: str, data, spectra: dict, effects: dict, masses_known: bool) -> str:
     """Words for the measurement that would separate effect ``x`` from ``y`` on this machine."""
     def joints_of(name):
@@ -130,7 +182,7 @@ def separating_measurement(x: str, y: str, data, spectra: dict, effects: dict, m
 
 
 def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: list, family: np.ndarray | None,
-                     data, spectra: dict, effects: dict, masses_known: bool) -> list:
+                     data, spectra: dict, effects: dict, masses_known: bool, bending: list = ()) -> list:
     """One equivalence set per named effect (see the module docstring).
 
     Parameters
@@ -145,6 +197,10 @@ def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: 
         Candidates that may join a set (tried, not absorbed, not refused as implausible).
     family : ndarray or None
         Columns of the ``gravity-deformation`` family (:func:`gravity_family`).
+    bending : list of (str, ndarray)
+        Link bending in place of joint compliance (:func:`bending_alternatives`): a named
+        ``compliance`` whose fit one of them matches within the threshold (by the signature or
+        by the chi-square of the data) shares its set with ``gravity-deformation``.
 
     Returns
     -------
@@ -173,6 +229,15 @@ def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: 
             r = s_x - qc @ (qc.T @ s_x)
             return float(r @ r)
 
+        y_off = y - qb @ (qb.T @ y)
+        chi2_x = float((y_off - s_x) @ (y_off - s_x))
+
+        def fits_worse(cols: np.ndarray) -> float:
+            """Chi-square of the data with ``cols`` in X's place, minus X's (negative: fits better)."""
+            qc = _orth(cols - qb @ (qb.T @ cols))
+            r = y_off - qc @ (qc.T @ y_off)
+            return float(r @ r) - chi2_x
+
         for name in members_of:
             if name == x or name not in columns:
                 continue
@@ -184,7 +249,13 @@ def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: 
         if family is not None and family.shape[2]:
             miss = misses(screen.weighted(family))
             evidence.append({"effect": GRAVITY_FAMILY, "misses_chi2": miss})
-            if (x in DEFORMATIONS and gravity_members) or (x not in DEFORMATIONS and miss < EQUIVALENT_CHI2):
+            unseen = False
+            for words, cols in (bending if x == "compliance" else []):
+                w = screen.weighted(cols)
+                swap = {"effect": f"{GRAVITY_FAMILY}: {words}", "misses_chi2": misses(w), "fits_worse_chi2": fits_worse(w)}
+                evidence.append(swap)
+                unseen |= min(swap["misses_chi2"], swap["fits_worse_chi2"]) < EQUIVALENT_CHI2
+            if (x in DEFORMATIONS and (gravity_members or unseen)) or (x not in DEFORMATIONS and miss < EQUIVALENT_CHI2):
                 members.append(GRAVITY_FAMILY)
         ways = list(dict.fromkeys(separating_measurement(x, m, data, spectra, effects, masses_known)
                                   for m in members[1:]))
