@@ -23,6 +23,7 @@ from hyperstat.solver.cli.common import (
     register_source,
     stages,
 )
+from hyperstat.solver.cli.outputs import command_outputs
 from hyperstat.solver.errors import HyperstatError
 
 __all__ = ["main", "build_parser", "register_source", "register_plotter", "load_source", "jsonable", "analysis_of",
@@ -71,7 +72,9 @@ def main(argv: list[str] | None = None, parser: argparse.ArgumentParser | None =
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
-        return int(args.func(args) or 0)
+        with command_outputs(parser, args):  # outputs checked first, written together at the end
+            code = int(args.func(args) or 0)
+        return code
     except Terminated:
         sys.stderr.write("hyperstat: terminated; no output was left half-written\n")
         return 143

@@ -1,0 +1,100 @@
+"""YAML and JSON read strictly: a key declared twice is an error, not "the last one wins".
+
+Units: none (text to Python values).
+
+``yaml.safe_load`` and ``json.loads`` keep the last of two equal keys without a word, so a
+file that declares a joint, a reflector prior or a defect twice would be read as one of
+them.  These readers refuse it in one sentence naming the file, the key and (for YAML) the
+line; JSON's ``NaN`` and ``Infinity`` (not JSON, but accepted by Python's reader) are
+refused too.  YAML is read with the safe loader only: no tag constructs an object.
+
+Examples
+--------
+>>> load_yaml("a: 1\\nb: 2\\na: 3\\n", "t.yaml")
+Traceback (most recent call last):
+...
+hyperstat.solver.errors.DataError: t.yaml: key 'a' is declared twice (line 3).
+>>> load_json('{"x": 1, "x": 2}', "c.json")
+Traceback (most recent call last):
+...
+hyperstat.solver.errors.DataError: c.json: key 'x' is declared twice in one object.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import yaml
+
+from hyperstat.solver.errors import DataError
+
+__all__ = ["load_yaml", "load_json"]
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """The safe loader, refusing a mapping that repeats a key."""
+
+
+def _mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    loader.flatten_mapping(node)
+    seen: set = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        try:
+            duplicate = key in seen
+        except TypeError:  # an unhashable key: the base constructor reports it
+            break
+        if duplicate:
+            raise _Duplicate(key, key_node.start_mark.line + 1)
+        seen.add(key)
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping)
+
+
+class _Duplicate(Exception):
+    def __init__(self, key: Any, line: int) -> None:
+        super().__init__(key, line)
+        self.key, self.line = key, line
+
+
+def load_yaml(text: str, source: str, error: type = DataError) -> Any:
+    """Python values of YAML ``text``; refuses invalid YAML and repeated keys, naming ``source``."""
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+    except _Duplicate as dup:
+        raise error(f"{source}: key {dup.key!r} is declared twice (line {dup.line}).") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark is not None else ""
+        raise error(f"{source}: not valid YAML{where}.") from None
+    except (ValueError, TypeError, OverflowError) as exc:  # e.g. a timestamp out of range, an unhashable key
+        raise error(f"{source}: not valid YAML ({exc.__class__.__name__}: {exc}).") from None
+
+
+def _unique(pairs: list) -> dict:
+    out = dict(pairs)
+    if len(out) < len(pairs):
+        seen: set = set()
+        raise _Duplicate(next(k for k, _ in pairs if k in seen or seen.add(k)), 0)
+    return out
+
+
+def _constant(name: str) -> float:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def load_json(text: str, source: str, error: type = DataError) -> Any:
+    """Python values of JSON ``text``; refuses invalid JSON, repeated keys, NaN and Infinity."""
+    try:
+        return json.loads(text, object_pairs_hook=_unique, parse_constant=_constant)
+    except _Duplicate as dup:
+        raise error(f"{source}: key {dup.key!r} is declared twice in one object.") from None
+    except json.JSONDecodeError as exc:
+        raise error(f"{source}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}).") from None
+    except ValueError as exc:
+        raise error(f"{source}: not valid JSON ({exc}).") from None
+    except RecursionError:
+        raise error(f"{source}: not valid JSON (nested too deeply).") from None
