@@ -13,28 +13,18 @@ every output byte for byte as before, and leave no temporary file or directory b
 from __future__ import annotations
 
 import contextlib
-import io
 import os
 import shutil
 import subprocess
-import warnings
 from pathlib import Path
 
 import pytest
 
-from hyperstat.cad_plugin.cli import main
-
-from .conftest import TEMPLATES
+from .conftest import TEMPLATES, run_cli
 
 SC = str(TEMPLATES / "slider_crank.py")
 
 
-def _run(argv: list) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue()
 
 
 def _snapshot(paths: list[Path]) -> dict:
@@ -65,18 +55,18 @@ def _leftovers(folders: list[Path]) -> list[str]:
 
 
 def _each_output_unwritable_in_turn(first: list, second: list, outputs: list[Path]) -> None:
-    code, _, err = _run(first)
+    code, _, err = run_cli(first)
     assert code == 0, err
     before = _snapshot(outputs)
     for locked in outputs:
         with _unwritable(locked):
-            code, out, err = _run(second)
+            code, out, err = run_cli(second)
         assert code == 2, (locked, err)
         assert len(err.strip().splitlines()) == 1 and locked.name in err and "Traceback" not in err + out, err
         assert "wrote" not in out  # no line announces a file that was not written
         assert _snapshot(outputs) == before, f"{locked.name} locked: an output changed"
         assert _leftovers(sorted({p.parent for p in outputs})) == [], locked
-    code, _, err = _run(second)  # and unlocked, the second run writes every file anew
+    code, _, err = run_cli(second)  # and unlocked, the second run writes every file anew
     assert code == 0, err
     after = _snapshot(outputs)
     assert all(after[p] != before[p] for p in outputs if not p.name.endswith(".hal")), \
@@ -95,7 +85,7 @@ def test_export_linuxcnc_kins(tmp_path):
     it is checked at the end (its name is known only then) and taken back with the others."""
     out = tmp_path / "kins"
     model = tmp_path / "tx7.json"
-    assert _run(["build", str(TEMPLATES / "tripteor_x7.py"), "--model", str(model), "--quiet"])[0] == 0
+    assert run_cli(["build", str(TEMPLATES / "tripteor_x7.py"), "--model", str(model), "--quiet"])[0] == 0
     first = ["export-linuxcnc-kins", str(model), "--out", str(out), "--name", "hs_kins", "--quiet"]
     second = ["export-linuxcnc-kins", str(model), "--out", str(out), "--name", "hs_kins", "--home", "41=900"]
     _each_output_unwritable_in_turn(first, second, [out / "hs_kins.comp", out / "machine.ini", out / "machine.hal"])
@@ -103,9 +93,9 @@ def test_export_linuxcnc_kins(tmp_path):
 
 def test_export_controller(tmp_path):
     data = tmp_path / "d.csv"
-    assert _run(["simulate", SC, "--poses", "30", "--validation", "0", "--out", str(data), "--quiet"])[0] == 0
+    assert run_cli(["simulate", SC, "--poses", "30", "--validation", "0", "--out", str(data), "--quiet"])[0] == 0
     other = tmp_path / "d2.csv"
-    assert _run(["simulate", SC, "--poses", "30", "--validation", "0", "--seed", "1", "--out", str(other),
+    assert run_cli(["simulate", SC, "--poses", "30", "--validation", "0", "--seed", "1", "--out", str(other),
                  "--quiet"])[0] == 0
     ctl = tmp_path / "ctl" / "machine.json"
     _each_output_unwritable_in_turn(["export-controller", SC, str(data), "--out", str(ctl), "--quiet"],
@@ -115,7 +105,7 @@ def test_export_controller(tmp_path):
 def test_identify_json_and_residuals(tmp_path):
     data, other = tmp_path / "d.csv", tmp_path / "d2.csv"
     for seed, path in ((0, data), (1, other)):
-        assert _run(["simulate", SC, "--poses", "30", "--validation", "0", "--seed", str(seed), "--out", str(path),
+        assert run_cli(["simulate", SC, "--poses", "30", "--validation", "0", "--seed", str(seed), "--out", str(path),
                      "--quiet"])[0] == 0
     outs = [tmp_path / "o" / "id.json", tmp_path / "o" / "res.csv"]
     tail = ["--json", str(outs[0]), "--residuals", str(outs[1])]
@@ -126,9 +116,9 @@ def test_identify_json_and_residuals(tmp_path):
 def test_a_new_output_directory_appears_whole(tmp_path):
     """A report into a directory that does not exist: the directory appears in one rename, with every file."""
     model = tmp_path / "tx7.json"
-    assert _run(["build", str(TEMPLATES / "tripteor_x7.py"), "--model", str(model), "--quiet"])[0] == 0
+    assert run_cli(["build", str(TEMPLATES / "tripteor_x7.py"), "--model", str(model), "--quiet"])[0] == 0
     out = tmp_path / "a" / "b" / "kins"
-    code, text, err = _run(["export-linuxcnc-kins", str(model), "--out", str(out), "--name", "k"])
+    code, text, err = run_cli(["export-linuxcnc-kins", str(model), "--out", str(out), "--name", "k"])
     assert code == 0, err
     assert sorted(p.name for p in out.iterdir()) == ["k.comp", "machine.hal", "machine.ini"]
     assert _leftovers([tmp_path, tmp_path / "a", out]) == []
@@ -138,7 +128,7 @@ def test_a_new_output_directory_appears_whole(tmp_path):
 def test_an_unwritable_directory_is_refused_before_the_work(tmp_path):
     """An output folder that cannot be written: refused at once, naming it, before the identification runs."""
     data = tmp_path / "d.csv"
-    assert _run(["simulate", SC, "--poses", "30", "--validation", "0", "--out", str(data), "--quiet"])[0] == 0
+    assert run_cli(["simulate", SC, "--poses", "30", "--validation", "0", "--out", str(data), "--quiet"])[0] == 0
     locked = tmp_path / "locked"
     locked.mkdir()
     if os.geteuid() == 0:
@@ -147,7 +137,7 @@ def test_an_unwritable_directory_is_refused_before_the_work(tmp_path):
     else:
         locked.chmod(0o555)
     try:
-        code, _, err = _run(["export-controller", SC, str(data), "--out", str(locked / "machine.json")])
+        code, _, err = run_cli(["export-controller", SC, str(data), "--out", str(locked / "machine.json")])
     finally:
         if os.geteuid() == 0:
             subprocess.run(["chattr", "-i", str(locked)], check=True)

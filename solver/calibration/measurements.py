@@ -313,7 +313,8 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
     for key, line in header_line.items():
         if key.startswith("target ") and key[len("target "):] not in by_case:
             raise DataError(f"{source}, line {line}: header '# {key}:' gives a prior for a target that has no "
-                            f"columns (targets: {', '.join(t for t in targets if t) or 'one, columns x, y, z'}).")
+                            f"columns (targets: {', '.join(t for t in targets if t) or 'one, columns x, y, z'}); "
+                            f"several targets go in columns x_<target>, y_<target>, z_<target>, not stacked in x, y, z.")
 
     def col(base: str, t: str) -> str:
         return base if t == "" else f"{base}_{t}"

@@ -447,9 +447,9 @@ def _check_vector_draws(doc: dict, mech, rules: dict, source: str) -> None:
             lo, hi = mech.ranges[act].T
             out = np.flatnonzero((qa < lo + 0.1 * (hi - lo) - 1e-9) | (qa > hi - 0.1 * (hi - lo) + 1e-9))
             why = (f"its value {qa[out[0]]:g} of joint '{mech.joints[act[out[0]]].name}' lies outside the middle 80 % "
-                   f"of the range [{lo[out[0]]:g}, {hi[out[0]]:g}] (a range changed after the vectors were drawn?)"
-                   if len(out) else "its actuated values are not among those drawn from the joint ranges with the "
-                                    "file's seed, in order")
+                   f"of the range [{lo[out[0]]:g}, {hi[out[0]]:g}]" if len(out) else
+                   "its actuated values are not the version's draws from the file's joint ranges with its seed")
+            why += " (were the joint ranges or the vectors changed after export?)"
             raise DataError(f"{source}: test vector {k}: {why}.")
         d += 1
 
@@ -742,8 +742,8 @@ def check_reachable_ranges(model: "ControllerModel", samples: int = 32, seed: in
         if not reached.any():
             j = mech.joints[act[k]]
             raise DataError(f"controller file: the {end} end {value:g} {'rad' if j.type == 'R' else 'mm'} of actuated "
-                            f"joint '{j.name}' is not reachable: the identified geometry does not assemble there "
-                            f"(none of {samples} configurations of the other joints); the range is wider than the "
+                            f"joint '{j.name}' is not reachable: none of {samples} configurations with the joint there "
+                            f"assembles on the identified geometry (continued from home); the range is wider than the "
                             f"machine.")
 
 
