@@ -61,8 +61,8 @@ def unit_factor(unit: str, kind: str, where: str) -> float:
         Naming ``where`` when the unit is not one of mm, m (lengths) or rad, deg (angles).
     """
     table = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
-    if unit not in table:
-        raise DataError(f"{where}: unit '{unit}' is not a {kind} unit; use {' or '.join(table)}.")
+    if not isinstance(unit, str) or unit not in table:
+        raise DataError(f"{where}: unit {unit!r} is not a {kind} unit; use {' or '.join(table)}.")
     return table[unit]
 
 
