@@ -190,6 +190,50 @@ def _cmd_export_linuxcnc_kins(args: argparse.Namespace) -> int:
     return 0
 
 
+def _world_point(text: str, option: str, letters: str) -> list:
+    """World coordinates from ``"X100 Y20 Z-1100 B10 C45"`` or ``"100 20 -1100 10 45"`` (mm, degrees)."""
+    words = text.replace(",", " ").split()
+    values = []
+    for k, word in enumerate(words):
+        if word[:1].upper() in letters and word[:1].isalpha():
+            if k >= len(letters) or word[0].upper() != letters[k]:
+                raise HyperstatError(f"{option}: '{text}' must give {' '.join(letters)} in this order (mm, degrees).")
+            word = word[1:]
+        try:
+            values.append(float(word))
+        except ValueError:
+            raise HyperstatError(f"{option}: '{word}' in '{text}' is not a number (mm or degrees).") from None
+    if len(values) != len(letters) or not all(math.isfinite(v) for v in values):
+        raise HyperstatError(f"{option}: '{text}' must hold {len(letters)} finite numbers, {' '.join(letters)} "
+                             f"(mm, degrees).")
+    return values
+
+
+def _cmd_check_move(args: argparse.Namespace) -> int:
+    from hyperstat.solver.export.linuxcnc_kins import world_layout
+    from hyperstat.solver.export.straight_moves import STEP_DEG, STEP_MM, check_straight_move
+
+    mech, xi, _doc = _geometry(args, "check-move")
+    layout = world_layout(mech)
+    letters = layout["coordinates"]
+    start = _world_point(args.start, "--from", letters)
+    end = _world_point(args.end, "--to", letters)
+    r = check_straight_move(mech, xi, start, end, layout=layout)
+    units = {mech.joints[i].name: ("rad" if mech.joints[i].type == "R" else "mm") for i in mech.actuated}
+    if r["inside"]:
+        sys.stdout.write(f"the straight move stays inside every joint range of '{mech.name}' ({r['samples']} points "
+                         f"checked, every {STEP_MM:g} mm and {STEP_DEG:g} degree)\n")
+        return 0
+    where = " ".join(f"{a}{v:.6g}" for a, v in zip(letters, r["world"]))
+    worst = ", ".join(f"joint {n} {v:.4g} {units[n]}" for n, v in r["excess"].items() if v > 0)
+    sys.stdout.write(f"the straight move leaves the range of joint '{r['joint']}' at {100 * r['fraction']:.3g} % of its "
+                     f"length (near {where}): the joint would reach {r['value']:.6g} {units[r['joint']]}, its range "
+                     f"ends at {r['limit']:.6g} {units[r['joint']]}; beyond the ranges along the line: {worst}.  LinuxCNC starts such a "
+                     f"move and stops it there (the generated component refuses poses outside the joint ranges): "
+                     f"split it through a point inside the workspace.\n")
+    return 1
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Add this stage's sub-commands to the ``hyperstat`` parser."""
     p = sub.add_parser("export-controller", help="identify and write the controller parameter file")
@@ -233,3 +277,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="home of an actuated joint (rad or mm; default the model's home), e.g. away from a singularity")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_export_linuxcnc_kins, known_outputs=("machine.ini", "machine.hal"))
+    p = sub.add_parser("check-move",
+                       help="check that a straight G1 move in LinuxCNC's world coordinates keeps every joint in range "
+                            "(exit 1 when it does not)")
+    p.add_argument("source", nargs="?", help="template or model file (nominal geometry)")
+    p.add_argument("--controller", metavar="MACHINE.json", help="take the identified geometry from a controller file")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--from", dest="start", required=True, metavar="WORLD",
+                   help="start of the move in world coordinates, e.g. 'X596.8 Y18.3 Z-1143 B-22.6 C161.5' (mm, deg)")
+    p.add_argument("--to", dest="end", required=True, metavar="WORLD", help="end of the move (mm, degrees)")
+    p.set_defaults(func=_cmd_check_move)

@@ -30,6 +30,7 @@ import numpy as np
 
 from hyperstat.solver.atomic import all_or_nothing, write_text
 from hyperstat.solver.errors import HyperstatError
+from hyperstat.solver.export.linuxcnc_kins import LIMIT_MARGIN
 
 __all__ = ["sim_files", "write_sim", "build_component", "remove_component", "run_moves", "linuxcnc_env"]
 
@@ -87,7 +88,7 @@ def sim_files(mechanism, component: str, layout: dict, workspace: np.ndarray | N
         rot = joint.type == "R"
         conv = math.degrees if rot else float
         lo, hi = (conv(v) for v in joint.range)
-        lo, hi = lo - 1e-6, hi + 1e-6  # a home on a limit is not refused for round-off
+        lo, hi = lo - LIMIT_MARGIN, hi + LIMIT_MARGIN  # a home on a limit is not refused for round-off
         home_value = conv(joint.home if home is None else float(np.asarray(home).reshape(-1)[j]))
         ini += [f"[JOINT_{k}]", f"# model joint '{joint.name}' ({'revolute, degrees' if rot else 'prismatic, mm'})",
                 f"TYPE = {'ANGULAR' if rot else 'LINEAR'}",
