@@ -172,8 +172,9 @@ class OutputSet:
                                                  f"no output was written.")
                         plan.append(("dir", anchor / top, self._staging[anchor] / "new" / top))
                     continue
-                if target.is_dir() or (target.exists() and not os.access(target, os.W_OK)):
-                    what = "is a directory" if target.is_dir() else "cannot be replaced (read-only or immutable)"
+                if target.exists() and (not target.is_file() or not os.access(target, os.W_OK)):
+                    what = ("is a directory" if target.is_dir() else "is not a regular file" if not target.is_file()
+                            else "cannot be replaced (read-only or immutable)")
                     raise HyperstatError(f"{target}: {what}; no output was written.")
                 plan.append(("file", target, self._staging[anchor] / "new" / rel))
             for kind, target, staged in plan:
@@ -265,6 +266,8 @@ def check_writable(files: Iterable = (), directories: Iterable = ()) -> None:
         f = _absolute(f)
         if f.is_dir():
             raise HyperstatError(f"{f}: is a directory; give a file name for this output.")
+        if f.exists() and not f.is_file():
+            raise HyperstatError(f"{f}: is not a regular file (a device or a pipe); give a file name for this output.")
         if f.exists() and not os.access(f, os.W_OK):
             raise HyperstatError(f"{f}: exists and cannot be replaced (read-only or immutable).")
         _probe(_anchor(f.parent), f"{f} cannot be written")

@@ -62,8 +62,9 @@ class _Duplicate(Exception):
 
 def load_yaml(text: str, source: str, error: type = DataError) -> Any:
     """Python values of YAML ``text``; refuses invalid YAML and repeated keys, naming ``source``."""
+    loader = _UniqueKeyLoader(text)  # a SafeLoader: no tag constructs an object
     try:
-        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+        return loader.get_single_data()
     except _Duplicate as dup:
         raise error(f"{source}: key {dup.key!r} is declared twice (line {dup.line}).") from None
     except yaml.YAMLError as exc:
@@ -72,6 +73,8 @@ def load_yaml(text: str, source: str, error: type = DataError) -> Any:
         raise error(f"{source}: not valid YAML{where}.") from None
     except (ValueError, TypeError, OverflowError) as exc:  # e.g. a timestamp out of range, an unhashable key
         raise error(f"{source}: not valid YAML ({exc.__class__.__name__}: {exc}).") from None
+    finally:
+        loader.dispose()
 
 
 def _unique(pairs: list) -> dict:

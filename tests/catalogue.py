@@ -109,8 +109,11 @@ def _import(robot: Path, tmp: Path) -> list:
 
 
 def _robot(tmp: Path, name: str, old: str, new: str) -> Path:
-    """A robot file (``.urdf``, ``.yaml``, ``.csv``) of the catalogue with ``old`` replaced by ``new``."""
-    text = {".urdf": URDF, ".yaml": DH_YAML, ".csv": DH_CSV}[Path(name).suffix]
+    """A good robot file (``.urdf``, ``.yaml``, ``.csv``; those of the robot-import tests) with ``old`` replaced by
+    ``new``."""
+    from tests.solver.kinematics.test_robot_import_checks import DH, DH_CSV, URDF
+
+    text = {".urdf": URDF, ".yaml": DH, ".csv": DH_CSV}[Path(name).suffix]
     assert old in text, (name, old)
     return _write(tmp / name, text.replace(old, new, 1))
 
@@ -133,36 +136,6 @@ def _widen_first_range(doc: dict) -> None:
 def _mkdir(path: Path) -> Path:
     path.mkdir(parents=True, exist_ok=True)
     return path
-
-
-URDF = """<?xml version="1.0"?>
-<robot name="r3">
-  <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.3" rpy="0 0 0"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="0" velocity="0"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.4 0 0" rpy="0 0 0"/>
-    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="0" velocity="0"/></joint>
-  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0.3 0 0" rpy="0 0 0"/>
-    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="0" velocity="0"/></joint>
-</robot>
-"""
-DH_YAML = """format: hyperstat-dh
-version: 1
-name: r2
-convention: dh
-units: {length: mm, angle: deg}
-joints:
-  - {name: "1", type: R, a: 312, alpha: -90, d: 670, theta: 0, min: -180, max: 180}
-  - {name: "2", type: R, a: 1075, alpha: 0, d: 0, theta: -90, min: -60, max: 75}
-joint_map:
-  units: {angle: deg}
-  joints: {"1": {J1: 1}, "2": {J2: -1}}
-"""
-DH_CSV = """# convention: dh
-joint,type,a[mm],alpha[deg],d[mm],theta[deg],min[deg],max[deg]
-1,R,312,-90,670,0,-180,180
-2,R,1075,0,0,-90,-60,75
-"""
 
 
 def _cell(good: Path, dst: Path, column: str, value: str) -> Path:
@@ -299,7 +272,7 @@ CASES = [
     Case("dh-key-twice", "DH table", "a field declared twice in a row",
          lambda t, g: _import(_robot(t, "r.yaml", "a: 1075,", "a: 1075, a: 1076,"), t), "declared twice"),
     Case("dh-joint-map-self", "DH table", "a joint map naming a model joint as a controller joint",
-         lambda t, g: _import(_robot(t, "r.yaml", '"2": {J2: -1}', '"2": {"2": -1}'), t), "model joint"),
+         lambda t, g: _import(_robot(t, "r.yaml", '"2": {J2: -1, offset: 0.5}', '"2": {"2": -1}'), t), "model joint"),
     # model files and templates: plausibility and declarations twice
     Case("model-absurd-origin", "model file", "an origin of 1e308 mm",
          lambda t, g: _analyze(_json_edit(g["model"], t / "m.json", lambda d: d["chains"][0]["elements"][1]["placement"]
@@ -452,7 +425,7 @@ twice; an axis through the same point twice, or through two points that coincide
 
 **A controller file cannot vouch for itself** (`check_admissible` in `solver/export/controller.py`,
 run by every reader of the file after the hash): a test-vector tolerance other than the version's;
-a defect the model does not have, or one missing; a defect beyond 0.05 rad or 10 mm, a tool point or
+a defect the model does not have, or one missing; a defect beyond 0.1 rad or 100 mm, a tool point or
 target beyond 2000 mm; an effect option, parameter or value the effect does not admit; keys the
 format does not hold (schema); test vectors that are not the version's draws from the file's
 joint ranges (a range changed after export); fewer than 12 vectors.  `check-controller` also

@@ -170,6 +170,13 @@ class Workspace:
         return False
 
 
+def _yaml_or_text(text: str, data) -> str:
+    """A YAML document mutated as data (a value replaced, a key removed) or corrupted as text, half of the time each."""
+    if data.draw(st.booleans(), label="structural"):
+        return yaml.safe_dump(mutate(yaml.safe_load(text), data))
+    return corrupt(text, data)
+
+
 def _write(ws: Workspace, name: str, text: str) -> Path:
     path = ws.dir / name
     path.write_bytes(text.encode("utf-8", errors="replace"))  # drawn text may hold lone surrogates
@@ -227,11 +234,7 @@ def _import_then_analyze(ws: Workspace, path: Path) -> None:
 @given(data=st.data())
 def test_dh_yaml(tmp_path, data):
     with Workspace(tmp_path, "DH YAML") as ws:
-        if data.draw(st.booleans(), label="structural"):
-            text = yaml.safe_dump(mutate(yaml.safe_load(DH), data))
-        else:
-            text = corrupt(DH, data)
-        _import_then_analyze(ws, _write(ws, "robot.yaml", text))
+        _import_then_analyze(ws, _write(ws, "robot.yaml", _yaml_or_text(DH, data)))
 
 
 @_settings("DH CSV")
@@ -297,11 +300,7 @@ HYPOTHESES = ("format: hyperstat-hypotheses\nversion: 1\naxes:\n  a2: {element: 
 @given(data=st.data())
 def test_hypothesis_file(tmp_path, data):
     with Workspace(tmp_path, "hypothesis file") as ws:
-        if data.draw(st.booleans(), label="structural"):
-            text = yaml.safe_dump(mutate(yaml.safe_load(HYPOTHESES), data))
-        else:
-            text = corrupt(HYPOTHESES, data)
-        path = _write(ws, "h.yaml", text)
+        path = _write(ws, "h.yaml", _yaml_or_text(HYPOTHESES, data))
         ws.run(["check-hypotheses", SC, path, "--configurations", "6", "--json", ws.dir / "out.json", "--quiet"],
                (path,))
 

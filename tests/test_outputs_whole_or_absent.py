@@ -125,22 +125,36 @@ def test_a_new_output_directory_appears_whole(tmp_path):
     assert text.index("wrote") > 0
 
 
-def test_an_unwritable_directory_is_refused_before_the_work(tmp_path):
-    """An output folder that cannot be written: refused at once, naming it, before the identification runs."""
+@pytest.mark.parametrize("command", ["export-controller", "import-robot", "export-linuxcnc-kins", "report"])
+def test_an_unwritable_directory_is_refused_before_the_work(tmp_path, command):
+    """An output folder that cannot be written (the issue: PermissionError, exit 1): refused at once, in one
+    sentence naming it, before any work."""
     data = tmp_path / "d.csv"
-    assert run_cli(["simulate", SC, "--poses", "30", "--validation", "0", "--out", str(data), "--quiet"])[0] == 0
+    data.write_text("not even read: the output is checked first")
+    robot = tmp_path / "r.urdf"
+    robot.write_text("<robot/>")
     locked = tmp_path / "locked"
     locked.mkdir()
+    argv = {"export-controller": ["export-controller", SC, data, "--out", locked / "machine.json"],
+            "import-robot": ["import-robot", robot, "--out", locked / "r.skel.json"],
+            "export-linuxcnc-kins": ["export-linuxcnc-kins", SC, "--out", locked / "kins"],
+            "report": ["report", SC, "--out", locked / "report"]}[command]
     if os.geteuid() == 0:
         if subprocess.run(["chattr", "+i", str(locked)], capture_output=True).returncode != 0:
             pytest.skip("chattr +i is not available on this file system")
     else:
         locked.chmod(0o555)
     try:
-        code, _, err = run_cli(["export-controller", SC, str(data), "--out", str(locked / "machine.json")])
+        code, _, err = run_cli(argv)
     finally:
         if os.geteuid() == 0:
             subprocess.run(["chattr", "-i", str(locked)], check=True)
         locked.chmod(0o755)
     assert code == 2 and "locked: the directory cannot be written" in err and len(err.strip().splitlines()) == 1
     assert list(locked.iterdir()) == []
+
+
+def test_a_device_is_not_an_output(tmp_path):
+    """``--json /dev/null`` would have been replaced by a regular file (as root): refused."""
+    code, _, err = run_cli(["analyze", SC, "--json", "/dev/null", "--quiet"])
+    assert code == 2 and "/dev/null: is not a regular file" in err

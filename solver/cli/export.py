@@ -220,6 +220,11 @@ def _cmd_check_move(args: argparse.Namespace) -> int:
     end = _world_point(args.end, "--to", letters)
     r = check_straight_move(mech, xi, start, end, layout=layout)
     units = {mech.joints[i].name: ("rad" if mech.joints[i].type == "R" else "mm") for i in mech.actuated}
+    if args.json:
+        write_json(args.json, jsonable({"mechanism": mech.name, "coordinates": letters, "from": start, "to": end,
+                                        "units": {"world": "mm, degrees", "joints": units}, **r}))
+    if args.quiet:
+        return 0 if r["inside"] else 1
     if r["inside"]:
         sys.stdout.write(f"the straight move stays inside every joint range of '{mech.name}' ({r['samples']} points "
                          f"checked, every {STEP_MM:g} mm and {STEP_DEG:g} degree)\n")
@@ -286,4 +291,6 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--from", dest="start", required=True, metavar="WORLD",
                    help="start of the move in world coordinates, e.g. 'X596.8 Y18.3 Z-1143 B-22.6 C161.5' (mm, deg)")
     p.add_argument("--to", dest="end", required=True, metavar="WORLD", help="end of the move (mm, degrees)")
+    p.add_argument("--json", metavar="OUT.json", help="write the result (where a joint leaves its range, by how much)")
+    p.add_argument("--quiet", action="store_true", help="print nothing (the exit code says it: 0 inside, 1 not)")
     p.set_defaults(func=_cmd_check_move)

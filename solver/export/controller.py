@@ -75,11 +75,13 @@ def content_hash(doc: dict) -> str:
 #: lengths, rad for angles); the file repeats it for its reader and is refused if it says otherwise.
 #: ``test_vectors``: how many configurations are drawn (``count``) and how many must have assembled
 #: (``at_least``).  ``defect_rad`` / ``defect_mm``: the largest identified defect (a calibration corrects
-#: small errors of a known geometry; beyond, the model is another machine or the fit went astray).
+#: small errors of a known geometry; beyond, the model is another machine or the fit went astray).  The
+#: values are wide: poorly determined combinations of defects reach several mm in a sound calibration
+#: (10.4 mm on the identified hexapod of the tests, whose validation RMS is 32 um).
 #: ``offset_mm``: the largest tool point or target offset from the output frame.
 ADMISSIBLE = {2: {"test_vector_tolerance": {"length_mm": 1e-9, "angle_rad": 1e-9},
                   "test_vectors": {"count": 24, "at_least": 12},
-                  "defect_rad": 0.05, "defect_mm": 10.0, "offset_mm": 2000.0}}
+                  "defect_rad": 0.1, "defect_mm": 100.0, "offset_mm": 2000.0}}
 TEST_VECTOR_COUNT = ADMISSIBLE[VERSION]["test_vectors"]["count"]
 TEST_VECTOR_TOLERANCE = dict(ADMISSIBLE[VERSION]["test_vector_tolerance"])
 
@@ -402,14 +404,9 @@ def check_admissible(doc: dict, source: str = "controller file") -> None:
             raise DataError(f"{source}: field 'test_vectors.tolerance.{key}' is {tol.get(key)!r}, but version "
                             f"{doc['version']} fixes it at {value:g} {unit}: a file cannot set its own tolerance.")
     mech = mechanism_from_dict(doc["model"], f"{source}: field 'model'")
-    names = [p.name for p in mech.parameters]
-    unknown = [n for n in doc["defects"] if n not in names]
-    if unknown:
-        raise DataError(f"{source}: field 'defects' names '{unknown[0]}', which is not a defect of the model "
-                        f"'{mech.name}'.")
-    missing = [n for n in names if n not in doc["defects"]]
-    if missing:
-        raise DataError(f"{source}: field 'defects' has no value for '{missing[0]}', a defect of the model.")
+    _same_names(doc["defects"], [p.name for p in mech.parameters],
+                f"{source}: field 'defects' names '{{}}', which is not a defect of the model '{mech.name}'.",
+                f"{source}: field 'defects' has no value for '{{}}', a defect of the model.")
     for p in mech.parameters:
         v, limit = doc["defects"][p.name], rules["defect_mm" if p.unit == "mm" else "defect_rad"]
         if not abs(v) <= limit:
@@ -421,6 +418,14 @@ def check_admissible(doc: dict, source: str = "controller file") -> None:
             raise DataError(f"{source}: field '{field}' is {float(np.linalg.norm(v)):g} mm from the output frame, "
                             f"beyond the {rules['offset_mm']:g} mm version {doc['version']} admits.")
     _check_vector_draws(doc, mech, rules, source)
+
+
+def _same_names(given: dict, names: list, unknown: str, missing: str) -> None:
+    """Refuse a name of ``given`` not in ``names`` (``unknown`` formatted with it), then one missing (``missing``)."""
+    for message, extra in ((unknown, [n for n in given if n not in names]),
+                           (missing, [n for n in names if n not in given])):
+        if extra:
+            raise DataError(message.format(extra[0]))
 
 
 def _check_vector_draws(doc: dict, mech, rules: dict, source: str) -> None:
@@ -610,13 +615,8 @@ def _exported_effect(e: dict, i: int, mechanism, source: str):
     except (TypeError, ValueError, KeyError, IndexError) as exc:
         raise DataError(f"{where}: its options cannot build the effect ({exc.__class__.__name__}: {exc}).") from None
     names = eff.parameter_names(None)
-    unknown = [n for n in e["parameters"] if n not in names]
-    if unknown:
-        raise DataError(f"{where}: parameter '{unknown[0]}' is not a parameter of this effect on "
-                        f"'{mechanism.name}'.")
-    missing = [n for n in names if n not in e["parameters"]]
-    if missing:
-        raise DataError(f"{where}: parameter '{missing[0]}' has no value.")
+    _same_names(e["parameters"], names, f"{where}: parameter '{{}}' is not a parameter of this effect on "
+                                        f"'{mechanism.name}'.", f"{where}: parameter '{{}}' has no value.")
     values = np.array([e["parameters"][n] for n in names], dtype=float)
     units = eff.parameter_units(None)
     for k, n in enumerate(names):

@@ -121,14 +121,11 @@ def joint_variables_text(mechanism: Mechanism, units: str, joint_map_file: str |
 
     Examples
     --------
-    >>> from hyperstat.solver.kinematics.robot_import import parse_dh_table, dh_to_mechanism
-    >>> t = parse_dh_table({"format": "hyperstat-dh", "version": 1, "name": "r2", "convention": "dh",
-    ...                     "units": {"length": "mm", "angle": "deg"},
-    ...                     "joints": [{"type": "R", "a": 100, "alpha": 0, "d": 0, "theta": 0},
-    ...                                {"type": "R", "a": 50, "alpha": 0, "d": 0, "theta": 0}],
-    ...                     "joint_map": {"units": {"angle": "deg"}, "joints": {"1": {"J1": -1},
-    ...                                   "2": {"J2": 1, "J1": 1, "offset": 0.5}}}})
-    >>> print(joint_variables_text(dh_to_mechanism(t), "rad"))
+    >>> from types import SimpleNamespace as S
+    >>> robot = S(joints=[S(name="1", type="R"), S(name="2", type="R")], actuated=[0, 1],
+    ...           metadata={"joint_map": {"units": {"angle": "deg"},
+    ...                                   "joints": {"1": {"J1": -1}, "2": {"J2": 1, "J1": 1, "offset": 0.5}}}})
+    >>> print(joint_variables_text(robot, "rad"))
     joint variables: the model's joints 1, 2 (rad), zero at the table's zero. They are NOT the controller's: with its joints (in deg) q1 = -J1; q2 = J2 + J1 + 0.5 (joint map, q_model = sum(coefficient * J) / ratio + offset); feeding the controller's values directly is wrong wherever a sign, an offset or a coupling differs.
     """
     names = [mechanism.joints[i].name for i in mechanism.actuated]

@@ -613,6 +613,7 @@ def read_urdf(path: str | Path, tip: str | None = None, name: str | None = None)
         if j.mimic is not None:
             raise ModelError(f"{path}: joint '{j.name}' mimics another joint; mimic joints are not supported.")
         axis = np.array(j.axis if j.axis is not None else [1.0, 0.0, 0.0], dtype=float)
+        axis = axis / np.max(np.abs(axis))  # a direction of any size (check_urdf refused a zero one)
         ra = make_transform(axis_frame(axis / np.linalg.norm(axis)), np.zeros(3))
         jtype = "P" if j.type == "prismatic" else "R"
         if j.type == "continuous" or j.limit is None or j.limit.lower is None or j.limit.upper is None:

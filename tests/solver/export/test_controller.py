@@ -296,8 +296,8 @@ def test_what_the_version_admits(exported, tmp_path, capsys):
     """Magnitudes, options, effect parameters and keys the format does not hold are refused (hash recomputed)."""
     path, _, _ = exported
     cases = [
-        (lambda d: d["defects"].__setitem__("dI21", 0.2), "field 'defects.dI21' is 0.2 rad, beyond the 0.05 rad"),
-        (lambda d: d["defects"].__setitem__("da21", 25.0), "field 'defects.da21' is 25 mm, beyond the 10 mm"),
+        (lambda d: d["defects"].__setitem__("dI21", 0.2), "field 'defects.dI21' is 0.2 rad, beyond the 0.1 rad"),
+        (lambda d: d["defects"].__setitem__("da21", 250.0), "field 'defects.da21' is 250 mm, beyond the 100 mm"),
         (lambda d: d.__setitem__("target", [3000.0, 0.0, 0.0]), "field 'target' is 3000 mm from the output frame"),
         (lambda d: d["effects"][0]["options"].__setitem__("gain", 2), "effects[0].options.gain' is not part"),
         (lambda d: d["effects"][0]["parameters"].__setitem__("backlash_X", 0.0), "'backlash_X' is not a parameter"),
