@@ -72,13 +72,17 @@ def _geometry(args: argparse.Namespace, what: str):
     """(mechanism, defects, controller document or None) from SOURCE or --controller."""
     import numpy as np
 
-    from hyperstat.solver.export.controller import ControllerModel, read_controller
+    from hyperstat.solver.export.controller import ControllerModel, check_reachable_ranges, read_controller
 
     if bool(args.controller) == bool(args.source):
         raise HyperstatError(f"{what} needs a SOURCE (nominal geometry) or --controller MACHINE.json, not both.")
     if args.controller:
         doc = read_controller(args.controller)
         model = ControllerModel(doc, str(args.controller))
+        try:  # the ranges become the controller's joint limits
+            check_reachable_ranges(model)
+        except HyperstatError as exc:
+            raise HyperstatError(f"{args.controller}: {str(exc).removeprefix('controller file: ')}") from None
         return model.mechanism, model.xi, doc
     mech, _ = load_source(args.source, args.param)
     return mech, np.zeros(len(mech.parameters)), None
