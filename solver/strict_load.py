@@ -14,6 +14,10 @@ Examples
 Traceback (most recent call last):
 ...
 hyperstat.solver.errors.DataError: t.yaml: key 'a' is declared twice (line 3).
+>>> load_yaml("a: \x1f", "t.yaml")
+Traceback (most recent call last):
+...
+hyperstat.solver.errors.DataError: t.yaml: not valid YAML (unacceptable character #x001f: special characters are not allowed).
 >>> load_json('{"x": 1, "x": 2}', "c.json")
 Traceback (most recent call last):
 ...
@@ -62,19 +66,22 @@ class _Duplicate(Exception):
 
 def load_yaml(text: str, source: str, error: type = DataError) -> Any:
     """Python values of YAML ``text``; refuses invalid YAML and repeated keys, naming ``source``."""
-    loader = _UniqueKeyLoader(text)  # a SafeLoader: no tag constructs an object
+    loader = None
     try:
+        loader = _UniqueKeyLoader(text)  # a SafeLoader: no tag constructs an object; it reads the text at once
         return loader.get_single_data()
     except _Duplicate as dup:
         raise error(f"{source}: key {dup.key!r} is declared twice (line {dup.line}).") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1})" if mark is not None else ""
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        where = f" (line {mark.line + 1})" if mark is not None else f" ({first})" if first else ""
         raise error(f"{source}: not valid YAML{where}.") from None
     except (ValueError, TypeError, OverflowError) as exc:  # e.g. a timestamp out of range, an unhashable key
         raise error(f"{source}: not valid YAML ({exc.__class__.__name__}: {exc}).") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def _unique(pairs: list) -> dict:

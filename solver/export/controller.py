@@ -35,6 +35,7 @@ from hyperstat.solver.atomic import dumps_json, write_text
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.frames import so3_log
 from hyperstat.solver.errors import DataError
+from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.kinematics.modelfile import _schema_message, mechanism_from_dict, mechanism_to_dict
 from hyperstat.solver.strict_load import load_json
 
@@ -676,7 +677,7 @@ def _check_target_points(doc: dict, model: "ControllerModel", pose: np.ndarray, 
                                 f"(tolerance {tol_mm:g} mm).")
 
 
-def check_controller(path: str | os.PathLike, reference=None) -> dict:
+def check_controller(path: str | os.PathLike, reference: "Mechanism | None" = None) -> dict:
     """Check a received controller file: format, version, schema, hash, what the version admits, the model
     against a trusted ``reference`` (a :class:`Mechanism`, when given), the test vectors, the joint ranges.
 
@@ -747,7 +748,7 @@ def check_reachable_ranges(model: "ControllerModel", samples: int = 32, seed: in
                             f"machine.")
 
 
-def compare_model(model: dict, reference, source: str) -> None:
+def compare_model(model: dict, reference: "Mechanism", source: str) -> None:
     """Refuse a file whose embedded model differs from a trusted ``reference`` mechanism (ranges included).
 
     Numbers are compared to 1e-12 (relative to their size, at least 1e-12 absolute).

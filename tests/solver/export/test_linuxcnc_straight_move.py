@@ -59,8 +59,9 @@ def test_check_move_command(tmp_path, tripteor):
 
     model = save_model(tripteor, tmp_path / "tx7.json")
     words = lambda w: " ".join(f"{a}{v:g}" for a, v in zip("XYZBC", w))  # noqa: E731
-    code, out, err = run_cli(["check-move", model, "--from", words(START), "--to", words(END)])
-    assert code == 1 and "leaves the range of joint '42'" in out and err == "", (code, out, err)
+    short = START + 0.5 * (END - START)  # half the move, past where leg 42 is back in range (39 % of the whole)
+    code, out, err = run_cli(["check-move", model, "--from", words(START), "--to", words(short)])
+    assert code == 1 and "leaves the range of joint '42' at 9" in out and err == "", (code, out, err)
     code, out, _ = run_cli(["check-move", model, "--from", words(START), "--to", words(START + [-20, -20, 5, 1, -5])])
     assert code == 0 and "stays inside every joint range" in out
 
