@@ -53,8 +53,11 @@ ANGLE_FACTORS = {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3, "urad": 1e-6}
 
 
 def finite(value: float, where: str, unit: str = "", error: type = DataError) -> float:
-    """``value`` as a float, refused (naming ``where``) when NaN or infinite."""
-    v = float(value)
+    """``value`` as a float, refused (naming ``where``) when NaN or infinite (or an integer no float holds)."""
+    try:
+        v = float(value)
+    except OverflowError:
+        v = math.inf
     if not math.isfinite(v):
         raise error(f"{where} must be a finite number, got {value!r}{' ' + unit if unit else ''}.")
     return v

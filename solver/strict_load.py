@@ -22,6 +22,10 @@ hyperstat.solver.errors.DataError: t.yaml: not valid YAML (unacceptable characte
 Traceback (most recent call last):
 ...
 hyperstat.solver.errors.DataError: c.json: key 'x' is declared twice in one object.
+>>> load_json('{"x": 1' + 400 * '0' + '}', "c.json")
+Traceback (most recent call last):
+...
+hyperstat.solver.errors.DataError: c.json: the integer 100000000000...000000 is too large to be a number hyperstat reads.
 """
 
 from __future__ import annotations
@@ -55,7 +59,28 @@ def _mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = Fals
     return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
 
 
+def _integer(loader: _UniqueKeyLoader, node: yaml.ScalarNode) -> int:
+    value = yaml.SafeLoader.construct_yaml_int(loader, node)
+    if abs(value) > LARGEST_INTEGER:
+        raise _TooLarge(node.value, node.start_mark.line + 1)
+    return value
+
+
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping)
+_UniqueKeyLoader.add_constructor("tag:yaml.org,2002:int", _integer)
+#: integers beyond this are refused when read (a float could not hold them; every number is used as a float)
+LARGEST_INTEGER = 2**63
+
+
+class _TooLarge(Exception):
+    def __init__(self, text: str, line: int) -> None:
+        super().__init__(text, line)
+        self.text, self.line = text, line
+
+    def sentence(self, source: str) -> str:
+        shown = self.text if len(self.text) <= 24 else self.text[:12] + "..." + self.text[-6:]
+        where = f" (line {self.line})" if self.line else ""
+        return f"{source}: the integer {shown} is too large to be a number hyperstat reads{where}."
 
 
 class _Duplicate(Exception):
@@ -72,6 +97,8 @@ def load_yaml(text: str, source: str, error: type = DataError) -> Any:
         return loader.get_single_data()
     except _Duplicate as dup:
         raise error(f"{source}: key {dup.key!r} is declared twice (line {dup.line}).") from None
+    except _TooLarge as big:
+        raise error(big.sentence(source)) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         first = str(exc).splitlines()[0] if str(exc) else ""
@@ -96,12 +123,21 @@ def _constant(name: str) -> float:
     raise ValueError(f"{name} is not a JSON number")
 
 
+def _json_integer(text: str) -> int:
+    value = int(text)
+    if abs(value) > LARGEST_INTEGER:
+        raise _TooLarge(text, 0)
+    return value
+
+
 def load_json(text: str, source: str, error: type = DataError) -> Any:
     """Python values of JSON ``text``; refuses invalid JSON, repeated keys, NaN and Infinity."""
     try:
-        return json.loads(text, object_pairs_hook=_unique, parse_constant=_constant)
+        return json.loads(text, object_pairs_hook=_unique, parse_constant=_constant, parse_int=_json_integer)
     except _Duplicate as dup:
         raise error(f"{source}: key {dup.key!r} is declared twice in one object.") from None
+    except _TooLarge as big:
+        raise error(big.sentence(source)) from None
     except json.JSONDecodeError as exc:
         raise error(f"{source}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}).") from None
     except ValueError as exc:
