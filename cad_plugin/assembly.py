@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hyperstat.solver.atomic import dumps_json, write_bytes, write_text
+from hyperstat.solver.atomic import all_or_nothing, dumps_json, write_bytes, write_text
 from hyperstat.solver.kinematics.build import FrameSpec, JointSpec
 from hyperstat.solver.errors import TemplateError
 
@@ -247,8 +247,7 @@ def export_step(skeleton: "Skeleton", path: str | Path, analysis: dict | None = 
 
     path = Path(path)
     assy = build_assembly(skeleton, analysis)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
+    with tempfile.TemporaryDirectory() as tmp:
         scratch = Path(tmp) / "assembly.step"
         assy.export(str(scratch), exportType="STEP", unit="MM")
         data = scratch.read_bytes()
@@ -256,8 +255,9 @@ def export_step(skeleton: "Skeleton", path: str | Path, analysis: dict | None = 
     meta = sidecar(skeleton)
     meta["step"] = path.name
     meta["step_sha256"] = hashlib.sha256(data).hexdigest()
-    write_bytes(path, data)
-    side = write_text(sidecar_path(path), dumps_json(meta))
+    with all_or_nothing():  # the STEP file and its sidecar, both or neither
+        write_bytes(path, data)
+        side = write_text(sidecar_path(path), dumps_json(meta))
     return path, side
 
 

@@ -288,7 +288,7 @@ def build_parser():
     p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
     p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
     p.add_argument("--quiet", action="store_true", help="print nothing")
-    p.set_defaults(func=_cmd_report)
+    p.set_defaults(func=_cmd_report, known_outputs=("report.json", "report.md", "report.html", "skeleton_views.png"))
     p = sub.add_parser("parameters", help="list a template's parameters: name, default, unit, meaning, bounds")
     p.add_argument("template", help="template file (.py)")
     p.add_argument("--json", metavar="OUT.json", help="write them as JSON")

@@ -14,6 +14,7 @@ import re
 from typing import Any
 
 from hyperstat.solver.errors import TemplateError
+from hyperstat.solver.plausibility import plausible_angle, plausible_length
 
 __all__ = ["param", "describe", "parse_value", "parse_overrides", "make_parameters"]
 
@@ -72,6 +73,8 @@ def parse_overrides(items: list[str] | None, parameters_cls: type) -> dict[str, 
         if "=" not in item:
             raise TemplateError(f"parameter override '{item}' must read NAME=VALUE.")
         name, text = (s.strip() for s in item.split("=", 1))
+        if name in out:
+            raise TemplateError(f"parameter '{name}' is given twice (-p {name}=...); give it once.")
         if name not in fields:
             valid = ", ".join(f"{n} [{f.metadata.get('unit', '1')}]" for n, f in fields.items())
             raise TemplateError(f"unknown parameter '{name}'; valid parameters: {valid}.")
@@ -100,5 +103,9 @@ def make_parameters(parameters_cls: type, values: dict[str, Any]) -> Any:
             raise TemplateError(f"parameter '{name}' must be {cmp} {lo:g} {md.get('unit', '')}, got {value:g}.")
         if hi is not None and value > hi:
             raise TemplateError(f"parameter '{name}' must be <= {hi:g} {md.get('unit', '')}, got {value:g}.")
+        if md.get("unit") == "mm":
+            plausible_length(value, "mm", f"parameter '{name}'", error=TemplateError)
+        elif md.get("unit") == "rad":
+            plausible_angle(value, "rad", f"parameter '{name}'", error=TemplateError)
         values[name] = value
     return parameters_cls(**values)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hyperstat.solver.atomic import write_bytes
+from hyperstat.solver.atomic import all_or_nothing, write_bytes
 
 __all__ = ["write_diagnosis_plots", "diagnosis_figures", "revolute_spectra_figure", "answered_frequency"]
 
@@ -121,8 +121,9 @@ def revolute_spectra_figure(diag, rspectra: list, plt):
 def write_diagnosis_plots(diag, data, directory: str | Path) -> list[Path]:
     """Write the figures of :func:`diagnosis_figures` atomically into ``directory``."""
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    return [write_bytes(directory / name, png) for name, png in diagnosis_figures(diag, data).items()]
+    figures = diagnosis_figures(diag, data)
+    with all_or_nothing():  # every figure or none
+        return [write_bytes(directory / name, png) for name, png in figures.items()]
 
 
 def accuracy_map_png(mech, analysis, axes: tuple, slices: list, path, coefficients=("delta_gR", "epsilon_gR"),

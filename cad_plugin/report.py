@@ -17,7 +17,7 @@ import html
 import tempfile
 from pathlib import Path
 
-from hyperstat.solver.atomic import dumps_json, write_bytes, write_text
+from hyperstat.solver.atomic import all_or_nothing, dumps_json, write_bytes, write_text
 
 __all__ = ["write_report", "skeleton_png", "render_html", "render_markdown", "SECTIONS"]
 
@@ -463,13 +463,13 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
                  images: dict | None = None) -> list[Path]:
     """Render the views and write ``report.html``, ``report.md`` and ``report.json`` atomically into ``out_dir``."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     images = dict(images or {})
     if mechanism is not None and "views" not in images:
         images["views"] = skeleton_png(mechanism, analysis_json)
-    written = [write_text(out_dir / "report.json", dumps_json(doc)),
-               write_text(out_dir / "report.md", render_markdown(doc)),
-               write_text(out_dir / "report.html", render_html(doc, images))]
-    if "views" in images:
-        written.append(write_bytes(out_dir / "skeleton_views.png", images["views"]))
+    with all_or_nothing():  # every file of the report or none
+        written = [write_text(out_dir / "report.json", dumps_json(doc)),
+                   write_text(out_dir / "report.md", render_markdown(doc)),
+                   write_text(out_dir / "report.html", render_html(doc, images))]
+        if "views" in images:
+            written.append(write_bytes(out_dir / "skeleton_views.png", images["views"]))
     return written

@@ -104,6 +104,40 @@ def _duplicate_row(good: Path, dst: Path) -> Path:
     return _write(dst, "\n".join(lines + [",".join(row)]) + "\n")
 
 
+def _import(robot: Path, tmp: Path) -> list:
+    return ["import-robot", str(robot), "--out", str(tmp / "out.skel.json")]
+
+
+def _robot(tmp: Path, name: str, old: str, new: str) -> Path:
+    """A good robot file (``.urdf``, ``.yaml``, ``.csv``; those of the robot-import tests) with ``old`` replaced by
+    ``new``."""
+    from tests.solver.kinematics.test_robot_import_checks import DH, DH_CSV, URDF
+
+    text = {".urdf": URDF, ".yaml": DH, ".csv": DH_CSV}[Path(name).suffix]
+    assert old in text, (name, old)
+    return _write(tmp / name, text.replace(old, new, 1))
+
+
+def _rehashed(change: Callable[[dict], None]) -> Callable[[dict], None]:
+    """A controller-file change followed by a recomputed hash: what only the content checks can catch."""
+    def apply(doc: dict) -> None:
+        from hyperstat.solver.export.controller import content_hash
+
+        change(doc)
+        doc["sha256"] = content_hash(doc)
+    return apply
+
+
+def _widen_first_range(doc: dict) -> None:
+    joint = next(e for ch in doc["model"]["chains"] for e in ch["elements"] if e.get("role") == "actuated")
+    joint["range"][1] += 50.0
+
+
+def _mkdir(path: Path) -> Path:
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
 def _cell(good: Path, dst: Path, column: str, value: str) -> Path:
     lines = good.read_text().splitlines()
     head = next(i for i, line in enumerate(lines) if line.startswith("pose,"))
@@ -211,6 +245,80 @@ CASES = [
                        "--json", str(t / "out.json")], "test vector"),
     Case("kins-mechanism", "model file", "mechanism with no LinuxCNC world coordinates (export-linuxcnc-kins)",
          lambda t, g: ["export-linuxcnc-kins", str(g["model"]), "--out", str(t / "out")], "actuated joint"),
+    # robot files (import-robot): malformed URDF graphs, implausible values, declarations twice (issue 31)
+    Case("urdf-missing-link", "URDF", "a joint's parent link is not declared",
+         lambda t, g: _import(_robot(t, "r.urdf", '<parent link="l1"/>', '<parent link="lX"/>'), t), "'lX'"),
+    Case("urdf-loop", "URDF", "a closed loop (a link with two parents)",
+         lambda t, g: _import(_robot(t, "r.urdf", "</robot>", '<joint name="j4" type="fixed"><parent link="l3"/>'
+                                     '<child link="l1"/></joint></robot>'), t), "closed loop"),
+    Case("urdf-zero-axis", "URDF", "a zero joint axis",
+         lambda t, g: _import(_robot(t, "r.urdf", '<axis xyz="0 1 0"/>', '<axis xyz="0 0 0"/>'), t), "'j2'"),
+    Case("urdf-mimic", "URDF", "a mimic joint on the chain",
+         lambda t, g: _import(_robot(t, "r.urdf", '<axis xyz="0 1 0"/>', '<axis xyz="0 1 0"/><mimic joint="j1"/>'), t),
+         "mimic"),
+    Case("urdf-degrees", "URDF", "limits in degrees",
+         lambda t, g: _import(_robot(t, "r.urdf", 'lower="-2" upper="2"', 'lower="-120" upper="120"'), t), "degrees"),
+    Case("dh-degrees", "DH table", "angles in degrees labelled rad (YAML)",
+         lambda t, g: _import(_robot(t, "r.yaml", "angle: deg}", "angle: rad}"), t), "looks like degrees"),
+    Case("dh-range-degrees", "DH table", "ranges of +-180 labelled rad (CSV)",
+         lambda t, g: _import(_write(t / "r.csv", "# convention: dh\n"
+                                     "joint,type,a[mm],alpha[rad],d[mm],theta[rad],min[rad],max[rad]\n"
+                                     "1,R,312,-1.5,670,0,-180,180\n2,R,1075,0,0,-1.5,-1,1\n"), t),
+         "looks like degrees"),
+    Case("dh-huge", "DH table", "a = 1e308 (YAML)",
+         lambda t, g: _import(_robot(t, "r.yaml", "a: 1075", "a: 1e308"), t), "1e+308"),
+    Case("dh-huge-csv", "DH table", "a = 1e308 (CSV)",
+         lambda t, g: _import(_robot(t, "r.csv", "2,R,1075", "2,R,1e308"), t), "1e+308"),
+    Case("dh-key-twice", "DH table", "a field declared twice in a row",
+         lambda t, g: _import(_robot(t, "r.yaml", "a: 1075,", "a: 1075, a: 1076,"), t), "declared twice"),
+    Case("dh-joint-map-self", "DH table", "a joint map naming a model joint as a controller joint",
+         lambda t, g: _import(_robot(t, "r.yaml", '"2": {J2: -1, offset: 0.5}', '"2": {"2": -1}'), t), "model joint"),
+    # model files and templates: plausibility and declarations twice
+    Case("model-absurd-origin", "model file", "an origin of 1e308 mm",
+         lambda t, g: _analyze(_json_edit(g["model"], t / "m.json", lambda d: d["chains"][0]["elements"][1]["placement"]
+                                          .update(origin=[1e308, 0, 0])), t), "1e+308"),
+    Case("model-range-degrees", "model file", "a revolute range in degrees",
+         lambda t, g: _analyze(_json_edit(g["model"], t / "m.json", lambda d: d["chains"][0]["elements"][1]
+                                          .update(range=[-180, 180])), t), "looks like degrees"),
+    Case("model-key-twice", "model file", "a key declared twice",
+         lambda t, g: _analyze(_write(t / "m.json", g["model"].read_text().replace('"name":', '"name": "x", "name":', 1)),
+                               t), "declared twice"),
+    Case("template-absurd-length", "template", "a length of 1e308 mm",
+         lambda t, g: _analyze(SC, t, "-p", "L1=1e308mm"), "L1"),
+    Case("template-twice", "template", "a parameter given twice",
+         lambda t, g: _analyze(SC, t, "-p", "L1=30", "-p", "L1=31"), "twice"),
+    # measurement and hypothesis files: declarations twice
+    Case("data-two-priors", "measurement file", "two priors for the same reflector",
+         lambda t, g: _identify(_edit(g["data"], t / "d.csv", "# target:", "# target: 1 2 3\n# target:"), t),
+         "declared in line"),
+    Case("hypotheses-key-twice", "hypothesis file", "an axis declared twice",
+         lambda t, g: ["check-hypotheses", str(SC), str(_edit(g["hyp"], t / "h.yaml", "  a3: {element: '3'}",
+                                                              "  a3: {element: '3'}\n  a3: {element: '2'}")),
+                       "--json", str(t / "out.json")], "declared twice"),
+    # controller files that try to vouch for themselves (hash recomputed)
+    Case("controller-tolerance", "controller file", "test-vector tolerance raised, hash recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: d["test_vectors"]["tolerance"].update(length_mm=1e3))))], "cannot set its own tolerance"),
+    Case("controller-unknown-defect", "controller file", "an unknown defect dX99, hash recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: d["defects"].update(dX99=0.0))))], "dX99"),
+    Case("controller-range", "controller file", "a joint range widened, hash recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json",
+                                                          _rehashed(_widen_first_range)))], "joint ranges"),
+    Case("controller-magnitude", "controller file", "a defect beyond what the version admits, hash recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: d["defects"].update({sorted(d["defects"])[0]: 0.5}))))], "version 2 admits"),
+    # outputs: checked before the work
+    Case("output-is-a-directory", "output", "--out names an existing directory",
+         lambda t, g: ["export-controller", str(SC), str(g["data"]), "--out", str(_mkdir(t / "dir.json"))],
+         "is a directory"),
+    Case("output-under-a-file", "output", "an output directory below a file",
+         lambda t, g: ["export-linuxcnc-kins", str(g["model"]), "--out", str(_write(t / "f.txt", "x") / "k")],
+         "is a file, not a directory"),
+    # a calibration that must not be exported
+    Case("export-absurd", "calibration", "export of a fit identify calls absurd (z in m, values in mm)",
+         lambda t, g: ["export-controller", str(SC), str(_edit(g["data"], t / "d.csv", "z[mm]", "z[m]")), "--out",
+                       str(t / "out.json")], "--force"),
     # command-line values
     Case("option-noise", "option", "noise model that cannot be read",
          lambda t, g: ["simulate", str(SC), "--noise", "5 um", "--out", str(t / "out.csv")], "--noise"),
@@ -271,13 +379,75 @@ def markdown(rows: list) -> str:
     """The catalogue as the table of docs/errors.md."""
     lines = ["# Errors: what hyperstat says about bad input", "",
              "Every malformed input gets one sentence on stderr naming the input and what is wrong, exit",
-             "code 2, no traceback and no output file (written atomically: a temporary file, then a rename).",
+             "code 2, no traceback and no output file.  Outputs are checked before the work starts (a folder",
+             "that cannot be written, a directory where a file goes, a file that cannot be replaced), and a",
+             "command's files are written together at its end or not at all (`solver/atomic.py`).",
              "This table is produced by `python -m tests.catalogue docs/errors.md` and checked by",
              "`tests/test_bad_inputs.py` (temporary paths shortened to `TMP/`).", "",
              "| input | case | message |", "|---|---|---|"]
     for case, message in rows:
         lines.append(f"| {case.kind} | {case.what} | `{message}` |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + [""] + TRAILER) + "\n"
+
+
+#: the refusals that the table shows one example of, by class, with where each is tested
+TRAILER = """## The classes behind the table
+
+**Plausibility, with units** (`solver/plausibility.py`).  Every number read is converted to mm or rad
+and refused outside its range, in the unit the input used: a length or position beyond 100 m
+(`... = 1e+308 mm is not a plausible length (at most 100 m).`; a value in a file that says `m` and
+would fit in mm: `...: it looks like millimetres (state the unit as mm).`); a constant angle (DH `alpha`,
+`theta`, roll-pitch-yaw, a rotation vector, a joint-map offset) beyond a turn, and a revolute joint
+range beyond two turns: `... = -90 rad is beyond 2 pi rad (a turn): it looks like degrees (state the
+unit as deg).`; a joint value in `rad` outside its range that fits in degrees: `...: it looks like
+degrees (write 'q1[deg]').`; tracker noise beyond 100 mm or 100 mm/m, orientation noise beyond
+0.1 rad, a temperature outside -100..200 degC, a payload outside 0..10000 kg, a gear ratio outside
+1e-6..1e6, a coupling coefficient beyond 1000; NaN and infinities everywhere.  Readers: model files
+(`Mechanism`), template parameters, DH tables (YAML, CSV), joint maps, URDF, measurement files
+(positions, 6-D rows, header lines, metadata), controller files (below).
+Tests: `tests/solver/kinematics/test_robot_import_checks.py`,
+`tests/solver/calibration/test_measurement_checks.py`, the table above.
+
+**Malformed URDF graphs** (`check_urdf` in `solver/kinematics/robot_import.py`, every joint, not only
+the chain's): a parent or child link not declared; a link the child of two joints or joints that
+close a loop (`... the joints form a closed loop`); a joint joining a link to itself; a zero or
+non-finite axis; a mimic joint on the chain (refused) or naming an unknown joint; two links or two
+joints of one name; an unknown joint type; lower >= upper; XML that is not well formed.  Nothing is
+dropped: a chain with a missing link was imported short before.
+Tests: `tests/solver/kinematics/test_robot_import_checks.py` (18 URDF cases).
+
+**Declared twice or in conflict**: a YAML or JSON key declared twice (DH tables, joint maps,
+hypothesis files, model files, controller files: `key 'a' is declared twice (line 8).`, read by
+`solver/strict_load.py`); a CSV column or header line twice; a measurement header declared twice
+(two priors for one reflector, in any case), a prior for a reflector without columns, reflectors
+whose names differ only by case; a model joint twice in a joint map; a template parameter given
+twice; an axis through the same point twice, or through two points that coincide at home.
+
+**A controller file cannot vouch for itself** (`check_admissible` in `solver/export/controller.py`,
+run by every reader of the file after the hash): a test-vector tolerance other than the version's;
+a defect the model does not have, or one missing; a defect beyond 0.1 rad or 100 mm, a tool point or
+target beyond 2000 mm; an effect option, parameter or value the effect does not admit; keys the
+format does not hold (schema); test vectors that are not the version's draws from the file's
+joint ranges (a range changed after export); fewer than 12 vectors.  `check-controller` also
+refuses an actuated range a parallel mechanism cannot reach, and, with `--source`, a model (ranges
+included) that differs from the trusted one.
+Tests: `tests/solver/export/test_controller.py`.
+
+**A calibration that must not be exported**: `export-controller`, `export-urdf` and `export-dh` refuse
+a fit identify calls absurd or one worse than the nominal model on held-out poses, unless `--force`
+(`... not written: it predicts the held-out poses worse than the nominal model (validation RMS A mm
+against B mm with the nominal geometry); check the inputs, or write it anyway with --force.`).
+Tests: `tests/solver/export/test_calibration_gate.py`.
+
+**Outputs**: refused before the work (the table's examples, and an output folder that cannot be
+written: `TMP/locked: the directory cannot be written (Operation not permitted), so ... cannot be
+written.`); at the end, a file that cannot be replaced: `TMP/k/machine.ini: cannot be replaced
+(read-only or immutable); no output was written.`, every other output left as it was.
+Tests: `tests/test_outputs_whole_or_absent.py` (each output of `report`, `export-linuxcnc-kins`,
+`export-controller`, `identify` made unwritable in turn), `tests/solver/test_atomic.py`.
+
+**Plug-ins**: an effect plug-in that cannot be loaded is named (`the effect plug-in 'NAME' (VALUE)
+cannot be loaded: ...`); one that fails while the diagnosis runs is issue 28's.""".splitlines()
 
 
 def clean(message: str, tmp: Path) -> str:
@@ -287,6 +457,7 @@ def clean(message: str, tmp: Path) -> str:
 
     text = message.strip().replace(str(tmp) + "/", "TMP/").replace(str(tmp), "TMP")
     text = re.sub(r"is \d\.\d+e-\d+ mm from the file's", "is D mm from the file's", text)
+    text = re.sub(r"the residuals are [\d.]+ times", "the residuals are S times", text)
     return text.replace(str(ROOT) + "/", "").replace("|", "\\|")
 
 

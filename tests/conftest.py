@@ -63,3 +63,34 @@ def scara_analysis(scara):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return analyze(scara, n_configurations=24, seed=0)
+
+
+def run_cli(argv: list) -> tuple[int, str, str]:
+    """Run the ``hyperstat`` console script in-process: (exit code, stdout, stderr); warnings silenced."""
+    import contextlib
+    import io
+
+    from hyperstat.cad_plugin.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            code = main([str(a) for a in argv])
+        except SystemExit as exc:  # argparse
+            code = exc.code
+    return code, out.getvalue(), err.getvalue()
+
+
+def assert_refused(argv: list, *needles: str, outputs: tuple = ()) -> str:
+    """The command exits 2 with one sentence on stderr containing ``needles``, no traceback, and leaves none of
+    ``outputs``; returns the sentence."""
+    code, out, err = run_cli(argv)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("hyperstat: error: "), (code, err)
+    assert "Traceback" not in out + err
+    for needle in needles:
+        assert needle in err, err
+    for path in outputs:
+        assert not Path(path).exists(), f"{path} was written"
+    return lines[0]

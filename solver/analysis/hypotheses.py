@@ -163,6 +163,8 @@ def parse_hypotheses(doc: Any, mechanism: Mechanism, source: str = "hypotheses")
             elif key == "through" and kind == "axes":
                 _require(isinstance(value, list) and len(value) == 2, source,
                          f"field 'axes.{name}.through' must list two point names.")
+                _require(str(value[0]) != str(value[1]), source,
+                         f"field 'axes.{name}.through' names point '{value[0]}' twice; an axis needs two points.")
                 target[name] = {"through": [str(v) for v in value]}
             else:
                 raise DataError(f"{source}: field '{kind}.{name}' has unknown key '{key}'.")
@@ -201,18 +203,36 @@ def parse_hypotheses(doc: Any, mechanism: Mechanism, source: str = "hypotheses")
 
 def load_hypotheses(path: str | Path, mechanism: Mechanism) -> tuple[dict, dict, list]:
     """Read a YAML hypothesis file (``yaml.safe_load``: no code is ever evaluated)."""
-    import yaml
+    from hyperstat.solver.strict_load import load_yaml
 
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: no such hypothesis file.")
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1})" if mark is not None else ""
-        raise DataError(f"{path}: not valid YAML{where}.") from None
-    return parse_hypotheses(doc, mechanism, str(path))
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise DataError(f"{path}: not valid YAML (not UTF-8 text).") from None
+    axes, points, hyps = parse_hypotheses(load_yaml(text, str(path)), mechanism, str(path))
+    _refuse_coincident_points(mechanism, axes, points, str(path))
+    return axes, points, hyps
+
+
+def _refuse_coincident_points(mechanism: Mechanism, axes: dict, points: dict, source: str) -> None:
+    """An axis through two points needs two distinct points at the home configuration."""
+    through = {name: spec["through"] for name, spec in axes.items() if "through" in spec}
+    if not through:
+        return
+    el_pose, frame_pose, _ = _geometry(Kinematics(mechanism))
+
+    def where(p: str) -> np.ndarray:
+        spec = points[p]
+        return (el_pose[spec["element"]] if "element" in spec else frame_pose[spec["frame"]])[:3, 3]
+
+    for name, (a, b) in through.items():
+        pa, pb = where(a), where(b)
+        if np.linalg.norm(pb - pa) < 1e-9 * max(1.0, float(np.linalg.norm(pa))):
+            raise DataError(f"{source}: field 'axes.{name}.through' names points '{a}' and '{b}', which coincide at "
+                            f"the home configuration: they give no direction.")
 
 
 def _geometry(kin: Kinematics) -> tuple[dict, dict, dict]:
@@ -258,6 +278,9 @@ def _rows(h: Hypothesis, axes: dict, points: dict, el_pose: dict, frame_pose: di
         if "through" in spec:
             (pa, va), (pb, vb) = point(spec["through"][0]), point(spec["through"][1])
             d = pb - pa
+            if np.linalg.norm(d) < 1e-9 * max(1.0, float(np.linalg.norm(pa))):
+                raise DataError(f"axis '{name}' goes through points '{spec['through'][0]}' and "
+                                f"'{spec['through'][1]}', which coincide at the home configuration: no direction.")
             n = d / np.linalg.norm(d)
             dn = ((vb - va) - np.outer((vb - va) @ n, n)) / np.linalg.norm(d)
             return pa, n, va, dn

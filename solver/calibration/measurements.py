@@ -50,6 +50,7 @@ from hyperstat.solver.atomic import write_text
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.joint_map import ANGLE_UNITS, LENGTH_UNITS, JointMap, joint_map_from_dict
 from hyperstat.solver.kinematics.model import Mechanism
+from hyperstat.solver.plausibility import plausible_angle, plausible_in, plausible_length
 
 __all__ = ["MeasurementSet", "NoiseModel", "read_measurements", "write_measurements", "parse_measurements",
            "parse_noise",
@@ -57,6 +58,13 @@ __all__ = ["MeasurementSet", "NoiseModel", "read_measurements", "write_measureme
 
 _HEADER = "# hyperstat measurements, version 1"
 METADATA_COLUMNS = {"temperature": "degC", "payload": "kg", "time": "s", "session": ""}
+#: plausible values of the metadata columns (low, high, unit, what)
+METADATA_RANGES = {"temperature": (-100.0, 200.0, "degC", "workshop temperature"),
+                   "payload": (0.0, 1e4, "kg", "payload")}
+#: largest plausible tracker noise terms (1 sigma per axis: mm, and mm per m of distance)
+MAX_NOISE_MM = 100.0
+#: largest plausible orientation noise of a 6-D tracker (1 sigma per axis, rad)
+MAX_ORIENTATION_NOISE_RAD = 0.1
 _COL = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[([^\]]*)\])?$")
 _TARGET_COL = re.compile(r"^([xyz])_([A-Za-z0-9]+)$")
 
@@ -169,6 +177,11 @@ class MeasurementSet:
         )
 
 
+def _declaration(key: str) -> bool:
+    """Whether a header key declares something (once only), rather than being a free comment."""
+    return key in ("mechanism", "noise", "tracker", "target", "orientation noise") or key.startswith("target ")
+
+
 def _number(text: str, where: str) -> float:
     try:
         v = float(text)
@@ -247,12 +260,18 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
     if not lines or lines[0].strip() != _HEADER:
         raise DataError(f"{source}: the first line must be '{_HEADER}'.")
     header: dict[str, str] = {}
+    header_line: dict[str, int] = {}
     body_start = 0
     for i, line in enumerate(lines):
         if line.startswith("#"):
             if ":" in line and i > 0:
                 key, value = line[1:].split(":", 1)
-                header[key.strip().lower()] = value.strip()
+                key = " ".join(key.split()).lower()
+                if key in header_line and _declaration(key):
+                    raise DataError(f"{source}, line {i + 1}: header '{key}' is already declared in line "
+                                    f"{header_line[key]}; give it once.")
+                header_line.setdefault(key, i + 1)
+                header.setdefault(key, value.strip())
             continue
         body_start = i
         break
@@ -285,6 +304,17 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
         if targets:
             raise DataError(f"{source}: columns x, y, z (one target) and x_<target> (several targets) cannot be mixed.")
         targets = [""]
+    by_case: dict[str, str] = {}
+    for t in targets:
+        if t.lower() in by_case:
+            raise DataError(f"{source}: targets '{by_case[t.lower()]}' and '{t}' differ only by case; their priors "
+                            f"('# target <name>:') could not be told apart.")
+        by_case[t.lower()] = t
+    for key, line in header_line.items():
+        if key.startswith("target ") and key[len("target "):] not in by_case:
+            raise DataError(f"{source}, line {line}: header '# {key}:' gives a prior for a target that has no "
+                            f"columns (targets: {', '.join(t for t in targets if t) or 'one, columns x, y, z'}); "
+                            f"several targets go in columns x_<target>, y_<target>, z_<target>, not stacked in x, y, z.")
 
     def col(base: str, t: str) -> str:
         return base if t == "" else f"{base}_{t}"
@@ -364,9 +394,11 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
             if n_t > 1 and all(not c for c in cells):
                 continue  # target not seen at this pose
             for a, name in enumerate(col(a, t) for a in "xyz"):
-                pos[i, ti, a] = _number(row[index[name]], f"{source}, row {r}, column '{parsed[name][0]}'") * factors[name]
+                where = f"{source}, row {r}, column '{parsed[name][0]}'"
+                pos[i, ti, a] = plausible_length(_number(row[index[name]], where), parsed[name][1], where)
             if t in rot_cols:
-                rot[i, ti] = [_number(row[index[c]], f"{source}, row {r}, column '{parsed[c][0]}'") * factors[c]
+                rot[i, ti] = [plausible_angle(_number(row[index[c]], f"{source}, row {r}, column '{parsed[c][0]}'"),
+                                              parsed[c][1], f"{source}, row {r}, column '{parsed[c][0]}'")
                               for c in rot_cols[t]]
             elif t in quat_cols:
                 qv = np.array([_number(row[index[c]], f"{source}, row {r}, column '{c}'") for c in quat_cols[t]])
@@ -376,9 +408,13 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
                                     f"{norm:.6g}, not 1.")
                 rot[i, ti] = _quaternion_to_rotvec(qv / norm)
         for name in meta:
-            v = _number(row[index[name]], f"{source}, row {r}, column '{parsed[name][0]}'")
+            where = f"{source}, row {r}, column '{parsed[name][0]}'"
+            v = _number(row[index[name]], where)
             if name.startswith("dir") and v not in (-1.0, 1.0):
-                raise DataError(f"{source}, row {r}, column '{name}': an approach direction is -1 or +1, got {v:g}.")
+                raise DataError(f"{where}: an approach direction is -1 or +1, got {v:g}.")
+            if name in METADATA_RANGES:
+                low, high, unit, what = METADATA_RANGES[name]
+                plausible_in(v, low, high, unit, where, what)
             meta[name][i] = v
     q = joint_map.apply(raw) if joint_map is not None else raw
     ranges = mechanism.ranges[mechanism.actuated]
@@ -388,8 +424,12 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
             if not (lo - 1e-9 <= q[i, jj] <= hi + 1e-9):
                 what = f"column '{parsed[jcols[jj][0]][0]}'" if joint_map is None else \
                     f"model joint {j.name} (from the controller columns through the joint map)"
+                hint = ""
+                if joint_map is None and j.type == "R" and parsed[jcols[jj][0]][1] == "rad" and \
+                        lo <= np.radians(q[i, jj]) <= hi and abs(q[i, jj]) > 2 * np.pi:
+                    hint = f": it looks like degrees (write '{jcols[jj][0]}[deg]')"
                 raise DataError(f"{source}, row {r}, {what}: {q[i, jj]:g} is outside the joint range "
-                                f"[{lo:g}, {hi:g}] ({'rad' if j.type == 'R' else 'mm'}).")
+                                f"[{lo:g}, {hi:g}] ({'rad' if j.type == 'R' else 'mm'}){hint}.")
     seen: dict[str, int] = {}
     for i, p in enumerate(poses):
         if p in seen:
@@ -404,9 +444,14 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
         raise DataError(f"{source}: rows {rows_dup[0]} and {rows_dup[1]} repeat the same pose (same actuated values "
                         f"and metadata); several targets measured at one pose go in one row, columns x_<target>.")
     noise = parse_noise(header["noise"], f"{source}: header 'noise'") if "noise" in header else None
+    if noise is not None:
+        plausible_in(noise.a, 0.0, MAX_NOISE_MM, "mm", f"{source}: header 'noise', constant term", "tracker noise")
+        plausible_in(noise.b, 0.0, MAX_NOISE_MM, "mm/m", f"{source}: header 'noise', distance term", "tracker noise")
     rot_noise = None
     if "orientation noise" in header:
         rot_noise = _parse_angle(header["orientation noise"], f"{source}: header 'orientation noise'")
+        plausible_in(rot_noise, 0.0, MAX_ORIENTATION_NOISE_RAD, "rad", f"{source}: header 'orientation noise'",
+                     "orientation noise")
     elif oriented:
         raise DataError(f"{source}: orientation columns need a header line '# orientation noise: A rad' "
                         f"(or deg, mrad): their 1-sigma per axis.")
@@ -415,12 +460,15 @@ def parse_measurements(text: str, mechanism: Mechanism, source: str = "measureme
         if key not in header:
             return None
         parts = header[key].split()
-        scale = 1.0
+        unit = "mm"
         if n == 3 and len(parts) == 4 and parts[3] in LENGTH_UNITS:
-            scale = LENGTH_UNITS[parts.pop()]
+            unit = parts.pop()
         if len(parts) != n:
             raise DataError(f"{source}: header '{key}' needs {n} numbers, got '{header[key]}'.")
-        return np.array([_number(p, f"{source}: header '{key}'") for p in parts]) * scale
+        where = f"{source}: header '{key}'"
+        values = [_number(p, where) for p in parts]
+        return np.array([plausible_length(v, unit, where) if k < 3 else plausible_angle(v, "rad", where)
+                         for k, v in enumerate(values)])
 
     name = header.get("mechanism", "")
     if name and name != mechanism.name:

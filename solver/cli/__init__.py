@@ -23,6 +23,7 @@ from hyperstat.solver.cli.common import (
     register_source,
     stages,
 )
+from hyperstat.solver.cli.outputs import command_outputs
 from hyperstat.solver.errors import HyperstatError
 
 __all__ = ["main", "build_parser", "register_source", "register_plotter", "load_source", "jsonable", "analysis_of",
@@ -52,6 +53,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_LINE_BREAKS = {c: c.encode("unicode_escape").decode("ascii") for c in "\n\r\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"}
+
+
+def one_line(message: str) -> str:
+    """``message`` on one line: line breaks that came from an input (a name with a newline) are escaped.
+
+    >>> print(one_line("field 'a' names 'x" + chr(10) + "y'."))
+    field 'a' names 'x\\ny'.
+    """
+    return message.translate(str.maketrans(_LINE_BREAKS))
+
+
 class Terminated(BaseException):
     """Raised by the SIGTERM handler so that pending atomic writes clean up their temporary files."""
 
@@ -71,12 +84,14 @@ def main(argv: list[str] | None = None, parser: argparse.ArgumentParser | None =
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
-        return int(args.func(args) or 0)
+        with command_outputs(parser, args):  # outputs checked first, written together at the end
+            code = int(args.func(args) or 0)
+        return code
     except Terminated:
         sys.stderr.write("hyperstat: terminated; no output was left half-written\n")
         return 143
     except HyperstatError as exc:
-        sys.stderr.write(f"hyperstat: error: {exc}\n")
+        sys.stderr.write(f"hyperstat: error: {one_line(str(exc))}\n")
         return 2
     except KeyboardInterrupt:
         sys.stderr.write("hyperstat: interrupted\n")

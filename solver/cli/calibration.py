@@ -12,7 +12,8 @@ import warnings
 from pathlib import Path
 
 from hyperstat.solver.atomic import write_json
-from hyperstat.solver.cli.common import PLOTTERS, analysis_of, common_options, jsonable, load_source, stages
+from hyperstat.solver.cli.common import (PLOTTERS, analysis_of, common_options, force_option, gate_calibration, jsonable,
+                                         load_source, stages)
 from hyperstat.solver.errors import HyperstatError
 
 
@@ -109,18 +110,17 @@ def _read_data(args: argparse.Namespace, mech):
 
 
 def _load_joint_map(path: str, mech):
-    import yaml
-
     from hyperstat.solver.errors import DataError
     from hyperstat.solver.kinematics.joint_map import joint_map_from_dict
+    from hyperstat.solver.strict_load import load_yaml
 
     p = Path(path)
     if not p.is_file():
         raise DataError(f"{p}: no such joint-map file.")
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise DataError(f"{p}: not valid YAML ({str(exc).splitlines()[0]}).") from None
+        doc = load_yaml(p.read_text(encoding="utf-8"), str(p))
+    except UnicodeDecodeError:
+        raise DataError(f"{p}: not UTF-8 text.") from None
     if isinstance(doc, dict) and "joint_map" in doc:
         doc = doc["joint_map"]
     joints = [mech.joints[i] for i in mech.actuated]
@@ -179,6 +179,7 @@ def _cmd_import_robot(args: argparse.Namespace) -> int:
 
 def _calibrated(args: argparse.Namespace):
     mech, provenance, res = _run_identification(args, ["export"])
+    gate_calibration(res, args)
     return mech, res, res.model.defects(res.theta)
 
 
@@ -191,14 +192,21 @@ def _comment(args: argparse.Namespace, res) -> str:
 
 def _cmd_export_urdf(args: argparse.Namespace) -> int:
     from hyperstat.solver.atomic import write_text
-    from hyperstat.solver.export.robot_export import urdf_text
+    from hyperstat.solver.export.robot_export import joint_map_text, urdf_text
 
     mech, res, xi = _calibrated(args)
-    path = write_text(args.out, urdf_text(mech, xi, comment=_comment(args, res)))
+    out = Path(args.out)
+    side = out.with_name(out.name.removesuffix(out.suffix) + ".joint_map.yaml")
+    map_text = joint_map_text(mech, out.name)
+    wrote = [write_text(out, urdf_text(mech, xi, comment=_comment(args, res),
+                                       joint_map_file=side.name if map_text else None))]
+    if map_text:  # the controller's convention beside the URDF: both written, or neither
+        wrote.append(write_text(side, map_text))
     if not args.quiet:
         for w in res.warnings:
             sys.stdout.write(f"warning: {w}\n")
-        sys.stdout.write(f"wrote {path}\n")
+        for w in wrote:
+            sys.stdout.write(f"wrote {w}\n")
     return 0
 
 
@@ -274,6 +282,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("source", help="model file of a serial robot (hyperstat import-robot)")
         p.add_argument("data", help="identification measurements (CSV)")
         p.add_argument("--out", required=True, metavar=suffix, help="file to write")
+        force_option(p)
         _identify_options(p)
         common_options(p)
         p.set_defaults(func=func)

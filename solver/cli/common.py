@@ -24,7 +24,7 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.kinematics.modelfile import load_model
 
 __all__ = ["register_source", "register_plotter", "load_source", "jsonable", "analysis_of", "common_options", "PLOTTERS",
-           "Stages", "stages"]
+           "Stages", "stages", "gate_calibration", "force_option"]
 
 # suffix -> loader(path, overrides) -> (Mechanism, provenance dict)
 _SOURCES: dict[str, Callable[[Path, list[str]], tuple[Mechanism, dict]]] = {}
@@ -94,6 +94,33 @@ def analysis_of(args: argparse.Namespace) -> tuple:
         warnings.simplefilter("ignore")
         result = analyze(mech, n_configurations=args.configurations, seed=args.seed, kinematics=kin)
     return mech, provenance, kin, result
+
+
+def gate_calibration(res: Any, args: argparse.Namespace) -> None:
+    """Refuse to export a calibration identify flags as absurd or worse than nominal, unless ``--force``.
+
+    With ``--force`` the export goes on and a warning on stderr says why it should not have.
+
+    Raises
+    ------
+    HyperstatError
+        One sentence naming the output and the reason.
+    """
+    from hyperstat.solver.export.calibration_gate import export_refusal
+
+    why = export_refusal(res)
+    if why is None:
+        return
+    if not getattr(args, "force", False):
+        raise HyperstatError(f"{args.out}: not written: {why}; check the inputs, or write it anyway with --force.")
+    sys.stderr.write(f"hyperstat: warning: {args.out} written with --force although {why}.\n")
+
+
+def force_option(p: argparse.ArgumentParser) -> None:
+    """``--force``: export a calibration identify flags as absurd or worse than nominal on held-out poses."""
+    p.add_argument("--force", action="store_true",
+                   help="write even a calibration identify calls absurd or worse than the nominal model on held-out "
+                        "poses (refused by default)")
 
 
 def common_options(p: argparse.ArgumentParser) -> None:

@@ -12,12 +12,14 @@ import warnings
 from pathlib import Path
 
 from hyperstat.solver.atomic import write_json
-from hyperstat.solver.cli.common import PLOTTERS, analysis_of, common_options, jsonable, load_source, stages
+from hyperstat.solver.cli.common import (PLOTTERS, analysis_of, common_options, force_option, gate_calibration, jsonable,
+                                         load_source, stages)
 from hyperstat.solver.errors import HyperstatError
 
 
 def _cmd_export_controller(args: argparse.Namespace) -> int:
-    from hyperstat.solver.export.controller import MACHINE_EFFECTS, controller_document, write_controller
+    from hyperstat.solver.export.controller import (MACHINE_EFFECTS, check_admissible, controller_document,
+                                                    write_controller)
     from hyperstat.solver.diagnosis.effects import make_effect
     from hyperstat.solver.calibration.identify import identify
     from hyperstat.solver.calibration.measurements import read_measurements
@@ -49,11 +51,13 @@ def _cmd_export_controller(args: argparse.Namespace) -> int:
                 options = {"only": [defect or violated]} if name == "violated-constraint" else {}
                 effects.append(make_effect(name, mech, result, data, **options))
             res = identify(mech, result, data, validation, effects=tuple(effects), kinematics=kin)
+    gate_calibration(res, args)
     files = [args.data] + ([args.validation] if args.validation else [])
     from hyperstat.solver.tolerances.classification import classify
 
     tolerances = classify(mech, result, kin).to_dict()
     doc = controller_document(mech, res, tuple(effects), provenance, tuple(files), tolerances)
+    check_admissible(doc, str(args.out))  # what version 2 admits: never a file a reader would refuse
     path = write_controller(args.out, doc)
     if not args.quiet:
         v = res.validation or res.identification
@@ -68,13 +72,17 @@ def _geometry(args: argparse.Namespace, what: str):
     """(mechanism, defects, controller document or None) from SOURCE or --controller."""
     import numpy as np
 
-    from hyperstat.solver.export.controller import ControllerModel, read_controller
+    from hyperstat.solver.export.controller import ControllerModel, check_reachable_ranges, read_controller
 
     if bool(args.controller) == bool(args.source):
         raise HyperstatError(f"{what} needs a SOURCE (nominal geometry) or --controller MACHINE.json, not both.")
     if args.controller:
         doc = read_controller(args.controller)
-        model = ControllerModel(doc)
+        model = ControllerModel(doc, str(args.controller))
+        try:  # the ranges become the controller's joint limits
+            check_reachable_ranges(model)
+        except HyperstatError as exc:
+            raise HyperstatError(f"{args.controller}: {str(exc).removeprefix('controller file: ')}") from None
         return model.mechanism, model.xi, doc
     mech, _ = load_source(args.source, args.param)
     return mech, np.zeros(len(mech.parameters)), None
@@ -120,9 +128,10 @@ def _cmd_export_linuxcnc(args: argparse.Namespace) -> int:
 def _cmd_check_controller(args: argparse.Namespace) -> int:
     from hyperstat.solver.export.controller import check_controller
 
+    reference = load_source(args.source, args.param)[0] if args.source else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = check_controller(args.file)
+        res = check_controller(args.file, reference)
     if args.json:
         write_json(args.json, res)
     if not args.quiet:
@@ -133,12 +142,14 @@ def _cmd_check_controller(args: argparse.Namespace) -> int:
                          + (f" ({res['inverse_other_branch']} on another inverse solution with the same pose)"
                             if res["inverse_other_branch"] else "")
                          + (f"; {res['effect_vectors']} effect vectors (tool point with the machine effects): "
-                            f"{res['effects_mm']:.2g} mm" if res.get("effect_vectors") else "") + "\n")
+                            f"{res['effects_mm']:.2g} mm" if res.get("effect_vectors") else "")
+                         + (f"; model and joint ranges equal to {args.source}'s" if args.source else
+                            "; model not compared with a reference (--source)") + "\n")
     return 0
 
 
 def _cmd_export_linuxcnc_kins(args: argparse.Namespace) -> int:
-    from hyperstat.solver.atomic import write_text
+    from hyperstat.solver.atomic import all_or_nothing, write_text
     from hyperstat.solver.export.linuxcnc_kins import (component_name, inverse_conditioning, kins_component,
                                                        sample_world, world_layout)
     from hyperstat.solver.export.linuxcnc_sim import write_sim
@@ -172,15 +183,64 @@ def _cmd_export_linuxcnc_kins(args: argparse.Namespace) -> int:
     if not name.isidentifier():
         raise HyperstatError(f"--name: '{name}' is not a valid component name (letters, digits, underscores).")
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    comp = write_text(out / f"{name}.comp", kins_component(mech, xi, name=name, home=home))
-    ini = write_sim(out, mech, name, layout, sample_world(mech, xi, layout), home=home)
+    with all_or_nothing():  # the component and the machine files, together or none
+        comp = write_text(out / f"{name}.comp", kins_component(mech, xi, name=name, home=home))
+        ini = write_sim(out, mech, name, layout, sample_world(mech, xi, layout), home=home)
     if not args.quiet:
         sys.stdout.write(f"LinuxCNC kinematics of '{mech.name}' ({'identified' if doc else 'nominal'} geometry), "
                          f"world coordinates {' '.join(layout['coordinates'])}, {len(mech.actuated)} joints\n"
                          f"wrote {comp}\nwrote {ini} and {ini.with_suffix('.hal')}\n"
                          f"build: halcompile --install {comp}   run: linuxcnc {ini}\n")
     return 0
+
+
+def _world_point(text: str, option: str, letters: str) -> list:
+    """World coordinates from ``"X100 Y20 Z-1100 B10 C45"`` or ``"100 20 -1100 10 45"`` (mm, degrees)."""
+    words = text.replace(",", " ").split()
+    values = []
+    for k, word in enumerate(words):
+        if word[:1].upper() in letters and word[:1].isalpha():
+            if k >= len(letters) or word[0].upper() != letters[k]:
+                raise HyperstatError(f"{option}: '{text}' must give {' '.join(letters)} in this order (mm, degrees).")
+            word = word[1:]
+        try:
+            values.append(float(word))
+        except ValueError:
+            raise HyperstatError(f"{option}: '{word}' in '{text}' is not a number (mm or degrees).") from None
+    if len(values) != len(letters) or not all(math.isfinite(v) for v in values):
+        raise HyperstatError(f"{option}: '{text}' must hold {len(letters)} finite numbers, {' '.join(letters)} "
+                             f"(mm, degrees).")
+    return values
+
+
+def _cmd_check_move(args: argparse.Namespace) -> int:
+    from hyperstat.solver.export.linuxcnc_kins import world_layout
+    from hyperstat.solver.export.straight_moves import STEP_DEG, STEP_MM, check_straight_move
+
+    mech, xi, _doc = _geometry(args, "check-move")
+    layout = world_layout(mech)
+    letters = layout["coordinates"]
+    start = _world_point(args.start, "--from", letters)
+    end = _world_point(args.end, "--to", letters)
+    r = check_straight_move(mech, xi, start, end, layout=layout)
+    units = {mech.joints[i].name: ("rad" if mech.joints[i].type == "R" else "mm") for i in mech.actuated}
+    if args.json:
+        write_json(args.json, jsonable({"mechanism": mech.name, "coordinates": letters, "from": start, "to": end,
+                                        "units": {"world": "mm, degrees", "joints": units}, **r}))
+    if args.quiet:
+        return 0 if r["inside"] else 1
+    if r["inside"]:
+        sys.stdout.write(f"the straight move stays inside every joint range of '{mech.name}' ({r['samples']} points "
+                         f"checked, every {STEP_MM:g} mm and {STEP_DEG:g} degree)\n")
+        return 0
+    where = " ".join(f"{a}{v:.6g}" for a, v in zip(letters, r["world"]))
+    worst = ", ".join(f"joint {n} {v:.4g} {units[n]}" for n, v in r["excess"].items() if v > 0)
+    sys.stdout.write(f"the straight move leaves the range of joint '{r['joint']}' at {100 * r['fraction']:.3g} % of its "
+                     f"length (near {where}): the joint would reach {r['value']:.6g} {units[r['joint']]}, its range "
+                     f"ends at {r['limit']:.6g} {units[r['joint']]}; beyond the ranges along the line: {worst}.  LinuxCNC starts such a "
+                     f"move and stops it there (the generated component refuses poses outside the joint ranges): "
+                     f"split it through a point inside the workspace.\n")
+    return 1
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
@@ -192,6 +252,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--effect", action="append", metavar="NAME[:DEFECT]", help="machine effect to identify and export")
     p.add_argument("--diagnose", action="store_true", help="add the effects the diagnosis selects")
     p.add_argument("--out", required=True, metavar="MACHINE.json", help="controller file")
+    force_option(p)
     common_options(p)
     p.set_defaults(func=_cmd_export_controller)
     p = sub.add_parser("export-linuxcnc",
@@ -208,6 +269,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_export_linuxcnc)
     p = sub.add_parser("check-controller", help="check a controller file: format, version, schema, hash, test vectors")
     p.add_argument("file", help="controller file (MACHINE.json)")
+    p.add_argument("--source", metavar="SOURCE",
+                   help="trusted template or model file: the file's model and joint ranges must equal its")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
     p.add_argument("--json", metavar="OUT.json", help="write the check's result (largest errors, mm / rad)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_check_controller)
@@ -221,4 +285,16 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--home", action="append", metavar="JOINT=VALUE",
                    help="home of an actuated joint (rad or mm; default the model's home), e.g. away from a singularity")
     p.add_argument("--quiet", action="store_true", help="print nothing")
-    p.set_defaults(func=_cmd_export_linuxcnc_kins)
+    p.set_defaults(func=_cmd_export_linuxcnc_kins, known_outputs=("machine.ini", "machine.hal"))
+    p = sub.add_parser("check-move",
+                       help="check that a straight G1 move in LinuxCNC's world coordinates keeps every joint in range "
+                            "(exit 1 when it does not)")
+    p.add_argument("source", nargs="?", help="template or model file (nominal geometry)")
+    p.add_argument("--controller", metavar="MACHINE.json", help="take the identified geometry from a controller file")
+    p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
+    p.add_argument("--from", dest="start", required=True, metavar="WORLD",
+                   help="start of the move in world coordinates, e.g. 'X596.8 Y18.3 Z-1143 B-22.6 C161.5' (mm, deg)")
+    p.add_argument("--to", dest="end", required=True, metavar="WORLD", help="end of the move (mm, degrees)")
+    p.add_argument("--json", metavar="OUT.json", help="write the result (where a joint leaves its range, by how much)")
+    p.add_argument("--quiet", action="store_true", help="print nothing (the exit code says it: 0 inside, 1 not)")
+    p.set_defaults(func=_cmd_check_move)

@@ -35,11 +35,14 @@ from hyperstat.solver.atomic import dumps_json, write_text
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.frames import so3_log
 from hyperstat.solver.errors import DataError
+from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.kinematics.modelfile import _schema_message, mechanism_from_dict, mechanism_to_dict
+from hyperstat.solver.strict_load import load_json
 
 __all__ = ["FORMAT", "VERSION", "controller_document", "write_controller", "read_controller", "content_hash",
            "file_sha256", "ControllerModel", "MACHINE_EFFECTS", "build_test_vectors", "build_effect_vectors",
-           "check_test_vectors", "check_controller", "TEST_VECTOR_TOLERANCE", "target_offsets", "target_points"]
+           "check_test_vectors", "check_controller", "TEST_VECTOR_TOLERANCE", "target_offsets", "target_points",
+           "ADMISSIBLE", "check_admissible", "test_vector_draws", "check_reachable_ranges", "compare_model"]
 
 FORMAT = "hyperstat-controller"
 #: version 2 adds the test vectors (version 1 had none)
@@ -68,9 +71,20 @@ def content_hash(doc: dict) -> str:
     return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
-TEST_VECTOR_COUNT = 24
-#: agreement a port must reach on the test vectors (mm for lengths, rad for angles)
-TEST_VECTOR_TOLERANCE = {"length_mm": 1e-9, "angle_rad": 1e-9}
+#: What a file of each version may hold, fixed by the version and never read from the file: a file cannot
+#: vouch for itself.  ``test_vector_tolerance``: the agreement a port must reach on the test vectors (mm for
+#: lengths, rad for angles); the file repeats it for its reader and is refused if it says otherwise.
+#: ``test_vectors``: how many configurations are drawn (``count``) and how many must have assembled
+#: (``at_least``).  ``defect_rad`` / ``defect_mm``: the largest identified defect (a calibration corrects
+#: small errors of a known geometry; beyond, the model is another machine or the fit went astray).  The
+#: values are wide: poorly determined combinations of defects reach several mm in a sound calibration
+#: (10.4 mm on the identified hexapod of the tests, whose validation RMS is 32 um).
+#: ``offset_mm``: the largest tool point or target offset from the output frame.
+ADMISSIBLE = {2: {"test_vector_tolerance": {"length_mm": 1e-9, "angle_rad": 1e-9},
+                  "test_vectors": {"count": 24, "at_least": 12},
+                  "defect_rad": 0.1, "defect_mm": 100.0, "offset_mm": 2000.0}}
+TEST_VECTOR_COUNT = ADMISSIBLE[VERSION]["test_vectors"]["count"]
+TEST_VECTOR_TOLERANCE = dict(ADMISSIBLE[VERSION]["test_vector_tolerance"])
 
 
 def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int = TEST_VECTOR_COUNT,
@@ -95,9 +109,7 @@ def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int
     """
     kin = Kinematics(mechanism)
     act = mechanism.actuated
-    lo, hi = mechanism.ranges[act].T
-    rng = np.random.default_rng(seed)
-    qa = lo + (hi - lo) * (0.1 + 0.8 * rng.random((count, len(act))))
+    qa = test_vector_draws(mechanism, seed, count)
     res = kin.solve(qa, xi)
     ok = res.converged
     q = res.q[ok]
@@ -110,6 +122,15 @@ def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int
         for k, v in enumerate(vectors):
             v["targets"] = {name: p[k].tolist() for name, p in points.items()}
     return {"tolerance": dict(TEST_VECTOR_TOLERANCE), "seed": seed, "vectors": vectors}
+
+
+def test_vector_draws(mechanism, seed: int, count: int = TEST_VECTOR_COUNT) -> np.ndarray:
+    """Actuated values (count, n_actuated) the test vectors are drawn at: uniform in the middle 80 % of every
+    actuated joint's range, seeded; a checker draws them again, so the vectors follow the file's ranges."""
+    act = mechanism.actuated
+    lo, hi = mechanism.ranges[act].T
+    rng = np.random.default_rng(seed)
+    return lo + (hi - lo) * (0.1 + 0.8 * rng.random((count, len(act))))
 
 
 def build_effect_vectors(doc: dict, count: int = EFFECT_VECTOR_COUNT, seed: int = 1) -> list:
@@ -163,7 +184,8 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
     vec = tv["vectors"]
     if not vec:
         raise DataError("controller file: 'test_vectors' holds no vector.")
-    tol_mm, tol_rad = tv["tolerance"]["length_mm"], tv["tolerance"]["angle_rad"]
+    tol = ADMISSIBLE[doc["version"]]["test_vector_tolerance"]  # the version's, never the file's
+    tol_mm, tol_rad = tol["length_mm"], tol["angle_rad"]
     qa = np.array([v["actuated"] for v in vec], dtype=float)
     n_act = len(model.mechanism.actuated)
     if qa.shape[1] != n_act:
@@ -337,9 +359,10 @@ def read_controller(path: str | os.PathLike) -> dict:
     if not path.is_file():
         raise DataError(f"{path}: no such controller file.")
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: not a JSON file ({exc.__class__.__name__}).") from None
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise DataError(f"{path}: not a JSON file (not UTF-8 text).") from None
+    doc = load_json(text, str(path))  # a key declared twice is refused, not overwritten
     if not isinstance(doc, dict):
         raise DataError(f"{path}: a controller file holds a JSON object.")
     if doc.get("format") != FORMAT:
@@ -356,7 +379,85 @@ def read_controller(path: str | os.PathLike) -> dict:
         raise DataError(f"{path}: the content holds a non-finite number.") from None
     if doc["sha256"] != expected:
         raise DataError(f"{path}: the SHA-256 does not match the content (the file was modified after export).")
+    check_admissible(doc, str(path))
     return doc
+
+
+def check_admissible(doc: dict, source: str = "controller file") -> None:
+    """What the format version fixes, checked on a file whose hash matched (a hash anyone can recompute).
+
+    The test-vector tolerance is the version's; ``defects`` holds exactly the model's defects, each
+    within the version's magnitude; the tool point and targets are within the version's offset; the
+    test vectors are the version's draws from the model's joint ranges (so that a changed range, which
+    becomes a controller's joint limit, cannot pass with the old vectors), their number at least the
+    version's, every value inside the ranges.
+
+    Raises
+    ------
+    DataError
+        One sentence naming ``source`` and the field.
+    """
+    rules = ADMISSIBLE[doc["version"]]
+    tol = doc["test_vectors"]["tolerance"]
+    for key, value in rules["test_vector_tolerance"].items():
+        if tol.get(key) != value:
+            unit = key.rsplit("_", 1)[1]
+            raise DataError(f"{source}: field 'test_vectors.tolerance.{key}' is {tol.get(key)!r}, but version "
+                            f"{doc['version']} fixes it at {value:g} {unit}: a file cannot set its own tolerance.")
+    mech = mechanism_from_dict(doc["model"], f"{source}: field 'model'")
+    _same_names(doc["defects"], [p.name for p in mech.parameters],
+                f"{source}: field 'defects' names '{{}}', which is not a defect of the model '{mech.name}'.",
+                f"{source}: field 'defects' has no value for '{{}}', a defect of the model.")
+    for p in mech.parameters:
+        v, limit = doc["defects"][p.name], rules["defect_mm" if p.unit == "mm" else "defect_rad"]
+        if not abs(v) <= limit:
+            raise DataError(f"{source}: field 'defects.{p.name}' is {v:g} {p.unit}, beyond the {limit:g} {p.unit} "
+                            f"version {doc['version']} admits for an identified defect.")
+    offsets = [("target", doc["target"])] + [(f"targets.{k}", v) for k, v in doc.get("targets", {}).items()]
+    for field, v in offsets:
+        if not float(np.linalg.norm(v)) <= rules["offset_mm"]:
+            raise DataError(f"{source}: field '{field}' is {float(np.linalg.norm(v)):g} mm from the output frame, "
+                            f"beyond the {rules['offset_mm']:g} mm version {doc['version']} admits.")
+    _check_vector_draws(doc, mech, rules, source)
+
+
+def _same_names(given: dict, names: list, unknown: str, missing: str) -> None:
+    """Refuse a name of ``given`` not in ``names`` (``unknown`` formatted with it), then one missing (``missing``)."""
+    for message, extra in ((unknown, [n for n in given if n not in names]),
+                           (missing, [n for n in names if n not in given])):
+        if extra:
+            raise DataError(message.format(extra[0]))
+
+
+def _check_vector_draws(doc: dict, mech, rules: dict, source: str) -> None:
+    """The test vectors are the seeded draws from the model's joint ranges, in order (some may be missing:
+    those that did not assemble), at least ``at_least`` of them, with every joint inside its range."""
+    tv = doc["test_vectors"]
+    vec = tv["vectors"]
+    act = mech.actuated
+    if len(vec) < rules["test_vectors"]["at_least"]:
+        raise DataError(f"{source}: field 'test_vectors.vectors' holds {len(vec)} vectors; version {doc['version']} "
+                        f"draws {rules['test_vectors']['count']} and needs at least {rules['test_vectors']['at_least']}.")
+    for k, v in enumerate(vec):
+        if len(v["actuated"]) != len(act) or len(v["joints"]) != len(mech.joints):
+            raise DataError(f"{source}: test vector {k} has {len(v['actuated'])} actuated and {len(v['joints'])} "
+                            f"joint values; the model has {len(act)} and {len(mech.joints)}.")
+    draws = test_vector_draws(mech, tv["seed"], rules["test_vectors"]["count"])
+    scale = np.maximum(np.abs(draws).max(axis=0), 1.0)
+    d = 0
+    for k, v in enumerate(vec):
+        qa = np.asarray(v["actuated"], dtype=float)
+        while d < len(draws) and not np.all(np.abs(draws[d] - qa) <= 1e-12 * scale):
+            d += 1
+        if d == len(draws):
+            lo, hi = mech.ranges[act].T
+            out = np.flatnonzero((qa < lo + 0.1 * (hi - lo) - 1e-9) | (qa > hi - 0.1 * (hi - lo) + 1e-9))
+            why = (f"its value {qa[out[0]]:g} of joint '{mech.joints[act[out[0]]].name}' lies outside the middle 80 % "
+                   f"of the range [{lo[out[0]]:g}, {hi[out[0]]:g}]" if len(out) else
+                   "its actuated values are not the version's draws from the file's joint ranges with its seed")
+            why += " (were the joint ranges or the vectors changed after export?)"
+            raise DataError(f"{source}: test vector {k}: {why}.")
+        d += 1
 
 
 class ControllerModel:
@@ -366,27 +467,24 @@ class ControllerModel:
     ----------
     doc : dict
         Content of :func:`read_controller`.
+    source : str
+        The file's name, for messages.
     """
 
-    def __init__(self, doc: dict) -> None:
-        from hyperstat.solver.diagnosis.effects import make_effect
+    def __init__(self, doc: dict, source: str = "controller file") -> None:
         from hyperstat.solver.calibration.identify import MeasurementModel
 
-        self.mechanism = mechanism_from_dict(doc["model"], "controller file model")
+        self.mechanism = mechanism_from_dict(doc["model"], f"{source}: field 'model'")
         self.kin = Kinematics(self.mechanism)
         names = [p.name for p in self.mechanism.parameters]
         missing = [n for n in names if n not in doc["defects"]]
         if missing:
-            raise DataError(f"controller file: defect '{missing[0]}' of the model has no value.")
+            raise DataError(f"{source}: defect '{missing[0]}' of the model has no value.")
         self.xi = np.array([doc["defects"][n] for n in names])
         self.target = np.array(doc["target"], dtype=float)
         self.targets = {name: np.array(v, dtype=float) for name, v in doc.get("targets", {}).items()}
         self._linear = np.array([self.mechanism.joints[i].type == "P" for i in self.mechanism.actuated])
-        self.effects = []
-        for e in doc["effects"]:
-            eff = make_effect(e["effect"], self.mechanism, None, None, **dict(e["options"]))
-            eff.with_truth(np.array([e["parameters"][n] for n in eff.parameter_names(None)]))
-            self.effects.append(eff)
+        self.effects = [_exported_effect(e, i, self.mechanism, source) for i, e in enumerate(doc["effects"])]
         self._model = MeasurementModel.__new__(MeasurementModel)
         self._model.mechanism, self._model.kin = self.mechanism, self.kin
 
@@ -497,6 +595,39 @@ class ControllerModel:
         return qa, np.linalg.norm(err, axis=1)
 
 
+#: options an exported effect may carry (anything else is refused, not passed on)
+_EFFECT_OPTIONS = {"violated-constraint": {"only"}, "screw-periodic": {"lead"}}
+
+
+def _exported_effect(e: dict, i: int, mechanism, source: str):
+    """The effect of ``effects[i]`` of a controller file, refusing unknown options or parameters and values
+    outside the effect's physical domain or beyond its plausible magnitude (the library's, not the file's)."""
+    from hyperstat.solver.diagnosis.effects import make_effect
+    from hyperstat.solver.errors import HyperstatError
+
+    where = f"{source}: field 'effects[{i}]' ({e['effect']})"
+    extra = sorted(set(e["options"]) - _EFFECT_OPTIONS.get(e["effect"], set()))
+    if extra:
+        raise DataError(f"{where}: option '{extra[0]}' is not part of the format.")
+    try:
+        eff = make_effect(e["effect"], mechanism, None, None, **dict(e["options"]))
+    except HyperstatError as exc:
+        raise DataError(f"{where}: {exc}") from None
+    except (TypeError, ValueError, KeyError, IndexError) as exc:
+        raise DataError(f"{where}: its options cannot build the effect ({exc.__class__.__name__}: {exc}).") from None
+    names = eff.parameter_names(None)
+    _same_names(e["parameters"], names, f"{where}: parameter '{{}}' is not a parameter of this effect on "
+                                        f"'{mechanism.name}'.", f"{where}: parameter '{{}}' has no value.")
+    values = np.array([e["parameters"][n] for n in names], dtype=float)
+    units = eff.parameter_units(None)
+    for k, n in enumerate(names):
+        v = values[k]
+        if not (eff.lower[k] <= v <= eff.upper[k]) or abs(v) > eff.plausible[k]:
+            raise DataError(f"{where}: parameter '{n}' = {v:g} {units[k]} lies outside the effect's physical domain "
+                            f"or beyond its plausible magnitude ({eff.plausible[k]:g} {units[k]}).")
+    return eff.with_truth(values)
+
+
 def _capped(step: np.ndarray, linear: np.ndarray, length_scale: float, cap: float = 0.3) -> np.ndarray:
     """Newton steps (K, n_actuated) scaled down per pose so that no revolute joint turns by more than
     ``cap`` rad and no prismatic one moves by more than ``cap`` length scales: from home, an
@@ -546,13 +677,15 @@ def _check_target_points(doc: dict, model: "ControllerModel", pose: np.ndarray, 
                                 f"(tolerance {tol_mm:g} mm).")
 
 
-def check_controller(path: str | os.PathLike) -> dict:
-    """Check a received controller file: format, version, schema, hash, then its test vectors.
+def check_controller(path: str | os.PathLike, reference: "Mechanism | None" = None) -> dict:
+    """Check a received controller file: format, version, schema, hash, what the version admits, the model
+    against a trusted ``reference`` (a :class:`Mechanism`, when given), the test vectors, the joint ranges.
 
     Returns
     -------
     dict
-        ``mechanism``, ``sha256`` and the largest errors of :func:`check_test_vectors`.
+        ``mechanism``, ``sha256``, ``reference`` (whether the model was compared with one) and the
+        largest errors of :func:`check_test_vectors`.
 
     Raises
     ------
@@ -567,8 +700,89 @@ def check_controller(path: str | os.PathLike) -> dict:
     hyperstat.solver.errors.DataError: no-such-file.json: no such controller file.
     """
     doc = read_controller(path)
+    if reference is not None:
+        compare_model(doc["model"], reference, str(path))
     try:
-        result = check_test_vectors(doc)
+        model = ControllerModel(doc)
+        result = check_test_vectors(doc, model)
+        check_reachable_ranges(model)
     except DataError as exc:
         raise DataError(f"{path}: {str(exc).removeprefix('controller file: ')}") from None
-    return {"mechanism": doc["mechanism"], "sha256": doc["sha256"], **result}
+    return {"mechanism": doc["mechanism"], "sha256": doc["sha256"], "reference": reference is not None, **result}
+
+
+def check_reachable_ranges(model: "ControllerModel", samples: int = 32, seed: int = 0) -> None:
+    """Refuse an actuated joint range the identified parallel mechanism cannot reach at either end.
+
+    For every actuated joint and each end of its range, ``samples`` configurations of the other
+    actuated joints (uniform in their ranges, seeded) are assembled with the joint at that end;
+    if none assembles, the range is wider than the machine (the LinuxCNC export would make it a
+    joint limit).  A serial chain reaches any joint value: nothing to check there.  This finds a
+    range the geometry cannot reach, not a stroke beyond what the actuator has: only a trusted
+    model (``check-controller --source``) can tell that.
+
+    Raises
+    ------
+    DataError
+    """
+    mech = model.mechanism
+    if not mech.closures:
+        return
+    act = mech.actuated
+    lo, hi = mech.ranges[act].T
+    rng = np.random.default_rng(seed)
+    blocks, ends = [], []
+    for k in range(len(act)):
+        for end, value in (("low", lo[k]), ("high", hi[k])):
+            qa = lo + (hi - lo) * rng.random((samples, len(act)))
+            qa[:, k] = value
+            blocks.append(qa)
+            ends.append((k, end, value))
+    ok = model.kin.solve(np.concatenate(blocks), model.xi).converged.reshape(len(blocks), samples)
+    for (k, end, value), reached in zip(ends, ok):
+        if not reached.any():
+            j = mech.joints[act[k]]
+            raise DataError(f"controller file: the {end} end {value:g} {'rad' if j.type == 'R' else 'mm'} of actuated "
+                            f"joint '{j.name}' is not reachable: none of {samples} configurations with the joint there "
+                            f"assembles on the identified geometry (continued from home); the range is wider than the "
+                            f"machine.")
+
+
+def compare_model(model: dict, reference: "Mechanism", source: str) -> None:
+    """Refuse a file whose embedded model differs from a trusted ``reference`` mechanism (ranges included).
+
+    Numbers are compared to 1e-12 (relative to their size, at least 1e-12 absolute).
+
+    Raises
+    ------
+    DataError
+        Naming the first field that differs.
+    """
+    want = json.loads(dumps_json(mechanism_to_dict(reference)))
+
+    def walk(a, b, path: str) -> str | None:
+        if isinstance(a, dict) and isinstance(b, dict):
+            for key in sorted(set(a) | set(b)):
+                if key not in a or key not in b:
+                    return f"{path}.{key}"
+                found = walk(a[key], b[key], f"{path}.{key}")
+                if found:
+                    return found
+            return None
+        if isinstance(a, list) and isinstance(b, list):
+            if len(a) != len(b):
+                return path
+            for i, (x, y) in enumerate(zip(a, b)):
+                found = walk(x, y, f"{path}[{i}]")
+                if found:
+                    return found
+            return None
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+            return None if abs(a - b) <= 1e-12 * max(1.0, abs(a), abs(b)) else path
+        return None if a == b else path
+
+    found = walk(model, want, "model")
+    if found:
+        raise DataError(f"{source}: field '{found}' differs from the reference model '{reference.name}' given with "
+                        f"--source: the file is not for that machine, or it was changed (its ranges are the "
+                        f"controller's joint limits).")

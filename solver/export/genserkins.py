@@ -151,12 +151,7 @@ def write_sim(directory, mechanism, params: dict, home: np.ndarray | None = None
     The machine of :func:`hyperstat.solver.export.linuxcnc_sim.write_sim` with ``X Y Z A B C``
     world coordinates, the HAL ``setp`` lines appended.
     """
-    from pathlib import Path
-
-    from hyperstat.solver.atomic import write_text
     from hyperstat.solver.export import linuxcnc_sim
 
-    ini = linuxcnc_sim.write_sim(directory, mechanism, "genserkins", {"coordinates": "XYZABC"}, home=home)
-    hal = Path(directory) / "machine.hal"
-    write_text(hal, hal.read_text() + hal_lines(params))
-    return ini
+    return linuxcnc_sim.write_sim(directory, mechanism, "genserkins", {"coordinates": "XYZABC"}, home=home,
+                                  extra_hal=hal_lines(params))

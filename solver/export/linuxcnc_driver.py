@@ -13,8 +13,8 @@ on the turn nearest their current position) and waits until the commanded positi
 target, the motion done and the joints still; it records ``joint_actual_position`` and
 ``actual_position`` (LinuxCNC's forward kinematics of the joints) and writes them as JSON to
 ``[HYPERSTAT] RESULTS``, atomically.
-An error is recorded in the results (``error``) rather than raised, so that LinuxCNC shuts
-down cleanly when this program exits.
+An error is recorded in the results (``error``, and where the machine stopped: ``stopped``)
+rather than raised, so that LinuxCNC shuts down cleanly when this program exits.
 """
 
 import json
@@ -114,6 +114,13 @@ def drive(moves_path, results_path):
                                  "world": list(stat.actual_position[:6])})
     except Exception as exc:  # recorded, so that LinuxCNC shuts down normally
         out["error"] = f"{exc.__class__.__name__}: {exc}"
+        try:  # where the machine stopped (a move refused part-way)
+            time.sleep(0.5)
+            stat.poll()
+            out["stopped"] = {"joints": list(stat.joint_actual_position[:stat.joints]),
+                              "world": list(stat.actual_position[:6]), "position": list(stat.position[:6])}
+        except Exception:  # noqa: BLE001 - the error above is what matters
+            pass
     tmp = results_path + ".tmp"
     with open(tmp, "w", encoding="utf-8") as handle:
         json.dump(out, handle)

@@ -46,6 +46,9 @@ from hyperstat.solver.kinematics.model import Joint
 __all__ = ["world_layout", "world_of", "kins_component", "component_name", "sample_world", "inverse_conditioning"]
 
 _LETTERS = "ABC"
+#: the joint limits are widened by this much (mm, or degrees for a revolute joint) in the INI and in the
+#: component's range check: a home on a limit (the SCARA's quill) is not refused for round-off
+LIMIT_MARGIN = 1e-6
 
 
 def world_layout(mechanism) -> dict:
@@ -254,6 +257,9 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
             out_member[joint_key[e]] = 1.0
     act = [int(i) for i in m.actuated]
     act_rot = [1 if m.joints[i].type == "R" else 0 for i in act]
+    margin = [math.radians(LIMIT_MARGIN) if r else LIMIT_MARGIN for r in act_rot]
+    act_lo = [m.joints[i].range[0] - e for i, e in zip(act, margin)]
+    act_hi = [m.joints[i].range[1] + e for i, e in zip(act, margin)]
     n_out = 6 if layout["mode"] == "pose" else 3
     mode = {"xyz": 0, "tcp": 1, "pose": 2}[layout["mode"]]
     wrist = layout["wrist"] or [(0, "A")]
@@ -306,6 +312,10 @@ def kins_component(mechanism, xi: np.ndarray | None = None, name: str | None = N
         f"static const int OUT_FRAME = {frames.index(m.output)};",
         f"static const int ACT[NACT] = {_c_array(act, '{:d}')};",
         f"static const int ACT_ROT[NACT] = {_c_array(act_rot, '{:d}')};",
+        "/* actuated joint ranges (rad / mm), widened like the INI joint limits (1e-6 degree or mm): an inverse",
+        "   solution outside them is refused, so that LinuxCNC stops at a limit, not past it */",
+        f"static const double ACT_LO[NACT] = {_c_array(act_lo)};",
+        f"static const double ACT_HI[NACT] = {_c_array(act_hi)};",
         f"static const int JOINT_ROT[NQ] = {_c_array([1 if j.type == 'R' else 0 for j in m.joints], '{:d}')};",
         f"#define NW {len(layout['wrist'])}",
         "#if MODE == 1",
@@ -656,6 +666,8 @@ int kinematicsInverse(const EmcPose *pos, double *joints, const KINEMATICS_INVER
         for (i = 0; i < NQ; i++) q[i] = Q_HOME[i];
         if (inverse_from(q, pos)) return -1;
     }
+    for (i = 0; i < NACT; i++)  /* a pose that needs a joint beyond its range: refused (LinuxCNC stops the move) */
+        if (q[ACT[i]] < ACT_LO[i] || q[ACT[i]] > ACT_HI[i]) return -1;
     for (i = 0; i < NQ; i++) q_prev[i] = q[i];
     for (i = 0; i < NACT; i++) joints[i] = ACT_ROT[i] ? q[ACT[i]] / DEG : q[ACT[i]];
     return 0;

@@ -28,8 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hyperstat.solver.atomic import write_text
+from hyperstat.solver.atomic import all_or_nothing, write_text
 from hyperstat.solver.errors import HyperstatError
+from hyperstat.solver.export.linuxcnc_kins import LIMIT_MARGIN
 
 __all__ = ["sim_files", "write_sim", "build_component", "remove_component", "run_moves", "linuxcnc_env"]
 
@@ -87,7 +88,7 @@ def sim_files(mechanism, component: str, layout: dict, workspace: np.ndarray | N
         rot = joint.type == "R"
         conv = math.degrees if rot else float
         lo, hi = (conv(v) for v in joint.range)
-        lo, hi = lo - 1e-6, hi + 1e-6  # a home on a limit is not refused for round-off
+        lo, hi = lo - LIMIT_MARGIN, hi + LIMIT_MARGIN  # a home on a limit is not refused for round-off
         home_value = conv(joint.home if home is None else float(np.asarray(home).reshape(-1)[j]))
         ini += [f"[JOINT_{k}]", f"# model joint '{joint.name}' ({'revolute, degrees' if rot else 'prismatic, mm'})",
                 f"TYPE = {'ANGULAR' if rot else 'LINEAR'}",
@@ -117,13 +118,15 @@ def sim_files(mechanism, component: str, layout: dict, workspace: np.ndarray | N
 
 
 def write_sim(directory: str | os.PathLike, mechanism, component: str, layout: dict,
-              workspace: np.ndarray | None = None, display: str = "axis", home: np.ndarray | None = None) -> Path:
-    """Write ``machine.ini`` and ``machine.hal`` into ``directory`` (see :func:`sim_files`); return the INI path."""
+              workspace: np.ndarray | None = None, display: str = "axis", home: np.ndarray | None = None,
+              extra_hal: str = "") -> Path:
+    """Write ``machine.ini`` and ``machine.hal`` (with ``extra_hal`` appended) into ``directory``, both or
+    neither (see :func:`sim_files`); return the INI path."""
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
     ini, hal = sim_files(mechanism, component, layout, workspace, display, home)
-    write_text(directory / "machine.hal", hal)
-    return write_text(directory / "machine.ini", ini)
+    with all_or_nothing():
+        write_text(directory / "machine.hal", hal + extra_hal)
+        return write_text(directory / "machine.ini", ini)
 
 
 def _require(tool: str) -> str:

@@ -39,7 +39,8 @@ from hyperstat.solver.errors import ModelError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Joint, Mechanism
 
-__all__ = ["urdf_text", "rpy_of", "serial_matrices", "corrected_dh", "dh_forward", "dh_text", "DH_WARN_MM"]
+__all__ = ["urdf_text", "rpy_of", "serial_matrices", "corrected_dh", "dh_forward", "dh_text", "DH_WARN_MM",
+           "joint_variables_text", "joint_map_text"]
 
 DH_WARN_MM = 0.01  #: a corrected DH table further than this from the calibrated model is reported loudly
 
@@ -81,16 +82,21 @@ def _origin(t: np.ndarray) -> str:
 
 
 def urdf_text(mechanism: Mechanism, xi: np.ndarray | None = None, name: str | None = None,
-              comment: str = "") -> str:
+              comment: str = "", joint_map_file: str | None = None) -> str:
     """URDF of a serial robot at defects ``xi`` (the calibrated geometry), lengths in metres.
 
     Links ``base_link``, ``link_<joint>`` and ``tool``; joint ``<joint>`` turns about z of its
     origin frame (the model's ``L`` frame); the fixed joint ``tool_joint`` carries the tool frame
     (the model's output frame).  Effort and velocity limits are not calibration results and
-    are written as 0 (fill them in from the robot's data sheet).
+    are written as 0 (fill them in from the robot's data sheet).  A comment says which joint
+    variables the URDF expects: the model's, and, when the model carries a joint map (the
+    controller's convention: signs, offsets, couplings such as FANUC's J2/J3), how the
+    controller's joints give them, with the side file ``joint_map_file`` that holds the map.
     """
     joints, tool = serial_matrices(mechanism, xi)
+    variables = joint_variables_text(mechanism, "revolute joints in rad, prismatic in m", joint_map_file)
     lines = ['<?xml version="1.0"?>', f"<!-- {escape(comment).replace('--', '- -')} -->" if comment else None,
+             f"<!-- {escape(variables).replace('--', '- -')} -->",
              f'<robot name="{escape(name or mechanism.name)}">', '  <link name="base_link"/>']
     parent = "base_link"
     for jname, jtype, d, (lo, hi) in joints:
@@ -108,6 +114,59 @@ def urdf_text(mechanism: Mechanism, xi: np.ndarray | None = None, name: str | No
               f'    <parent link="{escape(parent)}"/>', '    <child link="tool"/>', f"    {_origin(tool)}",
               "  </joint>", "</robot>"]
     return "\n".join(line for line in lines if line is not None) + "\n"
+
+
+def joint_variables_text(mechanism: Mechanism, units: str, joint_map_file: str | None = None) -> str:
+    """Which joint variables an exported file expects, in one paragraph (the joint map spelled out).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as S
+    >>> robot = S(joints=[S(name="1", type="R"), S(name="2", type="R")], actuated=[0, 1],
+    ...           metadata={"joint_map": {"units": {"angle": "deg"},
+    ...                                   "joints": {"1": {"J1": -1}, "2": {"J2": 1, "J1": 1, "offset": 0.5}}}})
+    >>> print(joint_variables_text(robot, "rad"))
+    joint variables: the model's joints 1, 2 (rad), zero at the table's zero. They are NOT the controller's: with its joints (in deg) q1 = -J1; q2 = J2 + J1 + 0.5 (joint map, q_model = sum(coefficient * J) / ratio + offset); feeding the controller's values directly is wrong wherever a sign, an offset or a coupling differs.
+    """
+    names = [mechanism.joints[i].name for i in mechanism.actuated]
+    text = f"joint variables: the model's joints {', '.join(names)} ({units}), zero at the table's zero."
+    jm = mechanism.metadata.get("joint_map") if isinstance(mechanism.metadata, dict) else None
+    if not jm:
+        return text + " No joint map: the controller's joint values are these."
+    rows = []
+    for model_joint, entry in jm["joints"].items():
+        ratio = float(entry.get("ratio", 1.0))
+        terms = [(c, float(v)) for c, v in entry.items() if c not in ("ratio", "offset") and float(v) != 0.0]
+        expr = ""
+        for k, (c, v) in enumerate(terms):
+            sign = "-" if v < 0 else ("" if k == 0 else "+")
+            mag = "" if abs(v) == 1.0 else f"{abs(v):g} "
+            expr += f"{' ' if k else ''}{sign}{' ' if sign and k else ''}{mag}{c}"
+        if ratio != 1.0:
+            expr = f"({expr}) / {ratio:g}"
+        offset = float(entry.get("offset", 0.0))
+        if offset:
+            expr += f" {'-' if offset < 0 else '+'} {abs(offset):g}"
+        rows.append(f"q{model_joint} = {expr}")
+    kinds = {"angle" if mechanism.joints[i].type == "R" else "length" for i in mechanism.actuated}
+    units_of = ", ".join(str(jm["units"][k]) for k in ("angle", "length") if k in kinds and k in jm["units"])
+    where = f", in {joint_map_file}" if joint_map_file else ""
+    return (text + f" They are NOT the controller's: with its joints (in {units_of}) " + "; ".join(rows)
+            + f" (joint map{where}, q_model = sum(coefficient * J) / ratio + offset); feeding the controller's "
+              f"values directly is wrong wherever a sign, an offset or a coupling differs.")
+
+
+def joint_map_text(mechanism: Mechanism, exported: str) -> str | None:
+    """The model's joint map as a YAML side file of an export (None without a map): readable by
+    ``hyperstat identify --joint-map``."""
+    import yaml
+
+    jm = mechanism.metadata.get("joint_map") if isinstance(mechanism.metadata, dict) else None
+    if not jm:
+        return None
+    head = (f"# joint map of {exported}: the controller's joints -> the joints of {exported}\n"
+            f"# q_model = sum(coefficient * J) / ratio + offset, controller values and offsets in 'units'\n")
+    return head + yaml.safe_dump({"joint_map": jm}, sort_keys=False, default_flow_style=None)
 
 
 # ---------------------------------------------------------------------- corrected DH
@@ -265,6 +324,8 @@ def dh_text(mechanism: Mechanism, table: dict, comment: str = "") -> str:
 
     lines = [f"# corrected {table['convention']} table of '{mechanism.name}' (hyperstat export-dh)"]
     lines += [f"# {line}" for line in comment.splitlines()]
+    lines += [f"# {joint_variables_text(mechanism, 'rad or mm, added to theta or d')}"
+              .replace(" (joint map, ", " (the joint_map below, ")]
     lines += [f"# reproduces the calibrated model to {table['max_deviation_mm']:.3g} mm max, "
               f"{table['rms_deviation_mm']:.3g} mm RMS over {table['samples']} configurations "
               f"(tool origin and points 100 mm along its axes)",

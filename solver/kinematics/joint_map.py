@@ -39,12 +39,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from hyperstat.solver.errors import DataError
+from hyperstat.solver.plausibility import plausible_angle, plausible_in, plausible_length
 
 __all__ = ["JointMap", "joint_map_from_dict", "LENGTH_UNITS", "ANGLE_UNITS", "unit_factor"]
 
 LENGTH_UNITS = {"mm": 1.0, "m": 1000.0}
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
 _RESERVED = {"offset", "ratio"}
+#: plausibility of a map's numbers: a gear ratio (controller units per model unit) within 1e-6 .. 1e6, a
+#: coupling coefficient within +-1000 (FANUC's J2/J3 coupling is 1)
+MAX_RATIO = 1e6
+MAX_COEFFICIENT = 1e3
 
 
 def unit_factor(unit: str, kind: str, where: str) -> float:
@@ -56,8 +61,8 @@ def unit_factor(unit: str, kind: str, where: str) -> float:
         Naming ``where`` when the unit is not one of mm, m (lengths) or rad, deg (angles).
     """
     table = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
-    if unit not in table:
-        raise DataError(f"{where}: unit '{unit}' is not a {kind} unit; use {' or '.join(table)}.")
+    if not isinstance(unit, str) or unit not in table:
+        raise DataError(f"{where}: unit {unit!r} is not a {kind} unit; use {' or '.join(table)}.")
     return table[unit]
 
 
@@ -141,6 +146,9 @@ def joint_map_from_dict(doc: object, model_joints: dict, source: str = "joint_ma
     joints = doc.get("joints")
     if not isinstance(joints, dict) or not joints:
         raise DataError(f"{source}.joints must map every model joint to controller coefficients.")
+    if len({str(k) for k in joints}) < len(joints):
+        twice = next(str(k) for k in joints if sum(str(j) == str(k) for j in joints) > 1)
+        raise DataError(f"{source}.joints declares model joint '{twice}' twice.")
     joints = {str(k): v for k, v in joints.items()}
     missing = [n for n in model_joints if n not in joints]
     if missing:
@@ -160,6 +168,9 @@ def joint_map_from_dict(doc: object, model_joints: dict, source: str = "joint_ma
             key = str(key)
             if key in _RESERVED:
                 continue
+            if key in model_joints:
+                raise DataError(f"{source}.joints.{name}: '{key}' is the name of a model joint; the keys of an entry "
+                                f"name the controller's joints (e.g. J{key}), which feed the model joints.")
             if not key.replace("_", "").isalnum() or not key[0].isalpha():
                 raise DataError(f"{source}.joints.{name}: controller joint name '{key}' must be letters, digits and _.")
             if key not in controller:
@@ -174,16 +185,20 @@ def joint_map_from_dict(doc: object, model_joints: dict, source: str = "joint_ma
         ratio = entry.get("ratio", 1.0)
         if not isinstance(ratio, (int, float)) or isinstance(ratio, bool) or not math.isfinite(ratio) or ratio == 0:
             raise DataError(f"{where}.ratio must be a finite non-zero number, got {ratio!r}.")
+        plausible_in(abs(ratio), 1.0 / MAX_RATIO, MAX_RATIO, "", f"{where}.ratio", "gear ratio magnitude")
         off = entry.get("offset", 0.0)
         if not isinstance(off, (int, float)) or isinstance(off, bool) or not math.isfinite(off):
             raise DataError(f"{where}.offset must be a finite number, got {off!r}.")
         own = "angle" if kind == "R" else "length"
-        b[i] = off * unit_factor(units[own], own, f"{source}.units.{own}")
+        unit_factor(units[own], own, f"{source}.units.{own}")
+        b[i] = (plausible_angle(off, units[own], f"{where}.offset") if own == "angle"
+                else plausible_length(off, units[own], f"{where}.offset"))
         for key, coef in entry.items():
             if key in _RESERVED:
                 continue
             if not isinstance(coef, (int, float)) or isinstance(coef, bool) or not math.isfinite(coef):
                 raise DataError(f"{where}.{key} must be a finite number, got {coef!r}.")
+            plausible_in(coef, -MAX_COEFFICIENT, MAX_COEFFICIENT, "", f"{where}.{key}", "coupling coefficient")
             k = controller.index(key)
             if kinds[k] != kind and coef != 0:
                 raise DataError(f"{where}.{key}: a {'revolute' if kind == 'R' else 'prismatic'} joint cannot be "

@@ -34,6 +34,7 @@ import numpy as np
 
 from hyperstat.solver.errors import ModelError
 from hyperstat.solver.kinematics.frames import axis_frame, make_transform
+from hyperstat.solver.plausibility import JOINT_ANGLE_LIMIT, plausible_angle, plausible_length
 
 __all__ = [
     "DEFECT_COMPONENTS",
@@ -113,6 +114,8 @@ class Placement:
         for label, vec in (("origin", self.origin), ("z_axis", self.z_axis), ("x_axis", self.x_axis)):
             if len(vec) != 3 or not all(np.isfinite(v) for v in vec):
                 raise ModelError(f"{where}.{label} must be three finite numbers, got {list(vec)}.")
+        for i, v in enumerate(self.origin):
+            plausible_length(v, "mm", f"{where}.origin[{i}]", error=ModelError)
         z = np.asarray(self.z_axis, float)
         x = np.asarray(self.x_axis, float)
         if abs(np.linalg.norm(z) - 1.0) > _ORTHO_TOL:
@@ -307,6 +310,11 @@ class Mechanism:
                     lo, hi = el.range
                     if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
                         raise ModelError(f"{where}.range must be [low, high] with low < high, got {list(el.range)}.")
+                    for i, v in enumerate(el.range):
+                        if el.type == "R":
+                            plausible_angle(v, "rad", f"{where}.range[{i}]", JOINT_ANGLE_LIMIT, error=ModelError)
+                        else:
+                            plausible_length(v, "mm", f"{where}.range[{i}]", error=ModelError)
                     if not (lo <= el.home <= hi):
                         raise ModelError(
                             f"{where}.home {el.home:g} of joint '{el.name}' lies outside its range [{lo:g}, {hi:g}]."

@@ -20,6 +20,7 @@ from typing import Any
 
 from hyperstat.solver.atomic import dumps_json, write_text
 from hyperstat.solver.errors import ModelError
+from hyperstat.solver.strict_load import load_json
 from hyperstat.solver.kinematics.model import (
     Chain,
     ConfigurationFrame,
@@ -207,8 +208,5 @@ def load_model(path: str | os.PathLike) -> Mechanism:
         raise ModelError(f"{path}: no such model file.") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"{path}: cannot be read as UTF-8 text ({exc.__class__.__name__}).") from None
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ModelError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}).") from None
+    doc = load_json(text, str(path), error=ModelError)  # a key declared twice is refused, not overwritten
     return mechanism_from_dict(doc, source=str(path))

@@ -48,11 +48,14 @@ from hyperstat.solver.errors import DataError, ModelError
 from hyperstat.solver.kinematics.frames import axis_frame, make_transform
 from hyperstat.solver.kinematics.joint_map import JointMap, joint_map_from_dict, unit_factor
 from hyperstat.solver.kinematics.model import Chain, Defect, FixedTransform, Joint, Mechanism, Placement
+from hyperstat.solver.strict_load import load_yaml
+from hyperstat.solver.plausibility import JOINT_ANGLE_LIMIT, TURN, finite, plausible_angle, plausible_length
 
 __all__ = ["DHJoint", "DHTable", "read_dh_table", "parse_dh_table", "dh_to_mechanism", "dh_link_matrices",
-           "dh_table_to_dict", "read_urdf", "import_robot", "rpy_matrix", "CONVENTIONS"]
+           "dh_table_to_dict", "read_urdf", "check_urdf", "import_robot", "rpy_matrix", "CONVENTIONS"]
 
 CONVENTIONS = ("dh", "modified-dh")
+_CSV_ROW = object()  # key of a CSV row's line number in the table mapping
 _FORMAT = "hyperstat-dh"
 
 
@@ -236,7 +239,7 @@ def _num(v: object, where: str) -> float:
     return v
 
 
-def _frame(doc: object, lf: float, af: float, where: str) -> np.ndarray:
+def _frame(doc: object, units: dict, where: str) -> np.ndarray:
     if doc is None:
         return np.eye(4)
     if not isinstance(doc, dict) or set(doc) - {"origin", "rpy"}:
@@ -245,9 +248,17 @@ def _frame(doc: object, lf: float, af: float, where: str) -> np.ndarray:
     r = doc.get("rpy", [0, 0, 0])
     if not isinstance(o, list) or len(o) != 3 or not isinstance(r, list) or len(r) != 3:
         raise DataError(f"{where}: 'origin' and 'rpy' must be lists of three numbers.")
-    origin = np.array([_num(v, f"{where}.origin[{i}]") for i, v in enumerate(o)]) * lf
-    rpy = np.array([_num(v, f"{where}.rpy[{i}]") for i, v in enumerate(r)]) * af
+    origin = np.array([_value(v, "length", units, f"{where}.origin[{i}]") for i, v in enumerate(o)])
+    rpy = np.array([_value(v, "angle", units, f"{where}.rpy[{i}]") for i, v in enumerate(r)])
     return make_transform(rpy_matrix(rpy), origin)
+
+
+def _value(v: object, kind: str, units: dict, where: str, limit: float | None = None) -> float:
+    """A table value in mm or rad, refused beyond its plausibility range (a length of 100 m, a turn)."""
+    raw = _num(v, where)
+    if kind == "length":
+        return plausible_length(raw, units["length"], where)
+    return plausible_angle(raw, units["angle"], where, TURN if limit is None else limit)
 
 
 def parse_dh_table(doc: object, source: str = "DH table") -> DHTable:
@@ -271,8 +282,9 @@ def parse_dh_table(doc: object, source: str = "DH table") -> DHTable:
     units = doc.get("units")
     if not isinstance(units, dict) or "length" not in units or "angle" not in units:
         raise DataError(f"{source}: field 'units' must state both, e.g. {{length: mm, angle: deg}}.")
-    lf = unit_factor(str(units["length"]), "length", f"{source}: units.length")
-    af = unit_factor(str(units["angle"]), "angle", f"{source}: units.angle")
+    units = {"length": str(units["length"]), "angle": str(units["angle"])}
+    unit_factor(units["length"], "length", f"{source}: units.length")
+    unit_factor(units["angle"], "angle", f"{source}: units.angle")
     rows = doc.get("joints")
     if not isinstance(rows, list) or not rows:
         raise DataError(f"{source}: field 'joints' must be a non-empty list of rows.")
@@ -281,40 +293,51 @@ def parse_dh_table(doc: object, source: str = "DH table") -> DHTable:
         where = f"{source}: joints[{i}]"
         if not isinstance(row, dict):
             raise DataError(f"{where} must be a mapping (type, a, alpha, d, theta).")
+        line = None
+        if _CSV_ROW in row:  # a CSV table: name its line
+            row = dict(row)
+            line = row.pop(_CSV_ROW)
+            where = f"{source}, row {line}"
         unknown = set(row) - {"name", "type", "a", "alpha", "d", "theta", "min", "max"}
         if unknown:
             raise DataError(f"{where}: unknown field '{sorted(unknown)[0]}'.")
-        joints.append(_row(row, i, lf, af, where))
+        joints.append(_row(row, i, units, where, line))
     names = [j.name for j in joints]
     for n in names:
         if names.count(n) > 1:
             raise DataError(f"{source}: joint name '{n}' appears twice.")
     name = str(doc.get("name") or Path(str(source)).stem.split(".")[0])
-    table = DHTable(name, conv, joints, _frame(doc.get("base"), lf, af, f"{source}: base"),
-                    _frame(doc.get("tool"), lf, af, f"{source}: tool"), None, source)
+    table = DHTable(name, conv, joints, _frame(doc.get("base"), units, f"{source}: base"),
+                    _frame(doc.get("tool"), units, f"{source}: tool"), None, source)
     if doc.get("joint_map") is not None:
         table.joint_map = joint_map_from_dict(doc["joint_map"], {j.name: j.type for j in joints},
                                               f"{source}: joint_map")
     return table
 
 
-def _row(row: dict, i: int, lf: float, af: float, where: str) -> DHJoint:
+def _row(row: dict, i: int, units: dict, where: str, csv_line: int | None = None) -> DHJoint:
+    def field(key: str) -> str:  # 'joints[2].alpha' in YAML, "row 4, column 'alpha'" in CSV
+        return f"{where}, column '{key}'" if csv_line is not None else f"{where}.{key}"
+
     jtype = str(row.get("type", "R")).upper()
     if jtype not in ("R", "P"):
-        raise DataError(f"{where}.type must be R or P, got {row.get('type')!r}.")
+        raise DataError(f"{field('type')} must be R or P, got {row.get('type')!r}.")
     vals = {}
     for key in ("a", "alpha", "d", "theta"):
         if key not in row or row[key] is None or (isinstance(row[key], str) and not row[key].strip()):
-            raise DataError(f"{where}.{key} is missing.")
-        vals[key] = _num(row[key], f"{where}.{key}") * (lf if key in ("a", "d") else af)
-    rf = af if jtype == "R" else lf
-    lo = _num(row["min"], f"{where}.min") * rf if row.get("min") not in (None, "") else (-math.pi if jtype == "R" else -100.0)
-    hi = _num(row["max"], f"{where}.max") * rf if row.get("max") not in (None, "") else (math.pi if jtype == "R" else 100.0)
+            raise DataError(f"{field(key)} is missing.")
+        vals[key] = _value(row[key], "length" if key in ("a", "d") else "angle", units, field(key))
+    kind = "angle" if jtype == "R" else "length"
+    bounds = []
+    for key, default in (("min", -math.pi if jtype == "R" else -100.0), ("max", math.pi if jtype == "R" else 100.0)):
+        given = row.get(key) not in (None, "")
+        bounds.append(_value(row[key], kind, units, field(key), JOINT_ANGLE_LIMIT) if given else default)
+    lo, hi = bounds
     if not lo < hi:
         raise DataError(f"{where}: the range [min, max] must have min < max.")
     name = str(row.get("name", i + 1)).strip()
     if not name or not name.replace("_", "").isalnum():
-        raise DataError(f"{where}.name must be letters, digits and _, got {row.get('name')!r}.")
+        raise DataError(f"{field('name')} must be letters, digits and _, got {row.get('name')!r}.")
     return DHJoint(name, jtype, vals["a"], vals["alpha"], vals["d"], vals["theta"], (lo, hi))
 
 
@@ -327,6 +350,8 @@ def _parse_csv(text: str, source: str) -> dict:
         if line.startswith("#"):
             if ":" in line:
                 k, v = line[1:].split(":", 1)
+                if k.strip().lower() in header:
+                    raise DataError(f"{source}, line {body + 1}: header '{k.strip()}' is declared twice.")
                 header[k.strip().lower()] = v.strip()
             continue
         break
@@ -341,6 +366,8 @@ def _parse_csv(text: str, source: str) -> dict:
         base, _, unit = c.partition("[")
         unit = unit.rstrip("]").strip()
         base = base.strip()
+        if base in names:
+            raise DataError(f"{source}: column '{base}' appears twice.")
         names.append(base)
         if base in ("a", "d"):
             units.setdefault("length", unit)
@@ -365,6 +392,7 @@ def _parse_csv(text: str, source: str) -> dict:
         if len(row) != len(cols):
             raise DataError(f"{source}, row {r}: {len(row)} values for {len(cols)} columns.")
         d = {("name" if n == "joint" else n): v.strip() for n, v in zip(names, row)}
+        d[_CSV_ROW] = r
         rows.append(d)
     doc = {"format": _FORMAT, "version": 1, "name": header.get("name"), "convention": header.get("convention"),
            "units": units, "joints": rows}
@@ -373,20 +401,145 @@ def _parse_csv(text: str, source: str) -> dict:
 
 def read_dh_table(path: str | Path) -> DHTable:
     """Read a DH / modified-DH table from YAML (``.yaml``, ``.yml``) or CSV (``.csv``)."""
-    import yaml
-
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: no such file.")
-    text = path.read_text(encoding="utf-8")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise DataError(f"{path}: not UTF-8 text.") from None
     if path.suffix.lower() == ".csv":
         doc = _parse_csv(text, str(path))
     else:
-        try:
-            doc = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise DataError(f"{path}: not valid YAML ({str(exc).splitlines()[0]}).") from None
+        doc = load_yaml(text, str(path))
     return parse_dh_table(doc, str(path))
+
+
+_URDF_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+
+
+def _urdf_numbers(text: str | None, count: int, where: str) -> list[float]:
+    """``count`` numbers of a URDF attribute (``xyz``, ``rpy``), refused when missing or not finite."""
+    parts = (text or "").split()
+    if len(parts) != count:
+        raise ModelError(f"{where} must hold {count} numbers, got {text!r}.")
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        raise ModelError(f"{where} must hold {count} numbers, got {text!r}.") from None
+    for v in values:
+        finite(v, where, error=ModelError)
+    return values
+
+
+def check_urdf(path: str | Path) -> None:
+    """Refuse a malformed URDF before it is read: one sentence naming the joint or link at fault.
+
+    Checked on the XML itself (``xml.etree``, no entity expansion beyond expat's limits), for
+    every joint, not only those of the imported chain, so that nothing is silently dropped:
+    unique link and joint names; every joint's parent and child links declared; a tree (one
+    root link, no link the child of two joints, no closed loop); a known joint type; origins
+    finite and within 100 m, roll-pitch-yaw within a turn (more "looks like degrees"); a
+    moving joint's axis a finite, non-zero direction; limits finite and plausible (a revolute
+    joint within two turns, a prismatic one within 100 m), lower < upper; a mimic joint names
+    an existing joint.  Mimic joints on the imported chain are refused by :func:`read_urdf`.
+
+    Raises
+    ------
+    ModelError
+    """
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise ModelError(f"{path}: cannot read the URDF (not well-formed XML: {exc}).") from None
+    if root.tag != "robot":
+        raise ModelError(f"{path}: the top element is <{root.tag}>, not <robot>: not a URDF.")
+    links = [lk.get("name") for lk in root.findall("link")]
+    for i, lk in enumerate(links):
+        if not lk:
+            raise ModelError(f"{path}: link {i + 1} has no name.")
+        if links.count(lk) > 1:
+            raise ModelError(f"{path}: link '{lk}' is declared twice.")
+    joints = root.findall("joint")
+    names = [j.get("name") for j in joints]
+    parent_of: dict[str, str] = {}
+    for i, j in enumerate(joints):
+        jn = names[i]
+        if not jn:
+            raise ModelError(f"{path}: joint {i + 1} has no name.")
+        if names.count(jn) > 1:
+            raise ModelError(f"{path}: joint '{jn}' is declared twice.")
+        where = f"{path}: joint '{jn}'"
+        jtype = j.get("type")
+        if jtype not in _URDF_JOINT_TYPES:
+            raise ModelError(f"{where} has type {jtype!r}; URDF joint types are {', '.join(_URDF_JOINT_TYPES)}.")
+        ends = {}
+        for end in ("parent", "child"):
+            el = j.find(end)
+            ends[end] = None if el is None else el.get("link")
+            if not ends[end]:
+                raise ModelError(f"{where} has no <{end} link=...>.")
+            if ends[end] not in links:
+                raise ModelError(f"{where} names {end} link '{ends[end]}', which the URDF does not declare "
+                                 f"(links: {', '.join(links)}).")
+        if ends["parent"] == ends["child"]:
+            raise ModelError(f"{where} joins link '{ends['child']}' to itself: a closed loop, which a URDF tree "
+                             f"cannot hold.")
+        if ends["child"] in parent_of:
+            raise ModelError(f"{path}: link '{ends['child']}' is the child of two joints ('{parent_of[ends['child']]}' "
+                             f"and '{jn}'): a closed loop, which a URDF tree cannot hold (hyperstat imports serial "
+                             f"chains from URDF; describe a parallel mechanism as a model file).")
+        parent_of[ends["child"]] = jn
+        origin = j.find("origin")
+        if origin is not None:
+            for v, axis in zip(_urdf_numbers(origin.get("xyz", "0 0 0"), 3, f"{where}: origin xyz"), "xyz"):
+                plausible_length(v, "m", f"{where}: origin {axis}", error=ModelError)
+            for v, axis in zip(_urdf_numbers(origin.get("rpy", "0 0 0"), 3, f"{where}: origin rpy"),
+                               ("roll", "pitch", "yaw")):
+                plausible_angle(v, "rad", f"{where}: origin {axis}", error=ModelError)
+        if jtype in ("revolute", "continuous", "prismatic"):
+            axis_el = j.find("axis")
+            axis = _urdf_numbers(axis_el.get("xyz") if axis_el is not None else "1 0 0", 3, f"{where}: axis xyz")
+            if math.hypot(*axis) < 1e-9:
+                raise ModelError(f"{where}: axis xyz=\"{axis_el.get('xyz')}\" is not a direction (zero length).")
+        limit = j.find("limit")
+        if jtype in ("revolute", "prismatic") and limit is not None:
+            bound = []
+            for key in ("lower", "upper"):
+                v = _urdf_numbers(limit.get(key, "0"), 1, f"{where}: limit {key}")[0]
+                if jtype == "revolute":
+                    plausible_angle(v, "rad", f"{where}: limit {key}", JOINT_ANGLE_LIMIT, error=ModelError)
+                else:
+                    plausible_length(v, "m", f"{where}: limit {key}", error=ModelError)
+                bound.append(v)
+            if not bound[0] < bound[1]:
+                raise ModelError(f"{where}: limit lower {bound[0]:g} must be below upper {bound[1]:g} (a joint that "
+                                 f"cannot move is a fixed joint).")
+        mimic = j.find("mimic")
+        if mimic is not None and mimic.get("joint") not in names:
+            raise ModelError(f"{where} mimics joint {mimic.get('joint')!r}, which the URDF does not declare.")
+    roots = [lk for lk in links if lk not in parent_of]
+    if not roots:
+        raise ModelError(f"{path}: every link is the child of a joint, so the joints form a closed loop; a URDF is "
+                         f"a tree from one root link.")
+    if len(roots) > 1:
+        raise ModelError(f"{path}: the URDF must have one root link, found {len(roots)} ({', '.join(roots)}): "
+                         f"links not connected by joints.")
+    child_of = {}
+    for j, jn in zip(joints, names):
+        child_of.setdefault(j.find("parent").get("link"), []).append(j.find("child").get("link"))
+    reached, todo = {roots[0]}, [roots[0]]
+    while todo:
+        for c in child_of.get(todo.pop(), []):
+            if c not in reached:
+                reached.add(c)
+                todo.append(c)
+    lost = [lk for lk in links if lk not in reached]
+    if lost:  # one root, one parent each, yet unreachable: a loop away from the root
+        raise ModelError(f"{path}: links {', '.join(lost)} are not reached from the root link '{roots[0]}': their "
+                         f"joints form a closed loop.")
 
 
 def read_urdf(path: str | Path, tip: str | None = None, name: str | None = None) -> Mechanism:
@@ -409,6 +562,7 @@ def read_urdf(path: str | Path, tip: str | None = None, name: str | None = None)
     path = Path(path)
     if not path.is_file():
         raise ModelError(f"{path}: no such URDF file.")
+    check_urdf(path)
     try:
         robot = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
                                    build_collision_scene_graph=False, load_collision_meshes=False)
@@ -459,6 +613,7 @@ def read_urdf(path: str | Path, tip: str | None = None, name: str | None = None)
         if j.mimic is not None:
             raise ModelError(f"{path}: joint '{j.name}' mimics another joint; mimic joints are not supported.")
         axis = np.array(j.axis if j.axis is not None else [1.0, 0.0, 0.0], dtype=float)
+        axis = axis / np.max(np.abs(axis))  # a direction of any size (check_urdf refused a zero one)
         ra = make_transform(axis_frame(axis / np.linalg.norm(axis)), np.zeros(3))
         jtype = "P" if j.type == "prismatic" else "R"
         if j.type == "continuous" or j.limit is None or j.limit.lower is None or j.limit.upper is None:

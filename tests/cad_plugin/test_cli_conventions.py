@@ -55,6 +55,8 @@ COMMANDS = {
     "export-linuxcnc": (["export-linuxcnc", HEX, "--hal", "k.hal"], "k.hal"),
     "check-controller": (["check-controller", "{d}/m.json", "--json", "cc.json"], "cc.json"),
     "export-linuxcnc-kins": (["export-linuxcnc-kins", TX, "--out", "kins"], "kins/machine.ini"),
+    "check-move": (["check-move", TX, "--from", "X596.783 Y18.262 Z-1143.049 B-22.58 C161.514", "--to",
+                    "X576.783 Y-1.738 Z-1138.049 B-21.58 C156.514", "--json", "move.json"], "move.json"),
     "accuracy": (["accuracy", SC, "--workspace-configurations", "60", "--json", "acc.json"], "acc.json"),
     "montecarlo": (["montecarlo", SC, "--workspace-configurations", "20", "--samples", "200", "--json", "mc.json"],
                    "mc.json"),

@@ -220,3 +220,123 @@ def test_check_controller_re_evaluates_the_effect_vectors(exported_serial, tmp_p
     assert main(["check-controller", str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "effect vector" in err and "angle-harmonic-1" in err
+
+
+# ---------------------------------------------------------------- a file cannot vouch for itself (issue 31)
+def _rehashed(path, tmp_path, change) -> "Path":
+    """The file with ``change`` applied to its content and the SHA-256 recomputed (what a forger would do)."""
+    doc = json.loads(path.read_text())
+    change(doc)
+    doc["sha256"] = content_hash(doc)
+    bad = tmp_path / "machine.json"
+    bad.write_text(json.dumps(doc))
+    return bad
+
+
+def _leg(doc: dict, name: str) -> dict:
+    return next(e for ch in doc["model"]["chains"] for e in ch["elements"] if e["name"] == name)
+
+
+def _refused(bad, capsys, *needles, source=None) -> str:
+    argv = ["check-controller", str(bad)] + (["--source", str(source)] if source else [])
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(bad) in err and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in err, err
+    return err
+
+
+def test_a_raised_tolerance_is_refused(exported, tmp_path, capsys):
+    """The issue's forgery: tolerance raised to 1e3, a defect moved by 0.1 mm, hash recomputed.  The version fixes
+    the tolerance, so the file is refused before any vector is evaluated."""
+    path, _, _ = exported
+
+    def forge(doc):
+        doc["test_vectors"]["tolerance"] = {"length_mm": 1e3, "angle_rad": 1e3}
+        doc["defects"]["db21"] += 0.1
+
+    _refused(_rehashed(path, tmp_path, forge), capsys, "test_vectors.tolerance", "fixes it at 1e-09",
+             "a file cannot set its own tolerance")
+
+
+def test_an_unknown_defect_is_refused(exported, tmp_path, capsys):
+    path, _, _ = exported
+    _refused(_rehashed(path, tmp_path, lambda d: d["defects"].__setitem__("dX99", 0.0)), capsys,
+             "'dX99', which is not a defect of the model 'tripteor_x7'")
+
+
+def test_a_changed_joint_range_is_refused(exported, tmp_path, capsys, tripteor):
+    """A widened (or narrowed) stroke of leg 42 with the hash recomputed: the test vectors are the version's draws
+    from the ranges, so the old vectors give it away; with the vectors drawn again as well (a complete forgery)
+    the file is consistent, and only a trusted model can tell: ``--source``."""
+    path, _, _ = exported
+    for delta in (50.0, -50.0):
+        bad = _rehashed(path, tmp_path, lambda d: _leg(d, "42")["range"].__setitem__(1, _leg(d, "42")["range"][1]
+                                                                                      + delta))
+        _refused(bad, capsys, "test vector 0", "were the joint ranges or the vectors changed after export?")
+    from hyperstat.solver.export.controller import build_test_vectors
+    from hyperstat.solver.kinematics.modelfile import mechanism_from_dict, save_model
+
+    def forge(doc):
+        _leg(doc, "42")["range"][1] += 50.0
+        mech = mechanism_from_dict(doc["model"])
+        xi = np.array([doc["defects"][p.name] for p in mech.parameters])
+        doc["test_vectors"] = json.loads(json.dumps(build_test_vectors(mech, xi, np.array(doc["target"]))))
+        doc["test_vectors"]["effect_vectors"] = json.loads(json.dumps(doc["test_vectors"].get("effect_vectors", [])))
+
+    bad = _rehashed(path, tmp_path, forge)
+    reference = save_model(tripteor, tmp_path / "tripteor.skel.json")
+    _refused(bad, capsys, "range[1]' differs from the reference model 'tripteor_x7' given with --source",
+             source=reference)
+    assert main(["check-controller", str(path), "--source", str(reference), "--quiet"]) == 0
+
+
+def test_what_the_version_admits(exported, tmp_path, capsys):
+    """Magnitudes, options, effect parameters and keys the format does not hold are refused (hash recomputed)."""
+    path, _, _ = exported
+    cases = [
+        (lambda d: d["defects"].__setitem__("dI21", 0.2), "field 'defects.dI21' is 0.2 rad, beyond the 0.1 rad"),
+        (lambda d: d["defects"].__setitem__("da21", 250.0), "field 'defects.da21' is 250 mm, beyond the 100 mm"),
+        (lambda d: d.__setitem__("target", [3000.0, 0.0, 0.0]), "field 'target' is 3000 mm from the output frame"),
+        (lambda d: d["effects"][0]["options"].__setitem__("gain", 2), "effects[0].options.gain' is not part"),
+        (lambda d: d["effects"][0]["parameters"].__setitem__("backlash_X", 0.0), "'backlash_X' is not a parameter"),
+        (lambda d: d["statistics"].__setitem__("trust_me", True), "statistics.trust_me' is not part of the format"),
+        (lambda d: d["test_vectors"].__setitem__("vectors", d["test_vectors"]["vectors"][:5]),
+         "holds 5 vectors; version 2 draws 24 and needs at least 12"),
+    ]
+    for change, needle in cases:
+        _refused(_rehashed(path, tmp_path, change), capsys, needle)
+    doc = json.loads(path.read_text())
+    name = next(iter(doc["effects"][0]["parameters"]))
+    _refused(_rehashed(path, tmp_path, lambda d: d["effects"][0]["parameters"].__setitem__(name, 1e3)), capsys,
+             f"parameter '{name}' = 1000", "physical domain or beyond its plausible magnitude")
+
+
+def test_a_key_declared_twice_is_refused(exported, tmp_path, capsys):
+    """JSON readers keep the last of two equal keys; a controller file that declares one twice is refused."""
+    path, _, _ = exported
+    text = path.read_text()
+    bad = tmp_path / "machine.json"
+    bad.write_text(text.replace('"defects": {', '"defects": {"db21": 1.0, ', 1))
+    _refused(bad, capsys, "key 'db21' is declared twice")
+
+
+def test_an_unreachable_range_is_refused():
+    """The Triflex II with its first actuated range widened by a quarter of its width at the low end: no
+    configuration of the other joints assembles there, so the range cannot be the machine's (the LinuxCNC
+    export would make it a joint limit).  The template's own ranges pass."""
+    from hyperstat.cad_plugin.templates import build_template
+    from hyperstat.solver.export.controller import ControllerModel, check_reachable_ranges
+    from hyperstat.solver.kinematics.modelfile import mechanism_to_dict
+
+    from tests.conftest import TEMPLATES
+
+    mech = build_template(TEMPLATES / "triflex_ii.py").mechanism()
+    doc = {"model": json.loads(json.dumps(mechanism_to_dict(mech))), "defects": {p.name: 0.0 for p in mech.parameters},
+           "target": [0.0, 0.0, 0.0], "effects": []}
+    check_reachable_ranges(ControllerModel(doc))
+    j = mech.joints[mech.actuated[0]]
+    _leg(doc, j.name)["range"][0] -= 0.25 * (j.range[1] - j.range[0])
+    with pytest.raises(DataError, match=f"low end .* of actuated joint '{j.name}' is not reachable"):
+        check_reachable_ranges(ControllerModel(doc))
