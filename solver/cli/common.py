@@ -106,10 +106,13 @@ def gate_calibration(res: Any, args: argparse.Namespace) -> None:
     HyperstatError
         One sentence naming the output and the reason.
     """
-    from hyperstat.solver.export.calibration_gate import export_refusal
+    from hyperstat.solver.export.calibration_gate import export_refusal, export_warning
 
     why = export_refusal(res)
     if why is None:
+        note = export_warning(res)
+        if note and not getattr(args, "quiet", False):
+            sys.stderr.write(f"hyperstat: warning: {args.out}: {note}.\n")
         return
     if not getattr(args, "force", False):
         raise HyperstatError(f"{args.out}: not written: {why}; check the inputs, or write it anyway with --force.")
