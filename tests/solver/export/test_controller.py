@@ -175,7 +175,10 @@ def exported_serial(tmp_path_factory):
     vm = VirtualMachine.random(mech, analysis, seed=0, effects=truth)
     q = vm.poses(50, seed=1)
     meta = workshop_metadata(mech, 50, seed=2)
-    data = vm.measure(q[:40], seed=3, metadata={k: v[:40] for k, v in meta.items()})
+    # noise-free identification poses: with the tracker's noise, 40 poses left the wrist's harmonics and
+    # gravity-side backlash (joints with little load) beyond their plausible magnitudes or physical domain,
+    # and the controller file rightly refuses such estimates (tested in test_what_the_version_admits)
+    data = vm.measure(q[:40], seed=3, metadata={k: v[:40] for k, v in meta.items()}, noise=False)
     val = vm.measure(q[40:], seed=4, prefix="V", metadata={k: v[40:] for k, v in meta.items()})
     effects = tuple(make_effect(n, mech, analysis, data) for n in names)
     with warnings.catch_warnings():
