@@ -126,6 +126,8 @@ def mutate(doc, data):
 
 #: suite -> [accepted, refused] runs of the reader's command (printed at the end of the module)
 TALLY: dict = {}
+#: suites whose uncorrupted input was read (test_the_suites_start_from_good_inputs)
+GOOD_READ: set = set()
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -136,7 +138,9 @@ def _tally():
 
     for suite, (accepted, refused) in sorted(TALLY.items()):
         sys.stderr.write(f"\nfuzz {suite}: {accepted} read, {refused} refused\n")
-        assert accepted and refused, (suite, accepted, refused)
+        # a corrupted controller file that still reads is rare by design (hash, version-fixed content):
+        # its accepted path is the uncorrupted file of test_the_suites_start_from_good_inputs
+        assert refused and (accepted or suite in GOOD_READ), (suite, accepted, refused)
 
 
 class Workspace:
@@ -345,3 +349,4 @@ def test_the_suites_start_from_good_inputs(tmp_path, model_doc, controller_doc):
             assert ws.run(["import-robot", _write(ws, name, text), "--out", ws.dir / "o.json", "--quiet"])
         assert ws.run(["check-hypotheses", SC, _write(ws, "h.yaml", HYPOTHESES), "--configurations", "6", "--quiet"])
         assert ws.run(["check-controller", _write(ws, "c.json", json.dumps(controller_doc)), "--quiet"])
+        GOOD_READ.add("controller file")
