@@ -13,6 +13,7 @@ import math
 import re
 from typing import Any
 
+from hyperstat.solver.cli.suggest import did_you_mean
 from hyperstat.solver.errors import TemplateError
 
 __all__ = ["param", "describe", "parse_value", "parse_overrides", "make_parameters"]
@@ -74,7 +75,7 @@ def parse_overrides(items: list[str] | None, parameters_cls: type) -> dict[str, 
         name, text = (s.strip() for s in item.split("=", 1))
         if name not in fields:
             valid = ", ".join(f"{n} [{f.metadata.get('unit', '1')}]" for n, f in fields.items())
-            raise TemplateError(f"unknown parameter '{name}'; valid parameters: {valid}.")
+            raise TemplateError(f"unknown parameter '{name}'{did_you_mean(name, fields)}; valid parameters: {valid}.")
         out[name] = parse_value(text, fields[name].metadata.get("unit", "1"), name)
     return out
 
@@ -85,7 +86,8 @@ def make_parameters(parameters_cls: type, values: dict[str, Any]) -> Any:
     unknown = [k for k in values if k not in fields]
     if unknown:
         valid = ", ".join(fields)
-        raise TemplateError(f"unknown parameter '{unknown[0]}'; valid parameters: {valid}.")
+        raise TemplateError(f"unknown parameter '{unknown[0]}'{did_you_mean(unknown[0], fields)}; "
+                            f"valid parameters: {valid}.")
     for name, value in values.items():
         md = fields[name].metadata
         try:

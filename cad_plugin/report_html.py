@@ -145,7 +145,8 @@ def _summary(doc: dict) -> str:
               "the feature control frames. Words and symbols: glossary.</p>")
     rows = []
     for t in tol["items"]:
-        frames = " ".join(_fcf(c) for c in frames_of(t))
+        frames = " ".join(_fcf(c) for c in frames_of(t)) or (_e(tolerance_value(t, "drawing_value"))
+                                                             if t.get("drawing_value") is not None else "")
         rows.append([_e(t["id"]), f"{_e(t['feature'])}: {_e(t['words'])}", _e(t["statement"]), _e(tolerance_value(t)),
                      _with_calibration(t), frames or "-", _badge(t["class"]),
                      "-" if t.get("contribution_percent") is None else f"{t['contribution_percent']:.1f}"])
@@ -224,6 +225,12 @@ def _accuracy(doc: dict, images: dict) -> str:
                 cells = [f"{k}: {tolerance_value({'value': c['tolerance'], 'unit': c['unit']}) if c['tolerance'] is not None else 'no limit'}"
                          f" ({len(c['parameters'])} parameters)" for k, c in a["classes"].items()]
                 parts.append(f"<p><b>{_e(label)}</b>: " + _e("; ".join(cells)) + "</p>")
+    bounded = [t for t in tol["items"] if t.get("bounds")]
+    for t in bounded:
+        b = t["bounds"]
+        parts.append(f"<p>{_e(t['id'])} {_e(t['statement'])} ({_e(t['feature'])}): attainable linear worst case "
+                     f"{b['attainable_linear_worst_case']:.3g} {_e(b.get('unit', 'mm'))}, triangle bound "
+                     f"{b['triangle_bound']:.3g} {_e(b.get('unit', 'mm'))}.</p>")
     out = [_head("accuracy", "Accuracy and allocation", "".join(parts[:1]))] + parts[1:]
     types = _joint_types(doc)
     if doc.get("worst_cases"):

@@ -30,7 +30,9 @@ def checked_text(c: dict) -> str:
 
 
 def _frames(item: dict) -> str:
-    return " ".join(c.get("frame") or "" for c in frames_of(item)) or "-"
+    """The feature control frames as text cells, or the drawing value."""
+    frames = " ".join(c.get("frame") or "" for c in frames_of(item))
+    return frames or (tolerance_value(item, "drawing_value") if item.get("drawing_value") is not None else "-")
 
 
 def render_markdown(doc: dict) -> str:
@@ -70,6 +72,12 @@ def render_markdown(doc: dict) -> str:
             lines.append(f"| {label} | {w['coefficient']} | {w['max']:.4g} | {w['sampled_max']:.4g} | "
                          f"{w['optimiser_tolerance']:.1g}{' (iteration limit)' if 'iteration limit' in w['evidence'] else ''}"
                          f" | {where_words(full, types)} |")
+    for t in tol["items"]:
+        if t.get("bounds"):
+            b = t["bounds"]
+            lines += ["", f"{t['id']} {t['statement']}: attainable linear worst case "
+                          f"{b['attainable_linear_worst_case']:.3g} {b.get('unit', 'mm')}, triangle bound "
+                          f"{b['triangle_bound']:.3g} {b.get('unit', 'mm')}"]
     note = values_note(doc)
     if note:
         lines += ["", note]

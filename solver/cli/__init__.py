@@ -23,6 +23,7 @@ from hyperstat.solver.cli.common import (
     register_source,
     stages,
 )
+from hyperstat.solver.cli.suggest import SuggestingParser
 from hyperstat.solver.errors import HyperstatError
 
 __all__ = ["main", "build_parser", "register_source", "register_plotter", "load_source", "jsonable", "analysis_of",
@@ -40,7 +41,7 @@ def _installed_version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser with the solver's commands."""
-    parser = argparse.ArgumentParser(
+    parser = SuggestingParser(
         prog="hyperstat",
         description="Geometric defects of over-constrained mechanisms: stationarity analysis, accuracy, "
         "identification, diagnosis (lengths in mm, angles in rad).",

@@ -241,6 +241,10 @@ def test_markdown_and_json_say_the_same(full_report):
         assert f"| {t['id']} |" in md and f'<td class="nw">{t["id"]}</td>' in page
         for c in t["drawing"]:
             assert c["frame"] in md
+        if t["bounds"]:
+            b = t["bounds"]
+            text = f"attainable linear worst case {b['attainable_linear_worst_case']:.3g} mm, triangle bound"
+            assert text in md and text in page
 
 
 def test_every_tolerance_of_the_json_is_in_the_html(plain_report):
