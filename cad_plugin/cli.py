@@ -293,7 +293,8 @@ def build_parser():
     p = sub.add_parser("view", help="render the skeleton with its markers (PNG, off-screen)")
     p.add_argument("source", help="template (.py), model file (.json) or STEP file")
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
-    p.add_argument("--analysis", metavar="RESULT.json", help="colour markers by the verdicts of this analysis")
+    p.add_argument("--analysis", metavar="RESULT.json",
+                   help="colour the joints by the tolerance classes of this analysis")
     p.add_argument("--png", required=True, metavar="OUT.png", help="output picture")
     p.add_argument("--words", metavar="OUT.json", help="also write the words the picture shows (legend, views, "
                    "callouts) as JSON")

@@ -19,8 +19,9 @@ import html
 
 from hyperstat.cad_plugin.gdt import symbol_of, symbol_svg, zone_text
 from hyperstat.cad_plugin.palette import CLASS_COLORS, CLASS_LABELS, tolerance_counts
-from hyperstat.cad_plugin.report_words import (calibrated_value, contributor_groups, frames_of, glossary, significance,
-                                               spec_text, title_rows, tolerance_value, um, values_note, where_words)
+from hyperstat.cad_plugin.report_words import (calibrated_value, contributor_groups, frames_of, glossary, micro,
+                                               significance, spec_text, title_rows, tolerance_value, um, values_note,
+                                               where_words)
 
 __all__ = ["render_html", "SECTIONS", "CSS"]
 
@@ -67,7 +68,8 @@ dl.glossary dd { margin: 0 0 .25em 1em; break-inside: avoid; }
 
 
 def _e(text) -> str:
-    return html.escape(str(text))
+    """Text from the JSON, escaped, its micro-units spelled µm / µrad."""
+    return html.escape(micro(str(text)))
 
 
 def _badge(cls: str) -> str:

@@ -6,7 +6,7 @@ Units: lengths in mm, angles in rad; residuals in µm.
 from __future__ import annotations
 
 from hyperstat.cad_plugin.palette import tolerance_counts
-from hyperstat.cad_plugin.report_words import (calibrated_value, contributor_groups, frames_of, glossary, significance,
+from hyperstat.cad_plugin.report_words import (calibrated_value, contributor_groups, frames_of, glossary, micro, significance,
                                                title_rows, tolerance_value, um, values_note, where_words)
 
 __all__ = ["render_markdown", "checked_text"]
@@ -132,4 +132,4 @@ def render_markdown(doc: dict) -> str:
     lines += ["", "## Glossary", ""] + [f"* **{k}**: {v}" for k, v in glossary(doc)]
     lines += ["", "## Appendix: normalisation components (not tolerances)", ""]
     lines += [f"* {a['name']} (joint {a['element']})" for a in tol["appendix"]["normalisation"]] or ["* none"]
-    return "\n".join(lines) + "\n"
+    return micro("\n".join(lines) + "\n")

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import re
 
-__all__ = ["safe_round", "tolerance_value", "calibrated_value", "um", "significance", "SIGNIFICANCE",
+__all__ = ["micro", "safe_round", "tolerance_value", "calibrated_value", "um", "significance", "SIGNIFICANCE",
            "coefficient_words", "glossary", "title_rows", "where_words", "contributor_groups", "spec_text",
            "values_note", "frames_of", "display_path"]
 
@@ -21,6 +21,16 @@ __all__ = ["safe_round", "tolerance_value", "calibrated_value", "um", "significa
 SIGNIFICANCE = (("**", 3.0, "significant: the estimate is at least 3 standard deviations from zero"),
                 ("*", 2.0, "marginal: between 2 and 3 standard deviations from zero"),
                 ("n.s.", 0.0, "not significant: within 2 standard deviations of zero (zero is plausible)"))
+
+
+def micro(text: str) -> str:
+    """Free text from the JSON with its micro-units spelled as units: ``um`` -> ``µm``, ``urad`` -> ``µrad``.
+
+    >>> micro("clearance 0 to 10 um, i.e. +-5 um; 2 um and 20 urad; a drum")
+    'clearance 0 to 10 µm, i.e. +-5 µm; 2 µm and 20 µrad; a drum'
+    """
+    text = re.sub(r"\bum\b", "\u00b5m", text)
+    return re.sub(r"(\d)\s?urad\b", "\\1 \u00b5rad", text)
 
 
 def safe_round(value: float, digits: int = 3) -> float:

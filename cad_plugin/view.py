@@ -41,7 +41,8 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.cad_plugin.assembly import AXIS_COLORS
 from hyperstat.cad_plugin.palette import CLASS_RGB, element_classes
 
-__all__ = ["render_png", "render_views", "choose_views", "scene_of", "LINK_COLORS", "PLANAR_RATIO", "words_path"]
+__all__ = ["render_png", "render_views", "choose_views", "scene_of", "LINK_COLORS", "PLANAR_RATIO", "words_path",
+           "write_record"]
 
 #: link colours: base and platform links darker than the legs (neutral greys: the colours belong to the classes)
 LINK_COLORS = {"base": (0.27, 0.35, 0.39), "platform": (0.38, 0.49, 0.55), "other": (0.62, 0.62, 0.64)}
@@ -285,6 +286,19 @@ def words_path(png: str | os.PathLike) -> Path:
     """The record of the words a picture shows: ``name.png`` -> ``name.png.json``."""
     png = Path(png)
     return png.with_name(png.name + ".json")
+
+
+def write_record(png: str | os.PathLike, command: str, words: dict) -> Path:
+    """Write the record of a committed picture: the command that drew it, its SHA-256 and the words it shows.
+
+    ``tests/test_docs_images.py`` reads these records (``make images`` writes them).
+    """
+    import hashlib
+
+    record = {"title": "", "classes": [], "legend": [], "callouts": [], "views": [], "frames": [], **words,
+              "format": "hyperstat-picture-words", "command": command,
+              "png_sha256": hashlib.sha256(Path(png).read_bytes()).hexdigest()}
+    return write_text(words_path(png), dumps_json(record))
 
 
 def render_png(mech: Mechanism, path: str | os.PathLike, analysis: dict | None = None,

@@ -192,8 +192,10 @@ def test_the_report_speaks_in_words(full_report):
     doc = json.loads((out / "report.json").read_text())
     page = (out / "report.html").read_text()
     text = " ".join(page_text(pdf, p) for p in range(1, pages_of(pdf) + 1))
-    body = re.sub(r"<[^>]+>", " ", page.split("</style>")[1])
-    assert not re.search(r"\bum\b", body) and "µm" in body  # µm, never um
+    body = re.sub(r"<[^>]+>", " ", re.sub(r"<svg.*?</svg>", " ", page.split("</style>", 1)[1], flags=re.S))
+    md = (out / "report.md").read_text()
+    assert not re.search(r"\bum\b", body + md) and "µm" in body and "µm" in md  # µm, never um
+    assert "0 to 10 µm" in body  # the clearances' own words too
     for section in SECTIONS:
         assert f'<section id="{section}">' in page
     glossary = page[page.index('<section id="glossary">'):]
@@ -252,7 +254,7 @@ def test_every_tolerance_of_the_json_is_in_the_html(plain_report):
     doc = json.loads((out / "report.json").read_text())
     page = (out / "report.html").read_text()
     assert not re.search(r"(src|href)=\"(https?:)?//", page)  # nothing loaded from the network
-    assert "{&quot;" not in page and '{"' not in page.split("</style>")[1]  # no raw JSON anywhere
+    assert "{&quot;" not in page and '{"' not in page.split("</style>", 1)[1]  # no raw JSON anywhere
     from hyperstat.cad_plugin.report_words import tolerance_value
 
     items = doc["tolerances"]["items"]
