@@ -292,11 +292,8 @@ def _legend_rows(entries: list, width_mm: float) -> list[list]:
 
 
 def _link_colors(rendered: dict) -> list:
-    from hyperstat.cad_plugin.view import LINK_COLORS, _link_kind
-
-    kinds = sorted({_link_kind(n) for n in rendered.get("links", [])} or {"other"},
-                   key=["base", "platform", "other"].index)
-    return [(k, LINK_COLORS[k]) for k in kinds]
+    """(kind, colour) of the links drawn, base first (from the rendered views)."""
+    return [(k, tuple(c)) for k, c in rendered.get("link_colors") or [("other", (0.62, 0.62, 0.64))]]
 
 
 def figure_png(fig, width_px: int = 1600) -> bytes:

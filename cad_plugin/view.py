@@ -278,7 +278,9 @@ def render_views(mech: Mechanism, analysis: dict | None = None, tile: tuple[int,
                     "anchors": {e: _project(cam, p) for e, p in anchors.items()}})
     plotter.close()
     elements_of = {str(p["name"]): str(p["element"]) for p in (analysis or {}).get("parameters", [])}
-    return {"views": out, "classes": classes, "ids": ids, "elements_of": elements_of,
+    kinds = {link["kind"] for link in scene["links"]}
+    link_colors = [[k, list(LINK_COLORS[k])] for k in ("base", "platform", "other") if k in kinds]
+    return {"views": out, "classes": classes, "ids": ids, "elements_of": elements_of, "link_colors": link_colors,
             "links": [link["name"] for link in scene["links"]] if scene["declared"] else []}
 
 

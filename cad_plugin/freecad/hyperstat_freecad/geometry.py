@@ -344,12 +344,16 @@ def _callouts(skeleton, centres: dict, offsets: dict, ids: dict, radius: float) 
     groups: dict[tuple, list[str]] = {}
     for element in offsets:
         groups.setdefault(tuple(round(c, 6) for c in centres[element]), []).append(element)
+    middle = FreeCAD.Vector(*[sum(p[i] for p in groups) / max(len(groups), 1) for i in range(3)])
     for members in groups.values():
         members.sort()
         ring = max(max(sum(c * c for c in offsets[m]) ** 0.5 for m in members), radius)
+        centre = FreeCAD.Vector(*centres[members[0]])
+        away = centre - middle  # outwards from the middle of the skeleton, so that neighbours' callouts part
+        away = away.normalize() if away.Length > 1e-9 else FreeCAD.Vector(1, 0, 0)
         label = doc.addObject("App::Annotation", "Callout")
         label.LabelText = [callout_text(e, ids.get(e, [])) for e in members]
-        label.Position = FreeCAD.Vector(*centres[members[0]]) + FreeCAD.Vector(ring, 0, 2.0 * ring)
+        label.Position = centre + away * (2.0 * ring) + FreeCAD.Vector(0, 0, ring)
         _tag(label, "HyperstatRole", "callout", "What this object is for hyperstat")
         _tag(label, "HyperstatElement", ",".join(members), "Joints at this point")
         skeleton.addObject(label)  # a plain group: the position stays global

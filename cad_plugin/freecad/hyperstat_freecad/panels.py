@@ -544,8 +544,13 @@ def _fit_dock(widget, min_height: int) -> None:
 def legend_html(tolerances: dict | None) -> str:
     """The class colours with their words, as the report and the pictures draw them."""
     meaning = (tolerances or {}).get("classes") or {}
-    rows = [f"<span style='background:{CLASS_COLORS[c]}'>&nbsp;&nbsp;&nbsp;</span> <b>{CLASS_LABELS[c]}</b>"
-            + (f": {meaning[c]}" if c in meaning else "") for c in CLASS_ORDER]
+    rows = []
+    for c in CLASS_ORDER:
+        text = meaning.get(c, "")
+        if text.startswith(CLASS_LABELS[c]):  # the JSON's meaning may begin with the class's own words
+            text = text[len(CLASS_LABELS[c]):].lstrip(": ")
+        rows.append(f"<span style='background:{CLASS_COLORS[c]}'>&nbsp;&nbsp;&nbsp;</span> <b>{CLASS_LABELS[c]}</b>"
+                    + (f": {text}" if text else ""))
     return ("Marker colours (a joint takes the most severe class of its defects; each marker is called out with its "
             "joint and tolerance ids, the rows of the table):<br>" + "<br>".join(rows))
 

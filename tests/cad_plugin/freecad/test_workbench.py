@@ -196,8 +196,8 @@ def _verdicts(analysis: dict) -> dict[str, tuple]:
     return {p["name"]: (p["element"], p["verdict"], p.get("influential")) for p in analysis["parameters"]}
 
 
-def _classes(analysis: dict) -> dict[str, str]:
-    return {n: e["class"] for n, e in analysis["tolerances"]["parameters"].items()}
+def _classes(tolerances: dict) -> dict[str, str]:
+    return {n: e["class"] for n, e in tolerances["parameters"].items()}
 
 
 # --------------------------------------------------------------------------- install
@@ -259,7 +259,7 @@ def test_template_in_freecadcmd_classes_colours_callouts_and_reopen(jobs, expect
 
     # stationarity and tolerance classes: stored in the document == the solver's JSON == the solver run here
     assert _verdicts(before["analysis"]) == _verdicts(solver_json) == _verdicts(want["analysis"])
-    assert before["parameter_classes"] == _classes(want["analysis"]) == _classes(before["tolerances"])
+    assert before["parameter_classes"] == _classes(want["analysis"]["tolerances"]) == _classes(before["tolerances"])
     here = want["analysis"]["tolerances"]
     assert before["tolerances"]["counts"] == here["counts"]  # the report's counts, computed here without FreeCAD
     assert before["tolerance_counts"] == {k: str(v) for k, v in here["counts"].items()}
