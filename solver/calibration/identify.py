@@ -39,7 +39,7 @@ from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.threads import limited_blas
 
 __all__ = ["MeasurementModel", "Prediction", "IdentificationResult", "identify", "error_stats", "kabsch", "register_targets",
-           "observability_indices"]
+           "observability_indices", "fit_quality", "FIT_QUALITY", "SIGMA_WARN", "SIGMA_INPUTS", "SIZE_INPUTS"]
 
 TRACKER_NAMES = ["tracker_rx", "tracker_ry", "tracker_rz", "tracker_x", "tracker_y", "tracker_z"]
 TARGET_NAMES = ["target_x", "target_y", "target_z"]
@@ -297,6 +297,12 @@ class MeasurementModel:
                 rows = tidx == t
                 c0 = self.sl_target_rotation.start + 3 * t
                 rot_jac[rows, :, c0:c0 + 3] = np.einsum("ji,kjl,lm->kim", r_trk, rot_out[rows], jt[t])
+            # effects turn the output through the actuated values (and defect-type effects through the
+            # geometry); thermal growth, tracker scale and drift move points, they turn nothing
+            if self.effects:
+                rot_jac += np.einsum("ji,kjn->kin", r_trk, np.einsum("kan,knj->kaj", k_a[:, :3, :], dqa_dtheta))
+            for sl, directions in self._effect_defects:
+                rot_jac[:, :, sl] += np.einsum("ji,kjn->kin", r_trk, k_xi[:, :3, :] @ directions)
         return Prediction(position, jac, q, res.converged, world, rot_pred, rot_jac)
 
     def _target_index(self, data: MeasurementSet) -> np.ndarray:
@@ -451,6 +457,11 @@ class IdentificationResult:
         significantly more (chi-square test of the nested fits): kept out of the base set.
     converged : bool
         Whether the fit converged (cost not increased, iteration limit not hit).
+    fit_quality : str
+        Machine-readable severity of the fit (:func:`fit_quality`): ``"ok"``, ``"model misses
+        an effect"`` (sigma a few times the stated noise: run the diagnosis) or ``"inputs
+        wrong"`` (sigma in the hundreds or residuals of a link's size: joint map, units,
+        targets); export commands refuse the last two without ``--force``.
     """
 
     rank: int
@@ -484,6 +495,7 @@ class IdentificationResult:
     model_selection: dict | None = None
     orientation: dict | None = None
     held_back: dict | None = None
+    fit_quality: str = "ok"
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (units: mm, rad)."""
@@ -502,6 +514,7 @@ class IdentificationResult:
             "validation": self.validation,
             "noise_rms": self.noise_rms,
             "sigma": self.sigma,
+            "fit_quality": self.fit_quality,
             "converged": self.converged,
             "nominal": self.nominal,
             "base_rounds": self.base_rounds,
@@ -528,18 +541,27 @@ class IdentificationResult:
         return {p["name"]: p["estimate"] for p in self.parameters}
 
 
+def _sigma_rows(data: MeasurementSet) -> np.ndarray | None:
+    """Per-row 1-sigma (mm): a set's own ``row_sigma`` (points derived from 6-D rows), else the noise model."""
+    rows = getattr(data, "row_sigma", None)
+    if rows is not None:
+        return np.asarray(rows, dtype=float)
+    if data.noise is None:
+        return None
+    return data.noise.sigma(np.linalg.norm(data.position, axis=1))
+
+
 def _weights(data: MeasurementSet) -> np.ndarray:
     """Per-point weights 1/sigma (1/mm) from the noise model, ones without one."""
-    if data.noise is None:
-        return np.ones(len(data))
-    return 1.0 / data.noise.sigma(np.linalg.norm(data.position, axis=1))
+    s = _sigma_rows(data)
+    return np.ones(len(data)) if s is None else 1.0 / s
 
 
 def noise_rms(data: MeasurementSet) -> float | None:
     """RMS of the 3-D noise the data's noise model implies (mm)."""
-    if data.noise is None:
+    s = _sigma_rows(data)
+    if s is None:
         return None
-    s = data.noise.sigma(np.linalg.norm(data.position, axis=1))
     return float(np.sqrt(np.mean(3.0 * s**2)))
 
 
@@ -670,7 +692,31 @@ def gauss_newton(evaluate, x0: np.ndarray, column_scale: np.ndarray, max_iter: i
 
 
 OUTLIER_Z = 3.5  #: robust z-score above which an observation is flagged (Iglewicz and Hoaglin)
-SIGMA_WARN = 3.0  #: weighted-residual standard deviation above which the fit is called absurd
+SIGMA_WARN = 3.0  #: weighted-residual standard deviation above which the rigid model misses something
+SIGMA_INPUTS = 100.0  #: sigma from which the inputs (joint map, units, targets), not the model, are at fault
+SIZE_INPUTS = 0.01  #: residual RMS above this share of the machine's length scale: the inputs are at fault
+FIT_QUALITY = ("ok", "model misses an effect", "inputs wrong")
+
+
+def fit_quality(sigma: float, rms: float, length_scale: float, noise_stated: bool) -> str:
+    """Severity of a fit, one of :data:`FIT_QUALITY`.
+
+    ``"inputs wrong"`` when the residual RMS (mm) exceeds :data:`SIZE_INPUTS` of the
+    machine's length scale (a wrong joint sign, offset or coupling, a unit error, targets
+    stacked in one column move the point by a fraction of a link) or, with a stated noise,
+    sigma reaches :data:`SIGMA_INPUTS`; ``"model misses an effect"`` when sigma exceeds
+    :data:`SIGMA_WARN` otherwise (compliance, gear errors, temperature: a few times the
+    noise, well below a link's size); ``"ok"`` else.  Without a stated noise only the size
+    test applies.
+
+    >>> fit_quality(6.6, 0.57, 1500.0, True), fit_quality(1840.0, 40.0, 1500.0, True), fit_quality(1.02, 0.03, 1500.0, True)
+    ('model misses an effect', 'inputs wrong', 'ok')
+    """
+    if rms > SIZE_INPUTS * length_scale or (noise_stated and sigma >= SIGMA_INPUTS):
+        return "inputs wrong"
+    if noise_stated and sigma > SIGMA_WARN:
+        return "model misses an effect"
+    return "ok"
 
 
 def residual_table(data: MeasurementSet, resid: np.ndarray, w: np.ndarray) -> list:
@@ -844,7 +890,7 @@ def identify(
     """
     t0 = time.perf_counter()
     imposed = base
-    oriented = data.rotation is not None and not effects
+    oriented = data.rotation is not None
     model = model or MeasurementModel(mechanism, analysis, kinematics, effects, targets=list(data.target_names),
                                       orientation=oriented)
     oriented = model.orientation and data.rotation is not None
@@ -1029,7 +1075,9 @@ def identify(
     if nominal:
         nominal_doc = _nominal_error(model, data, validation, theta_prior, w, scale, preferred, fitter.q, rank_tol,
                                      max_nfev)
-    warns += _trust_warnings(data, validation, sigma, converged, table, val_stats, nominal_doc, resid)
+    quality = fit_quality(sigma, error_stats(resid)["rms"], model.kin.length_scale, data.noise is not None)
+    warns += _trust_warnings(data, validation, sigma, converged, table, val_stats, nominal_doc, resid, quality,
+                             model.kin.length_scale)
     return IdentificationResult(
         rank=rank,
         n_unknowns=model.n,
@@ -1061,6 +1109,7 @@ def identify(
         converged=converged,
         model_selection=selection,
         orientation=orientation,
+        fit_quality=quality,
         held_back=None if held_back is None else {
             "rank_at_solution": held_back[0], "extra_directions": held_back[1], "chi2_decrease": held_back[2],
             "reason": "numerically independent at the solution but not significant (chi-square test, 0.1 %): "
@@ -1173,18 +1222,33 @@ def _nominal_error(model: MeasurementModel, data: MeasurementSet, validation: Me
 
 
 def _trust_warnings(data: MeasurementSet, validation, sigma: float, converged: bool, table: list,
-                    val_stats: dict | None, nominal: dict | None, resid: np.ndarray) -> list:
-    """Loud warnings: absurd sigma, divergence, outliers, a calibration worse than the nominal model."""
+                    val_stats: dict | None, nominal: dict | None, resid: np.ndarray, quality: str = "ok",
+                    length_scale: float = 1.0) -> list:
+    """Loud warnings: wrong inputs, a model that misses an effect, divergence, outliers, a calibration worse
+    than the nominal model (the words follow :func:`fit_quality`)."""
     out = []
     if not converged:
         out.append("THE FIT DID NOT CONVERGE (the cost rose or the iteration limit was hit): the estimates are not "
                    "a least-squares solution; check the joint map, the units and the targets.")
-    if data.noise is not None and sigma > SIGMA_WARN:
-        rms = error_stats(resid)["rms"]
-        out.append(f"ABSURD FIT: sigma = {sigma:.3g} (the residuals are {sigma:.3g} times the stated noise; RMS "
-                   f"{rms:.4g} mm). The model does not describe these data: a wrong joint map (sign, offset, "
-                   f"coupling such as FANUC's q3 = J3 + J2), wrong units, several targets stacked in one column, "
-                   f"or a moved tracker. Do not use this calibration.")
+    rms = error_stats(resid)["rms"]
+    size = f"RMS {rms:.4g} mm, {100 * rms / length_scale:.2g} % of the machine's size"
+    if quality == "inputs wrong":
+        times = f"the residuals are {sigma:.3g} times the stated noise; " if data.noise is not None else ""
+        out.append(f"ABSURD FIT: sigma = {sigma:.3g} ({times}{size}). The inputs are wrong, not the model: a wrong "
+                   f"joint map (sign, offset, coupling such as FANUC's q3 = J3 + J2), wrong units, several targets "
+                   f"stacked in one column, or a moved tracker. Do not use this calibration.")
+    elif quality == "model misses an effect":
+        gain = ""
+        if nominal is not None and val_stats is not None and nominal.get("validation") is not None:
+            before, after = nominal["validation"]["rms"], val_stats["rms"]
+            change = "cuts" if after <= before else "raises"
+            gain = (f" The calibration {change} the held-out error by {100 * abs(before - after) / before:.0f} % "
+                    f"({before:.4g} -> {after:.4g} mm).")
+        out.append(f"MODEL MISSES AN EFFECT: sigma = {sigma:.3g} (the residuals are {sigma:.3g} times the stated "
+                   f"noise; {size}). The inputs look right (a wrong joint map or unit gives sigma in the hundreds and "
+                   f"errors of a link's size), but the rigid model misses something (compliance, a gear error, "
+                   f"temperature) or the stated noise is too small.{gain} Run `hyperstat diagnose` on the same files "
+                   f"to find what is missing before using this calibration.")
     n_out = sum(r["outlier"] for r in table)
     if n_out:
         worst = sorted((r for r in table if r["outlier"]), key=lambda r: -r["robust_z"])[:5]

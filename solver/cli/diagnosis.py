@@ -18,16 +18,17 @@ from hyperstat.solver.errors import HyperstatError
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     from hyperstat.solver.diagnosis.diagnose import diagnose, format_outcome
-    from hyperstat.solver.diagnosis.effects import available_effects
+    from hyperstat.solver.diagnosis.effects import available_effects, is_known_effect
     from hyperstat.solver.export.text import format_diagnosis
     from hyperstat.solver.calibration.measurements import read_measurements
 
     known = available_effects()
-    candidates = tuple(args.effects.split(",")) if args.effects else known
-    unknown = [c for c in candidates if c not in known]
+    candidates = tuple(args.effects.split(",")) if args.effects else None  # None: the library, spectrum, plug-ins
+    unknown = [c for c in candidates or () if not is_known_effect(c)]
     if unknown:
-        raise HyperstatError(f"--effects: unknown effect '{unknown[0]}'; effects are {', '.join(known)}.")
-    steps = ["rigid fit", "where", "candidates", "selection", "nonlinear fit", "verdict"]
+        raise HyperstatError(f"--effects: unknown effect '{unknown[0]}'; effects are {', '.join(known)} and "
+                             f"angle-harmonic-<k> for any positive k.")
+    steps = ["rigid fit", "where", "candidates", "selection", "nonlinear fit", "verdict", "per target"]
     with stages(args, ["stationarity analysis"] + steps + ["plots"]) as progress:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = analysis_of(args)
@@ -123,7 +124,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("source", help="template, model file or STEP file")
     p.add_argument("data", help="identification measurements (CSV with a noise model)")
     p.add_argument("--validation", metavar="VAL.csv", help="validation measurements, never fitted")
-    p.add_argument("--effects", help="comma-separated candidate effects (default: all)")
+    p.add_argument("--effects", help="comma-separated candidate effects, e.g. compliance,angle-harmonic-3 (default: the "
+                   "library, the periodic orders of the residual spectrum and the plug-ins)")
     p.add_argument("--plots", metavar="DIR", help="write the residual plots (PNG) to DIR")
     common_options(p)
     p.set_defaults(func=_cmd_diagnose)

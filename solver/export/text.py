@@ -202,6 +202,7 @@ def format_identification(result) -> str:
     weighted = result.noise_rms is not None
     lines.append(f"sigma {result.sigma:.3g} " + ("(weighted residuals: 1 when the noise model holds)" if weighted
                                                  else "mm (no noise model in the file: residual std per axis)"))
+    lines.append(f"fit quality: {getattr(result, 'fit_quality', 'ok')}")
     rounds = getattr(result, "base_rounds", [])
     if len(rounds) > 1:
         lines.append(f"identifiable set decided at the solution: rank by round {rounds}")
@@ -250,8 +251,8 @@ def format_diagnosis(diag) -> str:
     for name, why in diag.not_applicable.items():
         lines.append(f"  {name:<20} not tried: {why}")
     lines.append("  selected: " + (", ".join(diag.selected) or "none"))
-    for a in diag.ambiguous:
-        lines.append(f"  ambiguous between {a['effects'][0]} and {a['effects'][1]}: {a['note']}")
+    for a in diag.selection_ties:
+        lines.append(f"  tie between {a['effects'][0]} and {a['effects'][1]}: {a['note']}")
     if diag.violated_defect:
         v = diag.violated_defect
         est = f" = {v['estimate']:.4g} +- {v['std']:.2g} {v['unit']}" if "std" in v else ""

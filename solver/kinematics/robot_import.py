@@ -471,8 +471,77 @@ def read_urdf(path: str | Path, tip: str | None = None, name: str | None = None)
     if not elements:
         raise ModelError(f"{path}: no moving joint between the root link and '{tip}'.")
     metadata = {"imported_from": {"kind": "urdf", "source": str(path), "root": roots[0], "tip": tip}}
-    return _chain_mechanism(name or robot.robot.name or path.stem, elements, pending,
+    mech = _chain_mechanism(name or robot.robot.name or path.stem, elements, pending,
                             f"serial robot imported from URDF {path.name}", metadata)
+    masses = _urdf_masses(robot.robot, roots[0], [j.name for j in path_joints if j.type != "fixed"],
+                          {j.name: j.home for j in mech.joints if hasattr(j, "home")}, path)
+    if masses:
+        metadata["masses"] = masses
+    return mech
+
+
+def _urdf_masses(robot, root: str, chain_joints: list, home: dict, path: Path) -> dict:
+    """The link masses of a URDF as ``metadata.masses``: per moving joint of the chain, the body it moves.
+
+    Every link with an ``<inertial>`` belongs to the body of the last chain joint on its path
+    from the root (links before the first moving joint do not move and are left out; links
+    hanging from joints off the chain, a gripper's fingers, are taken at those joints' zero).
+    The body's mass is the sum of its links' masses and its centre of mass their
+    mass-weighted centres, in the base (root link) frame at the home configuration, in mm.
+
+    Raises
+    ------
+    DataError
+        If an inertial states a negative or non-finite mass.
+    """
+    by_child = {j.child: j for j in robot.joints}
+    frames: dict = {root: np.eye(4)}
+
+    def frame(link: str) -> np.ndarray:
+        if link not in frames:
+            j = by_child[link]
+            t = np.array(j.origin if j.origin is not None else np.eye(4), dtype=float)
+            q = home.get(j.name, 0.0) if j.name in chain_joints else 0.0
+            axis = np.array(j.axis if j.axis is not None else [1.0, 0.0, 0.0], dtype=float)
+            axis = axis / np.linalg.norm(axis)
+            motion = np.eye(4)
+            if j.type in ("revolute", "continuous"):
+                k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+                motion[:3, :3] = np.eye(3) + math.sin(q) * k + (1 - math.cos(q)) * k @ k
+            elif j.type == "prismatic":
+                motion[:3, 3] = axis * q / 1000.0  # model joint values in mm, URDF in m
+            frames[link] = frame(j.parent) @ t @ motion
+        return frames[link]
+
+    def body_of(link: str) -> str | None:
+        while link in by_child:
+            j = by_child[link]
+            if j.name in chain_joints:
+                return j.name
+            link = j.parent
+        return None
+
+    sums: dict = {}
+    for lk in robot.links:
+        inertial = getattr(lk, "inertial", None)
+        if inertial is None or inertial.mass is None:
+            continue
+        m = float(inertial.mass)
+        if not (math.isfinite(m) and m >= 0.0):
+            raise DataError(f"{path}: link '{lk.name}' has an <inertial> mass of {inertial.mass!r}; a mass is a "
+                            f"finite number >= 0 (kg).")
+        body = body_of(lk.name)
+        if body is None or m == 0.0:
+            continue
+        origin = np.array(inertial.origin if inertial.origin is not None else np.eye(4), dtype=float)
+        com = (frame(lk.name) @ origin)[:3, 3] * 1000.0  # m -> mm, base frame at home
+        entry = sums.setdefault(body, {"mass": 0.0, "moment": np.zeros(3), "links": []})
+        entry["mass"] += m
+        entry["moment"] += m * com
+        entry["links"].append(lk.name)
+    return {b: {"mass": e["mass"], "com": (e["moment"] / e["mass"]).tolist(),
+                "source": f"URDF <inertial> of link{'s' if len(e['links']) > 1 else ''} {', '.join(e['links'])}"}
+            for b, e in sums.items() if e["mass"] > 0.0}
 
 
 def import_robot(path: str | Path, tip: str | None = None) -> Mechanism:

@@ -2,30 +2,62 @@
 
 Units: lengths in mm, angles in rad, temperatures in degC, masses in kg, forces in N.
 
-Names used in every output: ``compliance``, ``violated-constraint``, ``thermal``,
-``screw-pitch``, ``screw-periodic``, ``angle-scale``, ``angle-harmonic-1``,
-``angle-harmonic-2``, ``backlash``, ``backlash-gravity``, ``tracker-scale``,
-``tracker-drift``, and the names of user-defined effects registered in the entry-point
-group ``hyperstat.effects`` (see :func:`plugin_effects` and ``docs/diagnosis.md``).
+Names used in every output: ``compliance``, ``link-bending``, ``violated-constraint``,
+``thermal``, ``screw-pitch``, ``screw-periodic``, ``angle-scale``, ``angle-harmonic-<k>``
+(``k`` cycles per revolution: 1 and 2 always tried, other orders from the residual
+spectrum), ``backlash``, ``backlash-gravity``, ``tracker-scale``, ``tracker-drift``, and
+the names of user-defined effects registered in the entry-point group
+``hyperstat.effects`` (see :func:`plugin_effects` and ``docs/diagnosis.md``).  Magnitude
+priors and their sources: :mod:`.priors`.
 """
 
 from __future__ import annotations
 
 from hyperstat.solver.errors import DataError
-from hyperstat.solver.diagnosis.effects.actuator import (AngleHarmonic, AngleScale, Backlash, Compliance,
-                                                         GravityBacklash, ScrewPeriodic, ScrewPitch, gravity_loads)
+from hyperstat.solver.diagnosis.effects.actuator import (MASS_FIELD, MASS_FIELD_SHORT, AngleHarmonic, AngleScale, Backlash, Compliance,
+                                                         GravityBacklash, LinkBending, ScrewPeriodic, ScrewPitch,
+                                                         gravity_loads, gravity_regressor, gravity_source,
+                                                         harmonic_name)
 from hyperstat.solver.diagnosis.effects.base import Effect
 from hyperstat.solver.diagnosis.effects.other import Thermal, TrackerDrift, TrackerScale, ViolatedConstraint
 
-__all__ = ["Effect", "AngleHarmonic", "AngleScale", "Backlash", "Compliance", "GravityBacklash", "ScrewPeriodic",
-           "ScrewPitch", "Thermal", "TrackerDrift", "TrackerScale", "ViolatedConstraint", "EFFECT_NAMES",
-           "ENTRY_POINT_GROUP", "available_effects", "make_effect", "applicable_effects", "plugin_effects",
-           "gravity_loads"]
+__all__ = ["Effect", "AngleHarmonic", "AngleScale", "Backlash", "Compliance", "GravityBacklash", "LinkBending",
+           "ScrewPeriodic", "ScrewPitch", "Thermal", "TrackerDrift", "TrackerScale", "ViolatedConstraint",
+           "EFFECT_NAMES", "GRAVITY_EFFECTS", "ENTRY_POINT_GROUP", "MASS_FIELD", "MASS_FIELD_SHORT", "available_effects", "make_effect",
+           "applicable_effects", "plugin_effects", "gravity_loads", "gravity_regressor", "gravity_source",
+           "harmonic_name", "harmonic_order", "is_known_effect", "is_library_effect"]
 
-EFFECT_NAMES = ("compliance", "violated-constraint", "thermal", "screw-pitch", "screw-periodic", "angle-scale",
-                "angle-harmonic-1", "angle-harmonic-2", "backlash", "backlash-gravity", "tracker-scale",
-                "tracker-drift")
+EFFECT_NAMES = ("compliance", "link-bending", "violated-constraint", "thermal", "screw-pitch", "screw-periodic",
+                "angle-scale", "angle-harmonic-1", "angle-harmonic-2", "backlash", "backlash-gravity",
+                "tracker-scale", "tracker-drift")
+#: effects driven by the gravity loads: they need declared masses (``cannot_size`` otherwise)
+GRAVITY_EFFECTS = ("compliance", "link-bending", "backlash-gravity")
 ENTRY_POINT_GROUP = "hyperstat.effects"
+
+
+def harmonic_order(name: str) -> float | None:
+    """The order ``k`` of an ``angle-harmonic-<k>`` name (None for any other name).
+
+    >>> harmonic_order("angle-harmonic-2.75"), harmonic_order("compliance")
+    (2.75, None)
+    """
+    if not name.startswith("angle-harmonic-"):
+        return None
+    try:
+        k = float(name[len("angle-harmonic-"):])
+    except ValueError:
+        return None
+    return k if k > 0 and k == k and k != float("inf") else None
+
+
+def is_library_effect(name: str) -> bool:
+    """Whether ``name`` is an effect of the library (any ``angle-harmonic-<k>`` included), not a plug-in."""
+    return name in EFFECT_NAMES or harmonic_order(name) is not None
+
+
+def is_known_effect(name: str) -> bool:
+    """Whether ``name`` is a library effect (any ``angle-harmonic-<k>`` included) or a plug-in."""
+    return is_library_effect(name) or name in plugin_effects()
 
 
 def plugin_effects() -> dict:
@@ -50,7 +82,8 @@ def plugin_effects() -> dict:
         try:
             found[ep.name] = ep.load()
         except Exception as exc:  # a broken plug-in must say which one
-            raise DataError(f"the effect plug-in '{ep.name}' ({ep.value}) cannot be loaded: {exc}") from exc
+            raise DataError(f"the effect plug-in '{ep.name}' ({ep.value}) cannot be loaded: "
+                            f"{type(exc).__name__}: {exc}") from exc
     return found
 
 
@@ -69,6 +102,8 @@ def make_effect(name: str, mechanism, analysis=None, data=None, **options) -> Ef
     """
     if name == "compliance":
         return Compliance(mechanism, **options)
+    if name == "link-bending":
+        return LinkBending(mechanism, **options)
     if name == "violated-constraint":
         return ViolatedConstraint(mechanism, analysis, **options)
     if name == "thermal":
@@ -79,8 +114,8 @@ def make_effect(name: str, mechanism, analysis=None, data=None, **options) -> Ef
         return ScrewPeriodic(mechanism, **options)
     if name == "angle-scale":
         return AngleScale(mechanism, **options)
-    if name in ("angle-harmonic-1", "angle-harmonic-2"):
-        return AngleHarmonic(mechanism, cycles=int(name[-1]), **options)
+    if harmonic_order(name) is not None:
+        return AngleHarmonic(mechanism, cycles=harmonic_order(name), **options)
     if name == "backlash":
         return Backlash(mechanism, **options)
     if name == "backlash-gravity":
@@ -94,7 +129,13 @@ def make_effect(name: str, mechanism, analysis=None, data=None, **options) -> Ef
         return TrackerDrift(mechanism, sessions, **options)
     plugins = plugin_effects()
     if name in plugins:
-        effect = plugins[name](mechanism, analysis, data, **options)
+        try:
+            effect = plugins[name](mechanism, analysis, data, **options)
+        except DataError:
+            raise
+        except Exception as exc:  # a plug-in that fails says so in one sentence, never a traceback
+            raise DataError(f"the effect plug-in '{name}' failed when built for '{mechanism.name}': "
+                            f"{type(exc).__name__}: {exc}") from exc
         if not isinstance(effect, Effect):
             raise DataError(f"the effect plug-in '{name}' returned {type(effect).__name__}, not an Effect.")
         effect.name = name
@@ -109,6 +150,8 @@ def applicable_effects(mechanism, analysis, data) -> dict:
         reasons["screw-pitch"] = reasons["screw-periodic"] = "no prismatic (screw-driven) actuator"
     if not any(mechanism.joints[i].type == "R" for i in mechanism.actuated):
         reasons["angle-scale"] = reasons["angle-harmonic-1"] = reasons["angle-harmonic-2"] = "no revolute actuator"
+    if len(mechanism.chains) != 1:
+        reasons["link-bending"] = "link bending between parallel joints is modelled on serial chains only"
     if not any(p.verdict == "forced" for p in analysis.parameters):
         reasons["violated-constraint"] = "the mechanism has no forced defect (not over-constrained)"
     if "temperature" not in data.metadata or len(set(data.metadata["temperature"].tolist())) < 2:
@@ -118,6 +161,9 @@ def applicable_effects(mechanism, analysis, data) -> dict:
     if mechanism.metadata.get("masses") and len(mechanism.chains) != 1:
         reasons["compliance"] = reasons["backlash-gravity"] = (
             "link masses are declared, but distributed masses are supported on serial mechanisms only")
+    elif gravity_source(mechanism) is None:
+        for name in GRAVITY_EFFECTS:
+            reasons.setdefault(name, "cannot be sized: the model declares no mass (" + MASS_FIELD_SHORT + ")")
     if "session" not in data.metadata or len(set(data.metadata["session"].tolist())) < 2:
         reasons["tracker-drift"] = "fewer than two measurement sessions in the 'session' column"
     return reasons

@@ -14,10 +14,17 @@ import numpy as np
 
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.diagnosis.effects.base import Effect
+from hyperstat.solver.diagnosis.effects.priors import PRIORS, compliance_bounds
 
 __all__ = ["ScrewPitch", "ScrewPeriodic", "AngleScale", "AngleHarmonic", "Backlash", "GravityBacklash", "Compliance",
-           "LinkBendingAlternative",
-           "gravity_loads"]
+           "LinkBending", "LinkBendingAlternative", "gravity_loads", "gravity_source", "gravity_regressor",
+           "harmonic_name", "MASS_FIELD", "MASS_FIELD_SHORT"]
+
+#: where link masses come from (named in every "cannot size" answer)
+MASS_FIELD = ("metadata.masses of the model file (per joint: the body it moves, 'mass' kg and 'com' mm), the URDF "
+              "links' <inertial> (kept by import-robot), or the template's sk.material(...) for the CadQuery solids")
+#: the same, short (for the text output)
+MASS_FIELD_SHORT = "metadata.masses, the URDF links' <inertial> or the template's sk.material(...)"
 
 GRAVITY = 9.81  # m/s^2
 
@@ -35,12 +42,14 @@ class ScrewPitch(Effect):
     """Lead-screw pitch error: the travel is ``(1 + s_j) q_j`` (``s`` dimensionless, realistic 4e-4: a rolled ball screw class C10, 210 um per 300 mm, is 7e-4)."""
 
     name = "screw-pitch"
-    domain_note = "a lead error beyond 5e-3 (5 mm per metre) is no ball screw"
+    domain_note = "a lead error beyond 2e-3 (2 mm per metre) is no ball screw of any class"
 
     def __init__(self, mechanism, magnitude: float = 4e-4) -> None:
         self.axes = [a for a, _ in _actuators(mechanism, prismatic_only=True)]
         names = [f"pitch_{j.name}" for _, j in _actuators(mechanism, prismatic_only=True)]
-        super().__init__(names, ["1"] * len(names), [magnitude] * len(names), plausible=5e-3)
+        p = PRIORS["screw-pitch"]
+        super().__init__(names, ["1"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
+                         source=p.source)
 
     def actuator_correction(self, model, theta, data):
         k, na = data.q.shape
@@ -62,9 +71,11 @@ class ScrewPeriodic(Effect):
         acts = _actuators(mechanism, prismatic_only=True)
         self.axes = [a for a, _ in acts]
         names = [f"periodic_{j.name}_{t}" for _, j in acts for t in ("sin", "cos")]
-        super().__init__(names, ["mm"] * len(names), [magnitude] * len(names), plausible=0.1)
+        p = PRIORS["screw-periodic"]
+        super().__init__(names, ["mm"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
+                         source=p.source, groups=[[2 * e, 2 * e + 1] for e in range(len(acts))])
 
-    domain_note = "a periodic lead error beyond 0.1 mm is no ball screw"
+    domain_note = "a periodic lead error beyond 0.05 mm is no ball screw"
 
     def actuator_correction(self, model, theta, data):
         k, na = data.q.shape
@@ -84,20 +95,19 @@ class Backlash(Effect):
 
     ``dir_j = +-1`` is the direction of the actuator's last motion before the pose; the
     driven side lags behind the drive by half the clearance.  Realistic ``beta``:
-    0.03 mm (prismatic), 1.5e-4 rad (revolute); plausible up to 20 times that.
+    0.03 mm (prismatic), 1.5e-4 rad (revolute); plausible up to 0.1 mm and 1.5 mrad
+    (:mod:`.priors`: ball-screw clearance classes, reducer lost motion).
     """
 
     name = "backlash"
     requires = ("dir*",)
-    domain_note = "a clearance is never negative (beta >= 0), and above 0.6 mm or 3 mrad it is a loose joint"
+    domain_note = "a clearance is never negative (beta >= 0), and above 0.1 mm or 1.5 mrad it is a loose joint"
 
     def __init__(self, mechanism, magnitude_mm: float = 0.03, magnitude_rad: float = 1.5e-4) -> None:
         acts = _actuators(mechanism)
         self.columns = [f"dir{j.name}" for _, j in acts]
         names = [f"backlash_{j.name}" for _, j in acts]
-        units = ["mm" if j.type == "P" else "rad" for _, j in acts]
-        mags = [magnitude_mm if u == "mm" else magnitude_rad for u in units]
-        super().__init__(names, units, mags, lower=0.0, plausible=20.0 * np.asarray(mags))
+        _backlash_init(self, acts, names, magnitude_mm, magnitude_rad)
 
     def applicable(self, data) -> bool:
         """Whether ``data`` records every approach direction."""
@@ -128,7 +138,9 @@ class AngleScale(Effect):
         acts = _actuators(mechanism, revolute_only=True)
         self.axes = [a for a, _ in acts]
         names = [f"angle_scale_{j.name}" for _, j in acts]
-        super().__init__(names, ["1"] * len(names), [magnitude] * len(names), plausible=5e-3)
+        p = PRIORS["angle-scale"]
+        super().__init__(names, ["1"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
+                         source=p.source)
 
     def actuator_correction(self, model, theta, data):
         k, na = data.q.shape
@@ -140,24 +152,54 @@ class AngleScale(Effect):
         return dq, dt
 
 
-class AngleHarmonic(Effect):
-    """Periodic transmission error of each revolute actuator at ``h`` cycles per revolution of the joint.
+def _backlash_init(effect: Effect, acts: list, names: list, magnitude_mm: float, magnitude_rad: float) -> None:
+    """Units, realistic magnitudes and priors of a clearance per actuator (revolute: rad, prismatic: mm)."""
+    units = ["mm" if j.type == "P" else "rad" for _, j in acts]
+    priors = [PRIORS["backlash-mm"] if u == "mm" else PRIORS["backlash-rad"] for u in units]
+    mags = [magnitude_mm if u == "mm" else magnitude_rad for u in units]
+    Effect.__init__(effect, names, units, mags, lower=0.0, plausible=[p.plausible for p in priors],
+                    what=[p.what for p in priors], source=[p.source for p in priors])
 
-    ``dq_j = a_j sin(h q_j) + b_j cos(h q_j)`` (rad), the harmonic joint-error model of
-    serial robots (eccentricity of an output bearing or gear: ``h = 1``; ellipticity of a
-    strain-wave flexspline: ``h = 2``).  Realistic amplitude 1e-4 rad (20 arcsec),
-    plausible up to 2e-3 rad.
+
+def harmonic_name(cycles: float) -> str:
+    """Library name of a periodic angle error at ``cycles`` per revolution: ``angle-harmonic-<k>``.
+
+    >>> harmonic_name(3.0), harmonic_name(2.75)
+    ('angle-harmonic-3', 'angle-harmonic-2.75')
+    """
+    return f"angle-harmonic-{float(cycles):g}"
+
+
+class AngleHarmonic(Effect):
+    """Periodic transmission error of revolute actuators at ``k`` cycles per revolution of the joint.
+
+    ``dq_j = a_j sin(k q_j) + b_j cos(k q_j)`` (rad), the harmonic joint-error model of
+    serial robots (eccentricity of an output bearing or gear: ``k = 1``; ellipticity of a
+    strain-wave flexspline: ``k = 2``; an intermediate gear stage: its ratio to the
+    output, any positive number).  ``k = 1`` and ``2`` act on every revolute actuator;
+    the diagnosis adds, per joint, the order its residual spectrum peaks at (``joints``).
+    Realistic amplitude 1e-4 rad (20 arcsec), plausible up to 5.8e-4 rad (:mod:`.priors`).
     """
 
-    domain_note = "a periodic angle error beyond 2 mrad (7 arcmin) is a damaged transmission"
+    domain_note = "a periodic angle error beyond 2 arcmin is a damaged transmission"
 
-    def __init__(self, mechanism, cycles: int = 1, magnitude: float = 1e-4) -> None:
-        self.cycles = int(cycles)
-        self.name = f"angle-harmonic-{self.cycles}"
+    def __init__(self, mechanism, cycles: float = 1, magnitude: float = 1e-4, joints: list | None = None) -> None:
+        self.cycles = float(cycles)
+        if not (np.isfinite(self.cycles) and self.cycles > 0):
+            raise DataError(f"a periodic angle error needs a positive number of cycles per revolution, got {cycles!r}.")
+        self.name = harmonic_name(self.cycles)
         acts = _actuators(mechanism, revolute_only=True)
+        if joints is not None:
+            unknown = [j for j in joints if j not in [jj.name for _, jj in acts]]
+            if unknown:
+                raise DataError(f"{self.name}: '{unknown[0]}' is not a revolute actuator of '{mechanism.name}'.")
+            acts = [(a, j) for a, j in acts if j.name in joints]
         self.axes = [a for a, _ in acts]
-        names = [f"harmonic{self.cycles}_{j.name}_{t}" for _, j in acts for t in ("sin", "cos")]
-        super().__init__(names, ["rad"] * len(names), [magnitude] * len(names), plausible=2e-3)
+        self.joints = [j.name for _, j in acts]
+        names = [f"harmonic{self.cycles:g}_{j.name}_{t}" for _, j in acts for t in ("sin", "cos")]
+        p = PRIORS["angle-harmonic"]
+        super().__init__(names, ["rad"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
+                         source=p.source, groups=[[2 * e, 2 * e + 1] for e in range(len(acts))])
 
     def actuator_correction(self, model, theta, data):
         k, na = data.q.shape
@@ -196,17 +238,101 @@ def _declared_masses(mechanism) -> list[dict] | None:
     return out
 
 
+def gravity_source(mechanism) -> str | None:
+    """What gives the gravity loads: ``"link masses"``, ``"moving mass"`` (declared), or None (nothing declared).
+
+    Without either, compliance and every gravity-driven effect cannot be sized: the
+    diagnosis says so (``cannot_size``) instead of assuming a mass.
+    """
+    if _declared_masses(mechanism):
+        return "link masses"
+    moving = mechanism.metadata.get("moving_mass")
+    if moving is not None:
+        if not (isinstance(moving, (int, float)) and np.isfinite(moving) and moving >= 0):
+            raise DataError(f"'{mechanism.name}': metadata.moving_mass must be a mass >= 0 in kg, got {moving!r}.")
+        if moving > 0:
+            return "moving mass"
+    return None
+
+
+def total_mass(mechanism) -> float:
+    """Declared moving mass of the machine (kg): the link masses plus ``metadata.moving_mass``."""
+    links = _declared_masses(mechanism) or []
+    return float(sum(b["mass"] for b in links) + float(mechanism.metadata.get("moving_mass", 0.0) or 0.0))
+
+
+def _body_frames(mechanism, kin, q_act: np.ndarray):
+    """Assembled configurations, their state, and the serial chain's body frames after each joint's motion."""
+    from hyperstat.solver.kinematics.frames import apply_motion
+
+    res = kin.solve(q_act)
+    st = kin.evaluate(res.q, None, jacobians=True)
+    frames = {}
+    if len(mechanism.chains) == 1:
+        chain = mechanism.chains[0]
+        jidx = {j.name: i for i, j in enumerate(mechanism.joints)}
+        for ei, el in enumerate(chain.elements):
+            if el.name in jidx and getattr(el, "type", None) in ("R", "P"):
+                frames[el.name] = (ei, apply_motion(st.element_frames[(0, ei)], el.type, res.q[:, jidx[el.name]]))
+    return res, st, frames
+
+
+def gravity_regressor(mechanism, kin, q_act: np.ndarray) -> tuple[np.ndarray, list]:
+    """Gravity load on each actuated joint per unit inertial parameter of each moving body (serial chains).
+
+    The generalized gravity force is linear in each body's mass ``m`` and first moment
+    ``h = m c`` (its centre of mass ``c`` in the body's own frame, the frame of the joint
+    that moves it, after the motion): ``tau_j = z_j . ((R_b h + m (t_b - o_j)) x m g)``
+    for a revolute ``j`` upstream of body ``b``, ``z_j . g m`` for a prismatic one.
+
+    Returns
+    -------
+    regressor : ndarray, (K, n_act, n_bodies, 4)
+        ``d tau_j / d (m_b, h_bx, h_by, h_bz)`` (N mm per kg and N per kg mm for revolutes,
+        N per kg for prismatic joints), gravity ``metadata['gravity']`` (default -z).
+    bodies : list of str
+        The joint moving each body (every actuated joint of the serial chain).
+    """
+    meta = mechanism.metadata
+    g = np.asarray(meta.get("gravity", (0.0, 0.0, -1.0)), dtype=float)
+    g = GRAVITY * g / np.linalg.norm(g)
+    _, _, frames = _body_frames(mechanism, kin, q_act)
+    acts = [mechanism.joints[i] for i in mechanism.actuated]
+    bodies = [j.name for j in acts if j.name in frames]
+    k = len(q_act)
+    reg = np.zeros((k, len(acts), len(bodies), 4))
+    for a, joint in enumerate(acts):
+        if joint.name not in frames:
+            continue
+        ej, fj = frames[joint.name]
+        # the joint's axis and origin: its frame before the motion has the same z axis and origin
+        z, o = fj[:, :3, 2], fj[:, :3, 3]
+        for b, name in enumerate(bodies):
+            eb, fb = frames[name]
+            if eb < ej:
+                continue
+            if joint.type == "R":
+                reg[:, a, b, 0] = np.einsum("ki,ki->k", z, np.cross(fb[:, :3, 3] - o, g[None, :]))
+                for i in range(3):
+                    reg[:, a, b, 1 + i] = np.einsum("ki,ki->k", z, np.cross(fb[:, :3, i], g[None, :]))
+            else:
+                reg[:, a, b, 0] = z @ g
+    return reg, bodies
+
+
 def gravity_loads(mechanism, kin, q_act: np.ndarray, payload: np.ndarray, cache: dict | None = None) -> np.ndarray:
     """Gravity load on each actuated joint at actuated values ``q_act`` (N for P, N mm for R), (K, n_act).
 
     Virtual joint method: the generalized gravity force ``tau_j = sum_b z_j . ((c_b - o_j) x F_b)``
     (revolute) or ``z_j . F_b`` (prismatic) over the bodies ``b`` downstream of joint ``j``,
-    ``F_b = m_b g``, with the link masses of ``mechanism.metadata['masses']``; the payload
-    (kg, per pose) and ``metadata['moving_mass']`` (kg, default 50 without declared link
-    masses, 0 with them) act at ``metadata['com']`` of the output frame, carried by
-    ``tau = K_a^T W`` (static duality).  Gravity along ``metadata['gravity']`` (default -z).
+    ``F_b = m_b g``, with the link masses of ``mechanism.metadata['masses']``
+    (:func:`gravity_regressor`); the payload (kg, per pose) and a declared
+    ``metadata['moving_mass']`` (kg, default 0) act at ``metadata['com']`` of the output
+    frame, carried by ``tau = K_a^T W`` (static duality).  Gravity along
+    ``metadata['gravity']`` (default -z).  Nothing is assumed: without declared masses
+    only the payload loads the joints (:func:`gravity_source` tells the caller).
     """
-    from hyperstat.solver.kinematics.frames import apply_motion
+    from hyperstat.solver.tolerances.accuracy import output_twist_maps
 
     key = (q_act.shape, q_act.tobytes()[:512], float(q_act.sum()), float(np.sum(payload)))
     if cache is not None and key in cache:
@@ -215,49 +341,36 @@ def gravity_loads(mechanism, kin, q_act: np.ndarray, payload: np.ndarray, cache:
     links = _declared_masses(mechanism)
     g = np.asarray(meta.get("gravity", (0.0, 0.0, -1.0)), dtype=float)
     g = GRAVITY * g / np.linalg.norm(g)
-    moving = float(meta.get("moving_mass", 0.0 if links else 50.0))
+    moving = float(meta.get("moving_mass", 0.0) or 0.0)
     com_out = np.asarray(meta.get("com", (0.0, 0.0, 0.0)), dtype=float)
-    res = kin.solve(q_act)
-    st = kin.evaluate(res.q, None, jacobians=True)
-    from hyperstat.solver.tolerances.accuracy import output_twist_maps
-
+    res, st, _ = _body_frames(mechanism, kin, q_act)
     k_a = output_twist_maps(kin, st)[1]
     force = (moving + payload)[:, None] * g[None, :]
     arm = np.einsum("kij,j->ki", st.output_pose[:, :3, :3], com_out)
     wrench = np.concatenate([np.cross(arm, force), force], axis=1)
     tau = np.einsum("kia,ki->ka", k_a, wrench)
     if links:
-        chain = mechanism.chains[0]
-        jidx = {j.name: i for i, j in enumerate(mechanism.joints)}
-        pos = {el.name: ei for ei, el in enumerate(chain.elements)}
-        home = np.array([mechanism.home])
-        st_home = kin.evaluate(home, None, jacobians=False)
-        bodies = []  # (chain position, local com (4,), force (3,))
+        reg, bodies = gravity_regressor(mechanism, kin, q_act)
+        _, _, home = _body_frames(mechanism, kin, np.array([mechanism.home[mechanism.actuated]]))
+        params = np.zeros((len(bodies), 4))
         for link in links:
-            ei = pos[link["joint"]]
-            el = chain.elements[ei]
-            frame_home = apply_motion(st_home.element_frames[(0, ei)], el.type, home[:, jidx[el.name]])[0]
-            local = np.linalg.solve(frame_home, np.r_[link["com"], 1.0])
-            bodies.append((ei, local, link["mass"] * g))
-        for a, i in enumerate(mechanism.actuated):
-            joint = mechanism.joints[i]
-            ej = pos[joint.name]
-            lf = st.element_frames[(0, ej)]
-            z, o = lf[:, :3, 2], lf[:, :3, 3]
-            for ei, local, f in bodies:
-                if ei < ej:
-                    continue
-                el = chain.elements[ei]
-                frame = apply_motion(st.element_frames[(0, ei)], el.type, res.q[:, jidx[el.name]])
-                c = frame[:, :3, :] @ local
-                if joint.type == "R":
-                    tau[:, a] += np.einsum("ki,ki->k", z, np.cross(c - o, f[None, :]))
-                else:
-                    tau[:, a] += z @ f
+            if link["joint"] not in bodies:
+                continue
+            frame = home[link["joint"]][1][0]
+            local = np.linalg.solve(frame, np.r_[link["com"], 1.0])[:3]
+            params[bodies.index(link["joint"])] = np.r_[link["mass"], link["mass"] * local]
+        tau = tau + np.einsum("kabp,bp->ka", reg, params)
     if cache is not None:
         cache.clear()
         cache[key] = tau
     return tau
+
+
+def _require_gravity(mechanism, name: str) -> None:
+    """Refuse a gravity-driven effect on a model that declares no mass (never assume one)."""
+    if gravity_source(mechanism) is None:
+        raise DataError(f"'{mechanism.name}': the {name} effect needs the gravity loads, and the model declares no "
+                        f"mass; declare them in {MASS_FIELD}.")
 
 
 class GravityBacklash(Effect):
@@ -269,14 +382,13 @@ class GravityBacklash(Effect):
     """
 
     name = "backlash-gravity"
-    domain_note = "a clearance is never negative (beta >= 0), and above 0.6 mm or 3 mrad it is a loose joint"
+    domain_note = "a clearance is never negative (beta >= 0), and above 0.1 mm or 1.5 mrad it is a loose joint"
 
     def __init__(self, mechanism, magnitude_mm: float = 0.03, magnitude_rad: float = 1.5e-4) -> None:
+        _require_gravity(mechanism, self.name)
         acts = _actuators(mechanism)
         names = [f"gravity_backlash_{j.name}" for _, j in acts]
-        units = ["mm" if j.type == "P" else "rad" for _, j in acts]
-        mags = [magnitude_mm if u == "mm" else magnitude_rad for u in units]
-        super().__init__(names, units, mags, lower=0.0, plausible=20.0 * np.asarray(mags))
+        _backlash_init(self, acts, names, magnitude_mm, magnitude_rad)
         self._cache: dict = {}
 
     def actuator_correction(self, model, theta, data):
@@ -291,31 +403,44 @@ class GravityBacklash(Effect):
         return np.einsum("kae,e->ka", dt, theta), dt
 
 
+def _main_axes(mechanism) -> set:
+    """Names of the main axes: the first three actuated joints from the base of a serial chain (all otherwise)."""
+    acts = [mechanism.joints[i].name for i in mechanism.actuated]
+    if len(mechanism.chains) != 1:
+        return set(acts)
+    order = [el.name for el in mechanism.chains[0].elements if el.name in acts]
+    return set(order[:3])
+
+
 class Compliance(Effect):
     """Elastostatic compliance of the actuated joints under gravity and a payload (virtual joint method).
 
     One compliance per actuated joint: ``dq_j = c_j tau_j`` with the gravity load
     ``tau_j`` of :func:`gravity_loads`: the link masses declared in the model's metadata
     (``masses``: per joint, the body it moves, its mass and centre of mass), spread over
-    the links, plus the payload of the ``payload[kg]`` column at the output.  Without
-    declared masses, one moving mass (``metadata['moving_mass']``, default 50 kg) acts
-    at the output.  ``c_j >= 0`` (mm/N or rad/(N mm); realistic 1e-4 mm/N, a 10 N/um
-    leg, or 2e-9 rad/(N mm), 500 kN m/rad; plausible up to 100 times that).
+    the links, plus the payload of the ``payload[kg]`` column at the output, plus a
+    declared ``metadata['moving_mass']``.  Without any declared mass the effect cannot be
+    sized and is refused (:data:`MASS_FIELD`).  ``c_j >= 0`` (mm/N or rad/(N mm);
+    realistic 1e-4 mm/N, a 10 N/um leg, or 2e-9 rad/(N mm), 500 kN m/rad); plausible up
+    to the size class's bound (:func:`~.priors.compliance_bounds`: the arm's declared
+    mass sets the class, main axes and wrist apart).
     """
 
     name = "compliance"
     requires = ()  # the 'payload[kg]' column adds to the moving mass when present
-    domain_note = "a compliance is never negative, and 100x the realistic one is a broken joint"
+    domain_note = "a compliance is never negative, and beyond the size class's bound it is a broken joint"
     also_explains = ("any elastic deformation under gravity whose load is the joints' gravity torque: the virtual "
                      "joints lump link bending into joint stiffness")
 
     def __init__(self, mechanism, magnitude_mm: float = 1e-4, magnitude_rad: float = 2e-9) -> None:
+        _declared_masses(mechanism)  # bad declarations fail here, with the field named
+        _require_gravity(mechanism, self.name)
         acts = _actuators(mechanism)
         names = [f"compliance_{j.name}" for _, j in acts]
         units = ["mm/N" if j.type == "P" else "rad/(N mm)" for _, j in acts]
         mags = [magnitude_mm if j.type == "P" else magnitude_rad for _, j in acts]
-        super().__init__(names, units, mags, lower=0.0, plausible=100.0 * np.asarray(mags))
-        _declared_masses(mechanism)  # bad declarations fail here, with the field named
+        plausible, what, source = _compliance_priors(mechanism, [j for _, j in acts])
+        super().__init__(names, units, mags, lower=0.0, plausible=plausible, what=what, source=source)
         self._cache: dict = {}
 
     def actuator_loads(self, model, data) -> np.ndarray:
@@ -332,53 +457,79 @@ class Compliance(Effect):
         return tau * theta[None, :], dt
 
 
-class LinkBendingAlternative(Compliance):
-    """Alternative hypothesis to :class:`Compliance`, used only by the equivalence check (never selected).
+def _compliance_priors(mechanism, joints: list) -> tuple[list, list, list]:
+    """Plausible bound, words and source of each joint's compliance (size class of the declared mass)."""
+    mass = total_mass(mechanism)
+    main = _main_axes(mechanism)
+    plausible, what, source = [], [], []
+    for j in joints:
+        if j.type == "P":
+            p = PRIORS["compliance-mm"]
+            plausible.append(p.plausible)
+            what.append(p.what)
+            source.append(p.source)
+        else:
+            bound, words = compliance_bounds(mass, wrist=j.name not in main)
+            plausible.append(bound)
+            what.append(words)
+            source.append("dumas2011")
+    return plausible, what, source
 
-    The same gravity loads deform the links instead of the joints: the link between an
-    actuated revolute joint ``a`` and the next actuated revolute ``b`` of a serial chain,
-    when their axes are parallel, bends in the plane of motion as a cantilever loaded at
-    its end (Euler-Bernoulli: end slope ``theta = F L^2 / (2 E I)``, end deflection
-    ``w = F L^3 / (3 E I) = 2/3 L theta``).  A rotation of ``2 theta / 3`` at joint ``a``
+
+class LinkBending(Effect):
+    """Bending of a link under gravity (Euler-Bernoulli cantilever) between two parallel revolute actuators.
+
+    The link between an actuated revolute joint ``a`` and the next actuated revolute
+    ``b`` of a serial chain, when their axes are parallel, bends in the plane of motion as
+    a cantilever loaded at its end: end slope ``theta = F L^2 / (2 E I)``, end deflection
+    ``w = F L^3 / (3 E I) = 2/3 L theta``.  A rotation of ``2 theta / 3`` at joint ``a``
     gives the deflection, a further ``theta / 3`` at joint ``b`` completes the slope, with
     ``theta = c_ab tau_a`` (the bending moment at the link's root is joint ``a``'s gravity
-    torque): ``dq_a = 2/3 c tau_a``, ``dq_b = 1/3 c tau_a``.  The other joints keep a
-    joint compliance ``dq_j = c_j tau_j``, so the two models have as many parameters.
+    torque): ``dq_a = 2/3 c tau_a``, ``dq_b = 1/3 c tau_a``, ``c >= 0`` (rad/(N mm)).
     Joint compliance leaves ``theta / 3`` of the slope unexplained at joint ``b`` with a
     load that is joint ``a``'s, not joint ``b``'s: when that difference is below the noise,
-    the data cannot tell the two apart (``docs/diagnosis.md``).
+    the two form one equivalence set (``docs/diagnosis.md``).
     """
 
-    name = "link bending (alternative to compliance)"
+    name = "link-bending"
+    domain_note = "a bending compliance is never negative, and beyond the size class's joint bound the link is broken"
 
-    def __init__(self, mechanism, kin) -> None:
-        super().__init__(mechanism)
+    def __init__(self, mechanism, kin=None, magnitude: float = 2e-9) -> None:
+        from hyperstat.solver.kinematics.closure import Kinematics
+
+        _require_gravity(mechanism, self.name)
+        kin = kin or Kinematics(mechanism)
         acts = _actuators(mechanism)
         self.pairs: dict = {}  # actuator a -> next actuator b (parallel revolute axes)
-        if len(mechanism.chains) != 1:
-            return
-        chain = mechanism.chains[0]
-        pos = {el.name: ei for ei, el in enumerate(chain.elements)}
-        order = sorted(acts, key=lambda aj: pos.get(aj[1].name, -1))
-        home = np.array([mechanism.home])
-        st = kin.evaluate(home, None, jacobians=False)
-        for (a, ja), (b, jb) in zip(order, order[1:]):
-            if ja.type != "R" or jb.type != "R" or ja.name not in pos or jb.name not in pos:
-                continue
-            za = st.element_frames[(0, pos[ja.name])][0, :3, 2]
-            zb = st.element_frames[(0, pos[jb.name])][0, :3, 2]
-            if abs(float(za @ zb)) > 0.999:
-                self.pairs[a] = b
-        self._names = [f"link_bending_{j.name}" if a in self.pairs else f"compliance_{j.name}" for a, j in acts]
+        if len(mechanism.chains) == 1:
+            chain = mechanism.chains[0]
+            pos = {el.name: ei for ei, el in enumerate(chain.elements)}
+            order = sorted(acts, key=lambda aj: pos.get(aj[1].name, -1))
+            st = kin.evaluate(np.array([mechanism.home]), None, jacobians=False)
+            for (a, ja), (b, jb) in zip(order, order[1:]):
+                if ja.type != "R" or jb.type != "R" or ja.name not in pos or jb.name not in pos:
+                    continue
+                za = st.element_frames[(0, pos[ja.name])][0, :3, 2]
+                zb = st.element_frames[(0, pos[jb.name])][0, :3, 2]
+                if abs(float(za @ zb)) > 0.999:
+                    self.pairs[a] = b
+        self.roots = sorted(self.pairs)
+        names = [f"link_bending_{acts[a][1].name}" for a in self.roots]
+        plausible, what, _ = _compliance_priors(mechanism, [acts[a][1] for a in self.roots])
+        super().__init__(names, ["rad/(N mm)"] * len(names), [magnitude] * len(names), lower=0.0,
+                         plausible=plausible, what=[f"bending compliance (as the {w})" for w in what],
+                         source="dumas2011")
+        self._cache: dict = {}
 
     def actuator_correction(self, model, theta, data):
-        tau = self.actuator_loads(model, data)
+        payload = data.metadata.get("payload", np.zeros(len(data)))
+        tau = gravity_loads(model.mechanism, model.kin, data.q, payload, self._cache)
         k, na = tau.shape
-        dt = np.zeros((k, na, na))
-        for a in range(na):
-            if a in self.pairs:
-                dt[:, a, a] = 2.0 / 3.0 * tau[:, a]
-                dt[:, self.pairs[a], a] = 1.0 / 3.0 * tau[:, a]
-            else:
-                dt[:, a, a] = tau[:, a]
+        dt = np.zeros((k, na, len(self.roots)))
+        for e, a in enumerate(self.roots):
+            dt[:, a, e] = 2.0 / 3.0 * tau[:, a]
+            dt[:, self.pairs[a], e] = 1.0 / 3.0 * tau[:, a]
         return np.einsum("kae,e->ka", dt, theta), dt
+
+
+LinkBendingAlternative = LinkBending  # the name of issue 20 (the equivalence check's alternative)

@@ -45,7 +45,7 @@ class Effect:
     also_explains = ""
 
     def __init__(self, names: list[str], units: list[str], magnitude: np.ndarray, lower=None, upper=None,
-                 plausible=None) -> None:
+                 plausible=None, what=None, source: str | list | None = None, groups: list | None = None) -> None:
         self._names = list(names)
         self._units = list(units)
         self.magnitude = np.asarray(magnitude, dtype=float)
@@ -57,6 +57,13 @@ class Effect:
         #: largest plausible absolute value of each parameter (default 50x the realistic magnitude)
         self.plausible = (50.0 * self.magnitude if plausible is None
                           else np.broadcast_to(np.asarray(plausible, float), (n,)).copy())
+        #: words for each parameter's prior ("gear harmonic" ...) and the key of its source
+        #: (:data:`hyperstat.solver.diagnosis.effects.priors.SOURCES`)
+        self.prior_what = [what or "magnitude"] * n if what is None or isinstance(what, str) else list(what)
+        self.prior_source = [source or "none stated"] * n if source is None or isinstance(source, str) \
+            else list(source)
+        #: parameters whose joint norm is the physical magnitude (a harmonic's sin and cos: its amplitude)
+        self.groups = [[j] for j in range(n)] if groups is None else [list(g) for g in groups]
 
     # -------------------------------------------------------------- parameters
     def parameter_names(self, model) -> list[str]:
@@ -90,6 +97,36 @@ class Effect:
         outside = (values < self.lower) | (values > self.upper)
         values[outside] = -values[outside]
         return self.with_truth(values)
+
+    def plausibility(self, estimate: np.ndarray, std: np.ndarray, sigmas: float = 3.0) -> str | None:
+        """Why an estimate is physically implausible (None when it is plausible).
+
+        A parameter more than ``sigmas`` standard deviations beyond a bound of its domain
+        (``lower``, ``upper``), or a group's magnitude (a harmonic's amplitude) more than
+        ``sigmas`` standard deviations beyond its plausible bound (:mod:`.priors`), rejects
+        the effect; the sentence says by how much and cites the prior's source.
+        """
+        from hyperstat.solver.diagnosis.effects.priors import prior_sentence
+
+        names, units = self.parameter_names(None), self.parameter_units(None)
+        estimate = np.asarray(estimate, float)
+        std = np.where(np.isfinite(std), np.asarray(std, float), 0.0)
+        for j, (e, s) in enumerate(zip(estimate, std)):
+            for bound, side in ((self.lower[j], -1.0), (self.upper[j], 1.0)):
+                if np.isfinite(bound) and side * (e - bound) > sigmas * s:
+                    sig = side * (e - bound) / s if s > 0 else np.inf
+                    return (f"the data ask for {names[j]} = {e:.3g} {units[j]}, {sig:.0f} std "
+                            f"{'below' if side < 0 else 'above'} its physical bound {bound:g} "
+                            f"({self.domain_note}); fitted within its domain it sits at the bound")
+        for g in self.groups:
+            size = float(np.linalg.norm(estimate[g]))
+            spread = float(np.sqrt(np.mean(std[g] ** 2)))
+            bound = float(np.max(self.plausible[g]))
+            if size - sigmas * spread > bound:
+                name = names[g[0]] if len(g) == 1 else names[g[0]].rsplit("_", 1)[0] + " (amplitude)"
+                return (prior_sentence(name, size, units[g[0]], bound, self.prior_what[g[0]], self.prior_source[g[0]])
+                        + f"; {self.domain_note}")
+        return None
 
     # -------------------------------------------------------------- hooks
     def actuator_correction(self, model, theta: np.ndarray, data):

@@ -78,6 +78,24 @@ def test_diagnose_command_json_contract(tmp_path, capsys):
     doc = json.loads(out.read_text())
     assert doc["gap_significant"] is True
     assert doc["selected"][0] == "backlash"
+    # the contract of issue 28 (docs/diagnosis.md, "The JSON contract")
+    from hyperstat.solver.diagnosis.diagnose import OUTCOMES
+
+    assert doc["outcome"] in OUTCOMES and doc["named_effects"] == doc["selected"][:len(doc["named_effects"])]
+    assert isinstance(doc["ambiguous"], bool)
+    assert doc["ambiguous"] == any(len(s["members"]) > 1 for s in doc["equivalence_sets"])
+    assert [s["members"][0] for s in doc["equivalence_sets"]] == doc["named_effects"]
+    assert all(set(s) == {"members", "separating_measurement"} for s in doc["equivalence_sets"])
+    # the SCARA template declares no mass: the gravity-driven effects are listed, none is assumed
+    assert {c["effect"] for c in doc["cannot_size"]} == {"compliance", "link-bending", "backlash-gravity"}
+    assert all(set(c) == {"effect", "reason", "field"} for c in doc["cannot_size"])
+    revolutes = {f"{j}" for j in ("1", "2", "4")}
+    assert set(doc["spectrum_peaks"]) == revolutes
+    assert all(set(p) >= {"cycles_per_rev", "share", "p_value", "resolution_cycles_per_rev"}
+               for p in doc["spectrum_peaks"].values())
+    assert doc["noise_factor"] is None and doc["validation_factor"] > 0 and doc["identification_factor"] > 0
+    assert doc["per_target"] == [] and doc["targets_agree"] is None
+    assert all(set(r) >= {"effect", "stage", "reason"} for r in doc["rejected"])
     assert all({"effect", "validation_rms", "criterion"} <= set(e) for e in doc["ranking"])
     for key in ("validation_before", "validation_after"):
         assert set(doc[key]) >= {"mean", "max", "rms"}

@@ -89,18 +89,65 @@ def test_partly_explained_states_the_remaining_gap_and_where(scara_model):
     assert f"error of joint {truth['joint']} that follows joint {truth['source']}" in d.verdict["where"]
 
 
-def test_unexplained_names_joint_and_frequency(arm_model):
-    # three cycles per revolution of joint 2: a period the library lacks (it has 1 and 2)
+def _variant(tmp_path, ranges: dict | None = None, masses: bool = True):
+    """A copy of the 6R model file with other joint ranges (rad) or without its link masses."""
+    import json
+
+    doc = json.loads(gen.ARM_6R.read_text())
+    for el in doc["chains"][0]["elements"]:
+        if ranges and el["name"] in ranges:
+            el["range"] = list(ranges[el["name"]])
+    if not masses:
+        doc["metadata"].pop("masses")
+    path = tmp_path / f"arm_{len(list(tmp_path.iterdir()))}.skel.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def _campaign_on(truth_path, model_path, case, seed=0, **options):
+    """A campaign of the independent generator on ``truth_path``, diagnosed with the model file ``model_path``."""
+    mech = load_model(model_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        analysis = analyze(mech, n_configurations=24, seed=0)
+    id_text, val_text, truth = gen.campaign(truth_path, case, seed)
+    data = parse_measurements(id_text, mech, "id.csv")
+    val = parse_measurements(val_text, mech, "val.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return diagnose(mech, analysis, data, val, **options), truth
+
+
+def test_three_cycles_per_revolution_named_from_the_spectrum(arm_model):
+    """Joint 2 moves over 3.6 rad: three cycles per revolution is resolved (2 and 4 fit worse), so the
+    periodic error whose order the spectrum gives is named, and its amplitude comes back."""
     d, truth, _, _ = _diagnose(arm_model, gen.ARM_6R, "angle-harmonic-3")
-    assert d.gap_significant and d.outcome == "unexplained" and d.selected == []
-    assert f"3 cycles per revolution of joint {truth['joint']}" in d.verdict["where"]
+    assert d.outcome == "explained" and d.selected == ["angle-harmonic-3"] and not d.ambiguous
+    peak = d.spectrum_peaks[truth["joint"]]
+    assert peak["cycles_per_rev"] == 3.0 and peak["resolution_cycles_per_rev"] < 2.0
+    amp = np.hypot(*[p["estimate"] for p in d.effect_parameters])
+    assert amp == pytest.approx(truth["value"], rel=0.25)
+
+
+def test_three_cycles_over_a_short_range_is_unexplained_with_the_spectrum_peak(tmp_path):
+    """Joint 2 moves over 1.6 rad: orders closer than 2 pi / 1.6 = 3.9 cycles per revolution alias, the one- and
+    two-cycle harmonics fit as well as three, so no periodic effect is named; the answer gives the peak."""
+    short = _variant(tmp_path, {"2": (-0.9, 0.9)})
+    d, truth = _campaign_on(short, short, "angle-harmonic-3")
+    assert d.gap_significant and d.outcome == "unexplained" and d.named_effects == []
+    peak = d.spectrum_peaks[truth["joint"]]
+    assert peak["resolution_cycles_per_rev"] == pytest.approx(2 * np.pi / peak["range_rad"])
+    assert peak["resolution_cycles_per_rev"] > 3.0 and abs(peak["cycles_per_rev"] - 3.0) <= 0.75
+    assert f"joint {truth['joint']} at" in d.verdict["where"] and "cycles per revolution alias" in d.verdict["where"]
+    refused = {r["effect"]: r["reason"] for r in d.rejected if r["stage"] == "spectrum"}
+    assert {"angle-harmonic-1", "angle-harmonic-2"} & set(refused)
+    assert all("not established" in why or "does not agree" in why for name, why in refused.items()
+               if name.startswith("angle-harmonic"))
     # the plots show the spectrum per revolute joint, with the answer's frequency on the right joint
     from hyperstat.cad_plugin.plots import answered_frequency, revolute_spectra_figure
 
-    assert answered_frequency(d) == (truth["joint"], 3.0)
-    spectra = {s["joint"]: s for s in d.where["revolute_spectra"]}
-    assert spectra[truth["joint"]]["peak_cycles_per_revolution"] == 3.0
-    assert len(spectra) == sum(j.type == "R" for j in (arm_model[0].joints[i] for i in arm_model[0].actuated))
+    joint, cycles = answered_frequency(d)
+    assert joint == truth["joint"] and cycles == peak["cycles_per_rev"]
     import matplotlib
 
     matplotlib.use("Agg")
@@ -108,40 +155,88 @@ def test_unexplained_names_joint_and_frequency(arm_model):
 
     fig = revolute_spectra_figure(d, d.where["revolute_spectra"], plt)
     panel = next(ax for ax in fig.axes if ax.get_title() == f"joint {truth['joint']}")
-    assert [line.get_xdata()[0] for line in panel.lines if line.get_color() == "r"] == [3.0]  # the answer's line
-    assert len(fig.axes) == len(spectra)
+    assert [line.get_xdata()[0] for line in panel.lines if line.get_color() == "r"] == [cycles]
+    assert len(fig.axes) == len(d.where["revolute_spectra"])
     plt.close(fig)
 
 
-def test_joint_compliance_and_link_bending_that_the_data_cannot_tell_apart(arm_model):
-    """6R upper arm bending under its weight (out of the library): compliance fits it within the noise, but so
-    does link bending; the answer is not "explained by compliance" and names the alternative."""
+def test_joint_compliance_and_link_bending_form_one_equivalence_set(arm_model):
+    """6R upper arm bending under its weight: link bending is named, and joint compliance, which fits the same
+    poses within the noise, is in its equivalence set with the family of gravity-driven deformations."""
     d, truth, _, _ = _diagnose(arm_model, gen.ARM_6R, "link-bending")
-    assert d.selected == ["compliance"] and d.outcome == "partly explained"
-    assert not d.verdict["gap_test_after"]["significant"]  # the fit is within the noise...
-    eq = d.verdict["indistinguishable"]
-    assert eq[0]["alternative"] == "link bending" and eq[0]["delta_bic"] < 10.0  # ...and so is the alternative
-    assert eq[0]["alternative_parameters"] == [f"link_bending_{truth['joint']}"]
-    assert "cannot tell joint stiffness from the bending" in d.verdict["evidence"]
-    assert f"joint {truth['joint']}" in d.verdict["where"]
+    assert d.outcome == "explained" and d.selected[0] in ("link-bending", "compliance") and d.ambiguous
+    members = d.equivalence_sets[0]["members"]
+    assert {"link-bending", "compliance", "gravity-deformation"} <= set(members)
+    assert "lever arms" in d.equivalence_sets[0]["separating_measurement"]
+    assert "these poses cannot separate them" in d.verdict["evidence"]
+    doc = d.to_dict()
+    assert doc["ambiguous"] is True and doc["named_effects"] == d.selected
+    assert doc["equivalence_sets"][0]["members"] == members
 
 
-def test_link_bending_alternative_is_the_cantilever_split(arm_model):
+def test_aliasing_pair_shoulder_harmonic_and_gravity_bending(tmp_path):
+    """The upper arm bends under its weight while the elbow barely moves: its deflection is a once-per-revolution
+    function of the shoulder angle.  Without declared masses the answer is not "explained by angle-harmonic-1"
+    alone: a gravity-driven deformation is in the same set, a payload change (and the masses) would separate them,
+    and compliance cannot be sized."""
+    narrow = _variant(tmp_path, {"3": (-0.25, 0.25)})
+    bare = _variant(tmp_path, {"3": (-0.25, 0.25)}, masses=False)
+    d, truth = _campaign_on(narrow, bare, "link-bending")
+    assert "angle-harmonic-1" in d.selected and d.ambiguous
+    members = next(s["members"] for s in d.equivalence_sets if s["effect"] == "angle-harmonic-1")
+    assert members[0] == "angle-harmonic-1" and "gravity-deformation" in members
+    sep = next(s["separating_measurement"] for s in d.equivalence_sets if s["effect"] == "angle-harmonic-1")
+    assert "payload" in sep and "metadata.masses" in sep
+    assert {c["effect"] for c in d.cannot_size} >= {"compliance", "link-bending"}
+    # with the masses declared the generator's truth is in the library: named, and the harmonic is not needed
+    d2, _ = _campaign_on(narrow, narrow, "link-bending")
+    assert d2.selected == ["link-bending"] and not d2.cannot_size
+
+
+def test_a_model_without_masses_cannot_size_compliance(tmp_path, capsys):
+    """Real joint compliance, a model file without link masses: no mass is invented; the JSON says which effects
+    cannot be sized and which field would fix it, and compliance is not named."""
+    import json
+
+    from hyperstat.cad_plugin.cli import main
+
+    bare = _variant(tmp_path, masses=False)
+    id_text, val_text, _ = gen.campaign(gen.ARM_6R, "compliance", 0)
+    (tmp_path / "d.csv").write_text(id_text)
+    (tmp_path / "v.csv").write_text(val_text)
+    out = tmp_path / "diag.json"
+    assert main(["diagnose", str(bare), str(tmp_path / "d.csv"), "--validation", str(tmp_path / "v.csv"),
+                 "--json", str(out), "--quiet"]) == 0
+    doc = json.loads(out.read_text())
+    sizes = {c["effect"]: c for c in doc["cannot_size"]}
+    assert set(sizes) == {"compliance", "link-bending", "backlash-gravity"}
+    assert "metadata.masses" in sizes["compliance"]["field"] and "<inertial>" in sizes["compliance"]["field"]
+    assert "compliance" not in doc["named_effects"] and doc["outcome"] != "explained"
+    assert "compliance" not in [e["effect"] for e in doc["ranking"]]
+    assert "could not be sized" in doc["verdict"]["evidence"]
+    # no mass is assumed: the gravity loads of the bare model are zero without a payload
+    from hyperstat.solver.diagnosis.effects import gravity_loads
+
+    mech = load_model(bare)
+    q = np.zeros((2, 6))
+    assert np.abs(gravity_loads(mech, Kinematics(mech), q, np.zeros(2))).max() == 0.0
+
+
+def test_link_bending_is_the_cantilever_split(arm_model):
     """Euler-Bernoulli cantilever loaded at its end: deflection 2/3 L theta, so joint a turns 2/3 theta and the
     next parallel joint 1/3 theta, with theta = c tau_a (joint a's gravity torque)."""
     from hyperstat.solver.calibration.identify import MeasurementModel
-    from hyperstat.solver.diagnosis.effects import gravity_loads
-    from hyperstat.solver.diagnosis.effects.actuator import LinkBendingAlternative
+    from hyperstat.solver.diagnosis.effects import LinkBending, gravity_loads
 
     mech, analysis, kin = arm_model
-    alt = LinkBendingAlternative(mech, kin)
-    assert alt.pairs == {1: 2}  # shoulder and elbow axes are parallel; no other consecutive pair is
+    bend = LinkBending(mech, kin)
+    assert bend.pairs == {1: 2}  # shoulder and elbow axes are parallel; no other consecutive pair is
     data = parse_measurements(gen.campaign(gen.ARM_6R, "none", 0)[0], mech, "id.csv")
     tau = gravity_loads(mech, kin, data.q, data.metadata["payload"])
-    _, dt = alt.actuator_correction(MeasurementModel(mech, analysis, kin), np.zeros(6), data)
-    np.testing.assert_allclose(dt[:, 1, 1], 2.0 / 3.0 * tau[:, 1])
-    np.testing.assert_allclose(dt[:, 2, 1], 1.0 / 3.0 * tau[:, 1])
-    np.testing.assert_allclose(dt[:, 2, 2], tau[:, 2])  # the elbow keeps a joint compliance
+    _, dt = bend.actuator_correction(MeasurementModel(mech, analysis, kin), np.zeros(1), data)
+    np.testing.assert_allclose(dt[:, 1, 0], 2.0 / 3.0 * tau[:, 1])
+    np.testing.assert_allclose(dt[:, 2, 0], 1.0 / 3.0 * tau[:, 1])
+    assert not np.any(dt[:, [0, 3, 4, 5], 0])
     assert np.abs(tau[:, 1]).max() > 1e5
 
 
@@ -161,13 +256,11 @@ def test_understated_noise_gives_the_consistent_noise_level(scara_model):
     assert not d.verdict["structure"]["structured"] and d.verdict["structure"]["isotropic"]
 
 
-def test_negative_compliance_rejects_the_effect(arm_model):
-    """A machine whose joints move against their gravity load: compliance would need c < 0, so it is refused."""
+def _virtual_machine_campaign(arm_model, effect):
+    """107 + 30 poses of the project's virtual machine of the 6R with ``effect`` (its truth set), diagnosed."""
     from hyperstat.solver.calibration.virtual import VirtualMachine, workshop_metadata
-    from hyperstat.solver.diagnosis.effects import make_effect
 
     mech, analysis, kin = arm_model
-    effect = make_effect("compliance", mech).with_truth(np.full(6, -5e-10))  # rad/(N mm), unphysical
     vm = VirtualMachine.random(mech, analysis, seed=0, kinematics=kin, effects=(effect,))
     meta = workshop_metadata(mech, 137, seed=0)
     q = vm.poses(137, seed=1)
@@ -175,7 +268,16 @@ def test_negative_compliance_rejects_the_effect(arm_model):
     val = vm.measure(q[107:], seed=3, prefix="V", metadata={k: v[107:] for k, v in meta.items()})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        d = diagnose(mech, analysis, data, val, kinematics=kin)
+        return diagnose(mech, analysis, data, val, kinematics=kin)
+
+
+def test_negative_compliance_rejects_the_effect(arm_model):
+    """A machine whose joints move against their gravity load: compliance would need c < 0, so it is refused."""
+    from hyperstat.solver.diagnosis.effects import make_effect
+
+    mech, analysis, kin = arm_model
+    effect = make_effect("compliance", mech).with_truth(np.full(6, -5e-10))  # rad/(N mm), unphysical
+    d = _virtual_machine_campaign(arm_model, effect)
     assert d.gap_significant
     assert "compliance" not in d.selected
     entry = next(e for e in d.ranking if e["effect"] == "compliance")
@@ -183,6 +285,27 @@ def test_negative_compliance_rejects_the_effect(arm_model):
     assert all(v >= 0 for v in entry["bounded_estimates"].values())  # the bounded fit stays in the domain
     assert any(r["effect"] == "compliance" and "never negative" in r["reason"] for r in d.rejected)
     assert d.outcome != "explained"
+
+
+def test_a_gear_harmonic_beyond_its_prior_is_rejected_in_words(arm_model):
+    """A 1.7 mrad once-per-revolution error of the shoulder: 2.9x the largest plausible gear harmonic (2 arcmin, the
+    strain-wave catalogues' worst transmission error); the candidate is refused with that sentence."""
+    from hyperstat.solver.diagnosis.effects import make_effect
+    from hyperstat.solver.diagnosis.effects.priors import PRIORS
+
+    mech, analysis, kin = arm_model
+    effect = make_effect("angle-harmonic-1", mech)
+    truth = np.zeros(12)
+    truth[2] = 1.7e-3  # joint 2, sine term (rad)
+    d = _virtual_machine_campaign(arm_model, effect.with_truth(truth))
+    assert "angle-harmonic-1" not in d.named_effects
+    entry = next(e for e in d.ranking if e["effect"] == "angle-harmonic-1")
+    amp = float(np.hypot(entry["estimates"]["harmonic1_2_sin"], entry["estimates"]["harmonic1_2_cos"]))
+    assert amp == pytest.approx(1.7e-3, rel=0.1)
+    why = entry["rejected"]
+    ratio = amp / PRIORS["angle-harmonic"].plausible
+    assert f"{1e3 * amp:.2g} mrad: {ratio:.1f}x the largest plausible gear harmonic" in why
+    assert "Harmonic Drive" in why and any(r["effect"] == "angle-harmonic-1" for r in d.rejected)
 
 
 def test_an_effect_that_makes_validation_worse_is_not_selected(scara_model):
@@ -218,37 +341,16 @@ def test_gravity_loads_match_the_potential_energy_derivative(arm_model):
 
 def test_user_effect_from_an_entry_point(arm_model, tmp_path, monkeypatch):
     """A plug-in effect registered in the 'hyperstat.effects' group is loaded and can explain the gap."""
-    pkg = tmp_path / "h3effect.py"
-    pkg.write_text('''
-import numpy as np
-from hyperstat.solver.diagnosis.effects import Effect
+    from tests.solver.diagnosis.test_plugins import PLUGIN, install_plugin
 
-
-class ThreePerRev(Effect):
-    """Angle error of every revolute actuator at three cycles per revolution (rad)."""
-
-    def __init__(self, mechanism, analysis=None, data=None):
-        self.axes = [a for a, i in enumerate(mechanism.actuated) if mechanism.joints[i].type == "R"]
-        names = [f"h3_{mechanism.joints[mechanism.actuated[a]].name}_{t}" for a in self.axes for t in ("sin", "cos")]
-        super().__init__(names, ["rad"] * len(names), [1e-4] * len(names), plausible=2e-3)
-
-    def actuator_correction(self, model, theta, data):
-        k, na = data.q.shape
-        dt = np.zeros((k, na, len(theta)))
-        for e, a in enumerate(self.axes):
-            dt[:, a, 2 * e] = np.sin(3 * data.q[:, a])
-            dt[:, a, 2 * e + 1] = np.cos(3 * data.q[:, a])
-        return np.einsum("kae,e->ka", dt, theta), dt
-''')
-    info = tmp_path / "h3effect-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: h3effect\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[hyperstat.effects]\nthree-per-rev = h3effect:ThreePerRev\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
+    install_plugin(tmp_path, monkeypatch, "h3effect", "three-per-rev",
+                   PLUGIN.format(top="", init="pass", columns="pass"))
     from hyperstat.solver.diagnosis.effects import available_effects
 
     assert "three-per-rev" in available_effects()
-    d, _, _, _ = _diagnose(arm_model, gen.ARM_6R, "angle-harmonic-3")
+    # the candidates named explicitly (the library's spectrum would otherwise offer angle-harmonic-3 itself)
+    d, _, _, _ = _diagnose(arm_model, gen.ARM_6R, "angle-harmonic-3",
+                           candidates=("three-per-rev", "compliance", "angle-harmonic-1", "angle-harmonic-2"))
     assert d.selected == ["three-per-rev"] and d.outcome == "explained"
 
 

@@ -1,0 +1,199 @@
+"""Step 5 of the diagnosis: the answer in words, one of :data:`OUTCOMES`, each with its evidence.
+
+Units: lengths in mm (the words print um), angles in rad.
+
+* ``inputs wrong``: sigma in the hundreds or residuals of a link's size: the joint map,
+  the units or the targets, not a missing effect (nothing else is tried);
+* ``no significant gap``: the gap tests and the structure tests pass;
+* ``explained``: after adding the named effects the gap test passes on the
+  identification and the validation points and no structure is left; when an
+  equivalence set has several members the answer names the set ("explained by one of
+  ...; these poses cannot separate them") and the measurement that would;
+* ``partly explained``: effects were added, a significant gap remains (how much, where);
+* ``over-fitting``: nothing fits, and the rigid fit predicts held-out poses far worse
+  than the poses it was fitted to;
+* ``unexplained``: a significant gap with structure and no candidate within its physical
+  domain and prior (where: joint, direction, frequency with the spectrum's resolution);
+* ``understated noise``: no structure at all; the noise level that makes the data
+  consistent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hyperstat.solver.diagnosis.gap import gap_test, noise_statement
+from hyperstat.solver.diagnosis.where import describe_where
+
+__all__ = ["OUTCOMES", "verdict", "format_outcome", "set_words", "BLACK_BOX_NOTHING"]
+
+OUTCOMES = ("no significant gap", "explained", "partly explained", "unexplained", "understated noise",
+            "over-fitting", "inputs wrong")
+BLACK_BOX_NOTHING = 0.05  # a black-box regression "explains nothing" below this share of the residual variance
+
+
+def set_words(sets: list) -> str:
+    """"X or Y (these poses cannot separate them; <measurement> would)" for the ambiguous sets, "" otherwise."""
+    parts = []
+    for s in sets:
+        if len(s["members"]) > 1:
+            parts.append(f"{' or '.join(s['members'])} (these poses cannot separate them; "
+                         f"{s['separating_measurement']} would)")
+    return "; ".join(parts)
+
+
+def _cannot_size_words(cannot_size: list) -> str:
+    if not cannot_size:
+        return ""
+    names = ", ".join(c["effect"] for c in cannot_size)
+    return f"; {names} could not be sized: the model declares no mass, and no mass is assumed (see cannot_size)"
+
+
+def _spectrum_words(rejected: list) -> str:
+    refused = [r for r in rejected if r["stage"] == "spectrum"]
+    return "".join(f"; {r['effect']} was not chosen: {r['reason']}" for r in refused)
+
+
+def verdict(data, validation, significant: bool, test: dict, final, selected: list, structure: dict, rest: dict | None,
+            ceiling: dict, noise: float | None, share, sets: list, rejected: list, cannot_size: list,
+            overfit: dict | None, wrong_inputs: dict | None) -> tuple[str, dict]:
+    """The honest answer among :data:`OUTCOMES` and its evidence (a dict with ``evidence`` in words)."""
+    tail = _cannot_size_words(cannot_size)
+    if wrong_inputs is not None:
+        return "inputs wrong", {"evidence": wrong_inputs["evidence"], **{k: v for k, v in wrong_inputs.items()
+                                                                         if k != "evidence"}}
+    if not significant:
+        return "no significant gap", {"evidence": "the gap test passes: identification p = "
+                                      f"{test['identification']['p_value']:.2g}"
+                                      + (f", validation p = {test['validation']['p_value']:.2g}"
+                                         if "validation" in test else "")
+                                      + f" (threshold {test['threshold']:.1g}); no structure in the residuals "
+                                      f"(smallest of {test['structure']['tests']} F-test p-values "
+                                      f"{test['structure']['p_value']:.2g}, threshold "
+                                      f"{test['structure']['threshold']:.1g})" + tail}
+    if selected and final is not None:
+        after = gap_test(final, data, validation)
+        out = {"effects": list(selected), "gap_test_after": after, "share_explained": share}
+        val = final.validation
+        ambiguous = set_words(sets)
+        if ambiguous:
+            out["indistinguishable"] = [s for s in sets if len(s["members"]) > 1]
+        passes = ", ".join(f"{k} p = {after[k]['p_value']:.2g}" for k in ("identification", "validation")
+                           if k in after) + f" (threshold {after['threshold']:.1g})"
+        if not after["significant"] and not rest["structured"]:
+            out["evidence"] = (f"after adding {' + '.join(selected)} the gap test passes: {passes}, and no structure "
+                               f"is left in the residuals (smallest of {rest['n_tests']} F-test p-values "
+                               f"{rest['best']['p_value']:.2g}, threshold {rest['threshold']:.1g})")
+            if ambiguous:
+                out["evidence"] += f"; explained by one of {ambiguous}"
+            notes = [f"{e.name} stands for {e.also_explains}" for e in final.model.effects if e.also_explains]
+            if notes:
+                out["same_signature"] = notes
+                out["evidence"] += "; " + "; ".join(notes)
+            out["evidence"] += tail
+            return "explained", out
+        remaining = None
+        if val is not None and noise is not None:
+            remaining = float(np.sqrt(max(val["rms"] ** 2 - noise**2, 0.0)))
+        out["remaining_rms_above_noise"] = remaining
+        out["where"] = describe_where(rest["best"], structure["revolute_spectra"]) if rest["structured"] else None
+        out["remaining_structure"] = {k: rest[k] for k in ("best", "structured", "isotropy", "isotropic",
+                                                           "threshold", "n_tests")}
+        factor = max(v["noise_factor"] for k, v in after.items() if isinstance(v, dict))
+        out["evidence"] = (f"a gap remains after adding {' + '.join(selected)}: "
+                           + ", ".join(f"{k} p = {after[k]['p_value']:.2g}" for k in ("identification", "validation")
+                                       if k in after)
+                           + (f"; validation RMS {1000 * val['rms']:.1f} um against a noise RMS {1000 * noise:.1f} um "
+                              f"({1000 * remaining:.1f} um above it in quadrature)" if remaining is not None else ""))
+        if ambiguous:
+            out["evidence"] += f"; what was added is one of {ambiguous}"
+        if rest["structured"]:
+            out["evidence"] += "; what remains follows " + out["where"]
+        elif rest["isotropic"]:
+            out["evidence"] += ("; what remains has no structure (no joint, frequency or metadata trend, equal in "
+                                "every direction): consistent with a noise model of "
+                                + noise_statement(data, factor)["text"])
+            out["noise_consistent"] = noise_statement(data, factor)
+        out["evidence"] += _spectrum_words(rejected) + tail
+        return "partly explained", out
+    # nothing selected: over-fitting, structure or noise?
+    factor = test["identification"]["noise_factor"]  # 3K - rank degrees of freedom: the sharper estimate
+    bb_share = ceiling["black_box_share_of_residual"]
+    out = {"structure": {k: structure[k] for k in ("best", "structured", "isotropy", "isotropic", "threshold",
+                                                   "n_tests")},
+           "black_box_share": bb_share}
+    if overfit is not None:
+        out["overfitting"] = overfit
+        out["evidence"] = overfit["evidence"] + tail
+        return "over-fitting", out
+    if not structure["structured"] and structure["isotropic"] and bb_share < BLACK_BOX_NOTHING:
+        out["noise_consistent"] = noise_statement(data, factor)
+        if "validation" in test:
+            out["noise_consistent"]["factor_validation"] = test["validation"]["noise_factor"]
+        out["evidence"] = (f"the excess (noise factor {factor:.2f}) has no structure: no F-test of "
+                           f"{structure['n_tests']} (joint errors following any joint or metadata column, "
+                           f"harmonics per revolution and per screw period, base- and tool-frame trends) below "
+                           f"{structure['threshold']:.1g}, equal variance in x, y, z "
+                           f"(Bartlett p = {structure['isotropy']['p_value']:.2g}), a black-box regression on joints "
+                           f"and metadata explains {100 * max(bb_share, 0.0):.0f} % of the residual variance under "
+                           f"cross-validation. A noise of {out['noise_consistent']['text']} would make the data "
+                           f"consistent." + tail)
+        return "understated noise", out
+    if structure["structured"]:
+        out["where"] = describe_where(structure["best"], structure["revolute_spectra"])
+    elif not structure["isotropic"]:
+        s2 = structure["isotropy"]["weighted_variance"]
+        axis = max(s2, key=s2.get)
+        out["where"] = (f"mostly along {axis} of the base frame (weighted variance "
+                        + ", ".join(f"{k} {v:.2f}" for k, v in s2.items())
+                        + f", Bartlett p = {structure['isotropy']['p_value']:.2g})")
+    else:
+        out["where"] = (f"no single joint, frequency or direction; a black-box regression on joints and metadata "
+                        f"explains {100 * bb_share:.0f} % of the residual variance under cross-validation")
+    out["evidence"] = ("no candidate effect fits (none lowers the cross-validated error by 5 % within its physical "
+                       "domain and magnitude prior); the residual follows " + out["where"])
+    best = structure["best"]
+    if structure["structured"] and best["family"] == "candidate signature":
+        out["evidence"] += (f"; '{best['variable']}' fits it in sample but was not added: it does not predict "
+                            f"held-out blocks of the cross-validation, or its estimate is implausible (see rejected)")
+    out["evidence"] += _spectrum_words(rejected) + tail
+    return "unexplained", out
+
+
+def format_outcome(diag) -> str:
+    """The answer in words, with its evidence and the rejected candidates (text output of ``diagnose``)."""
+    lines = []
+    st = diag.where.get("structure")
+    if st:
+        lines += ["", f"Structure of the rigid residuals ({st['n_tests']} F-tests, threshold {st['threshold']:.1g}; "
+                      f"isotropy: Bartlett p = {st['isotropy']['p_value']:.2g})"]
+        lines += [f"  {describe_where(t)}" for t in st["tests"][:3]]
+        for sp in diag.where.get("revolute_spectra", []):
+            lines.append(f"  spectrum of joint {sp['joint']}'s error: peak at {sp['peak_cycles_per_revolution']:g} "
+                         f"cycles per revolution ({100 * sp['peak_share']:.0f} % of the residual variance, "
+                         f"p = {sp['peak_p_value']:.2g}; resolution {sp['resolution_cycles_per_revolution']:.2g} "
+                         f"cycles per revolution over the {sp['range_rad']:.2g} rad it moved)")
+    lines += ["", "The answer"]
+    o = diag.outcome
+    v = diag.verdict
+    if o in ("explained", "partly explained"):
+        lines.append(f"  {o} by {' + '.join(v['effects'])}: " + v["evidence"])
+    elif o == "understated noise":
+        lines.append("  consistent with an understated noise model: " + v["evidence"])
+    else:
+        lines.append(f"  {o}: " + v["evidence"])
+    for s in diag.equivalence_sets:
+        if len(s["members"]) > 1:
+            lines.append(f"  equivalence set of {s['effect']}: {', '.join(s['members'])}; separated by "
+                         f"{s['separating_measurement']}")
+    if diag.cannot_size:
+        lines.append(f"  cannot size {', '.join(c['effect'] for c in diag.cannot_size)}: "
+                     f"{diag.cannot_size[0]['reason']}")
+    if diag.per_target:
+        lines.append("  per target: " + "; ".join(
+            f"{t['target']}: {t['outcome']}" + (f" by {' + '.join(t['named_effects'])}" if t["named_effects"] else "")
+            for t in diag.per_target))
+        lines.append(f"  {diag.targets_evidence}")
+    for r in diag.rejected:
+        lines.append(f"  rejected {r['effect']} ({r['stage']}): {r['reason']}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,127 @@
+"""Step 1 of the diagnosis: is there a gap, and is it one a missing effect can explain?
+
+Units: lengths in mm; noise factors are dimensionless (``sqrt(chi2 / dof)``).
+
+* The gap test (:func:`gap_test`): the weighted residuals of a fit (position rows, and
+  orientation rows for 6-D data: :mod:`.observations`) follow a chi-square law with
+  ``3 rows - rank`` degrees of freedom when the file's noise model is right and
+  nothing is missing; the validation points give a second, independent test (their
+  variance inflated by ``1 + rank / 3K`` for the fitted model's own uncertainty).
+* Inputs wrong (:func:`inputs_wrong`): sigma in the hundreds, or residuals of a
+  fraction of a link, come from the joint map, the units or the targets, not from a
+  missing effect (:func:`~hyperstat.solver.calibration.identify.fit_quality`).
+* Over-fitting (:func:`overfitting`): the rigid fit predicts held-out poses far worse
+  than the poses it was fitted to (an F-test of the two noise factors), or worse than
+  the nominal model: too many parameters for the poses, not a missing effect and not
+  noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import chdtrc, fdtrc
+
+from hyperstat.solver.calibration.identify import IdentificationResult, _weights
+from hyperstat.solver.calibration.measurements import MeasurementSet
+from hyperstat.solver.diagnosis.observations import oriented, residual_rows
+from hyperstat.solver.diagnosis.where import P_THRESHOLD
+
+__all__ = ["gap_test", "noise_statement", "overfitting", "inputs_wrong", "OVERFIT_RATIO"]
+
+OVERFIT_RATIO = 1.3  #: validation noise factor this many times the identification's (and significant): over-fitting
+FEW_EQUATIONS = 2.0  #: fewer equations per identified parameter than this: over-fitting whatever the factors
+NOMINAL_MARGIN = 1.1  #: the calibrated model predicts held-out poses this much worse than the nominal one: over-fitting
+
+
+def gap_test(result: IdentificationResult, data: MeasurementSet, validation: MeasurementSet | None) -> dict:
+    """The chi-square gap test on a fit's identification residuals and, if given, its validation residuals.
+
+    Returns ``identification`` and ``validation`` (chi2, dof, p_value, noise_factor),
+    ``threshold`` (1e-3 over the number of tests) and ``significant``.
+    """
+    resid, w = _rows(result, data, result.residuals)
+    chi_id = float(np.sum((resid * w[:, None]) ** 2))
+    dof = max(3 * len(w) - result.rank, 1)
+    test = {"identification": {"chi2": chi_id, "dof": dof, "p_value": float(chdtrc(dof, chi_id)),
+                               "noise_factor": float(np.sqrt(chi_id / dof))}}
+    if validation is not None and len(validation) and result.validation_residuals is not None:
+        rv, wv = _rows(result, validation, result.validation_residuals)
+        chi_v = float(np.sum((rv * wv[:, None]) ** 2))
+        scale = 1.0 + result.rank / (3.0 * len(w))
+        dof_v = 3 * len(wv)
+        test["validation"] = {"chi2": chi_v, "dof": dof_v, "p_value": float(chdtrc(dof_v, chi_v / scale)),
+                              "variance_inflation": scale, "noise_factor": float(np.sqrt(chi_v / scale / dof_v))}
+    test["threshold"] = P_THRESHOLD / (len(test))
+    test["significant"] = bool(min(v["p_value"] for k, v in test.items() if isinstance(v, dict)) < test["threshold"])
+    return test
+
+
+def _rows(result: IdentificationResult, data: MeasurementSet, positions: np.ndarray) -> tuple:
+    """Residual rows and weights of a fit on ``data``: its position residuals, and orientation rows for 6-D data."""
+    if oriented(result.model, data):
+        resid, w, _, _ = residual_rows(result.model, result.theta, data)
+        return resid, w
+    return positions, _weights(data)
+
+
+def noise_statement(data: MeasurementSet, factor: float) -> dict:
+    """The noise model that would make the residuals consistent: the header's times ``factor``."""
+    a, b = data.noise.a, data.noise.b
+    return {"factor": factor, "a_mm": factor * a, "b_mm_per_m": factor * b,
+            "text": f"{factor * a:.3g} mm + {factor * b:.3g} mm/m ({factor:.2f}x the header's {data.noise.text()})"}
+
+
+def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured: bool = False) -> dict | None:
+    """Evidence of over-fitting of the rigid fit, or None.
+
+    Over-fitting when
+
+    * the fit has fewer than 2 equations per parameter (:data:`FEW_EQUATIONS`): no test can
+      then tell a missing effect from the fit's own noise;
+    * the validation noise factor is at least :data:`OVERFIT_RATIO` times the
+      identification's, and either the F-test of the two variances is below 1e-3 or the fit
+      spends more than a quarter of its equations on parameters (where the variance
+      inflation ``1 + rank / 3K`` of the gap test underrates what extrapolating costs), and
+      the identification residual has no structure (``structured`` false: a structured
+      residual is a missing effect seen in sample, whose extrapolation also degrades the
+      held-out poses);
+    * or the calibrated model predicts the held-out poses :data:`NOMINAL_MARGIN` times worse
+      than the nominal one (only the tracker frame and targets fitted).
+    """
+    if "validation" not in test:
+        return None
+    fi, fv = test["identification"]["noise_factor"], test["validation"]["noise_factor"]
+    f = (fv / max(fi, 1e-300)) ** 2
+    p = float(fdtrc(test["validation"]["dof"], test["identification"]["dof"], f))
+    nominal = (rigid.nominal or {}).get("validation")
+    worse = nominal is not None and rigid.validation is not None and \
+        rigid.validation["rms"] > NOMINAL_MARGIN * nominal["rms"]
+    load = rigid.rank / max(n_rows, 1)
+    few = load > 1.0 / FEW_EQUATIONS
+    ratio = fv >= OVERFIT_RATIO * fi and (p < P_THRESHOLD or load > 0.25) and not structured
+    if not (few or ratio or worse):
+        return None
+    words = (f"the rigid fit predicts held-out poses at {fv:.2f}x the stated noise against {fi:.2f}x on the poses it "
+             f"was fitted to (F-test of the two p = {p:.2g}) with {rigid.rank} parameters for {n_rows} equations")
+    if few:
+        words += f" (fewer than {FEW_EQUATIONS:g} equations per parameter)"
+    if worse:
+        words += (f"; the nominal model predicted the held-out poses better ({nominal['rms']:.4g} mm against "
+                  f"{rigid.validation['rms']:.4g} mm calibrated)")
+    return {"identification_factor": fi, "validation_factor": fv, "p_value": p, "nominal_better": bool(worse),
+            "parameters_per_equation": load,
+            "evidence": words + ": too many parameters for these poses; identify fewer (identify --select-size cv) "
+                                "or add poses spread over the workspace, then diagnose again"}
+
+
+def inputs_wrong(rigid: IdentificationResult, length_scale: float) -> dict | None:
+    """Evidence that the inputs, not a missing effect, make the gap (``fit_quality`` "inputs wrong"), or None."""
+    if getattr(rigid, "fit_quality", "ok") != "inputs wrong":
+        return None
+    rms = rigid.identification["rms"]
+    return {"sigma": rigid.sigma, "rms_mm": rms, "share_of_size": rms / length_scale,
+            "evidence": (f"sigma = {rigid.sigma:.3g} and an identification RMS of {rms:.4g} mm "
+                         f"({100 * rms / length_scale:.2g} % of the machine's size): no missing effect moves the point "
+                         f"that much; check the joint map (signs, offsets, couplings such as q3 = J3 + J2), the units "
+                         f"of the joint and position columns, the target columns (one group x_<target> per reflector) "
+                         f"and that the tracker did not move")}

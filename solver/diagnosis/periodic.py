@@ -1,0 +1,173 @@
+"""Periodic effects need the residual spectrum's agreement: candidate orders from the spectrum, and the gate.
+
+Units: angles in rad, orders in cycles per revolution; chi-square differences are in
+units of the residual variance (:meth:`~hyperstat.solver.diagnosis.where.ResidualField.scale`).
+
+* **Orders from the spectrum** (:func:`spectral_candidates`): for every revolute whose
+  residual spectrum has a significant peak, the order is refined around the grid peak
+  (steps of 0.05) and snapped to the nearest integer when the integer explains as much
+  (within :data:`EQUIVALENT_CHI2`: gear orders are integers): a general
+  ``angle-harmonic-<k>`` on that joint joins the candidates, if at least one period of
+  it fits in the range the joint moved (``k >= 2 pi / range``; below, it is a trend).
+* **The gate** (:func:`periodic_gate`): a periodic effect of order ``k`` is chosen only if,
+  on the joint where it is significant,
+
+  1. the spectrum agrees: ``k`` explains the residual within :data:`EQUIVALENT_CHI2` of the
+     spectrum's best order (else: "the spectrum peaks at ..., not at k");
+  2. the order is established: the neighbouring orders ``k - 1`` and ``k + 1`` explain at
+     least :data:`EQUIVALENT_CHI2` less.  Over a short range of the joint they alias (the
+     Rayleigh limit ``|k1 - k2| range < 2 pi``) and fit as well: the order is then not
+     established and the candidate is refused, with the range that would establish it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hyperstat.solver.diagnosis.effects import harmonic_name, harmonic_order
+from hyperstat.solver.diagnosis.where import ResidualField
+
+__all__ = ["spectral_candidates", "periodic_gate", "EQUIVALENT_CHI2"]
+
+EQUIVALENT_CHI2 = 10.0  #: chi-square difference below which the data cannot tell two fits apart (Kass-Raftery 'strong')
+
+
+def _cycles(k: float) -> str:
+    """``1 cycle``, ``2.5 cycles``."""
+    return f"{k:g} cycle" + ("" if k == 1 else "s")
+
+
+def _explained_on_grid(field: ResidualField, col: np.ndarray, qv: np.ndarray, orders: np.ndarray) -> np.ndarray:
+    return np.array([field.harmonic(col, qv, float(k)) for k in orders])
+
+
+def spectral_candidates(structure: dict, data, act_jac: np.ndarray) -> dict:
+    """``angle-harmonic-<k>`` candidates from the significant peaks of the revolute spectra.
+
+    Returns
+    -------
+    dict
+        Effect name -> ``{"joints": [joint names], "peaks": {joint: refined order}}``;
+        orders 1 and 2 are left out (the library tries them on every revolute).
+    """
+    field: ResidualField = structure["field"]
+    out: dict = {}
+    for spec in structure["revolute_spectra"]:
+        if spec["peak_p_value"] >= structure["threshold"]:
+            continue
+        a = data.joints.index(spec["joint"])
+        col, qv = act_jac[:, :, a], data.q[:, a]
+        k0 = spec["peak_cycles_per_revolution"]
+        grid = np.arange(max(k0 - 0.25, 0.3), k0 + 0.2501, 0.05)
+        e = _explained_on_grid(field, col, qv, grid)
+        refined = float(grid[int(np.argmax(e))])
+        nearest = float(round(refined))
+        order = refined
+        if nearest >= 1 and (e.max() - field.harmonic(col, qv, nearest)) / field.scale() < EQUIVALENT_CHI2:
+            order = nearest
+        order = float(round(order, 2))
+        if order in (1.0, 2.0) or order < spec["resolution_cycles_per_revolution"]:
+            continue  # the library tries 1 and 2; below the resolution not one period is seen (a trend)
+        entry = out.setdefault(harmonic_name(order), {"joints": [], "peaks": {}})
+        entry["joints"].append(spec["joint"])
+        entry["peaks"][spec["joint"]] = refined
+    return out
+
+
+def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: np.ndarray) -> dict | None:
+    """Why a periodic candidate must not be chosen (``{"effect", "stage": "spectrum", "reason", ...}``), or None.
+
+    ``entry`` is the candidate's screening entry (estimates and standard deviations of its
+    sin and cos parameters per joint); of the joints where its amplitude exceeds 3 standard
+    deviations (else the largest), the one whose harmonic alone explains most of the
+    residual carries it and is checked against its spectrum.
+    """
+    k = harmonic_order(name)
+    if name == "angle-scale":
+        return _scale_gate(name, effect, entry, structure, data, act_jac)
+    if k is None or not hasattr(effect, "axes"):
+        return None
+    field: ResidualField = structure["field"]
+    est = np.array(list(entry["estimates"].values()))
+    std = np.array(list(entry["std"].values()))
+    sig = []
+    for e in range(len(effect.axes)):
+        amp = float(np.hypot(est[2 * e], est[2 * e + 1]))
+        spread = float(np.sqrt(np.mean(std[2 * e:2 * e + 2] ** 2))) or 1e-300
+        sig.append(amp / spread)
+    if not sig:
+        return None
+    spectra = {s["joint"]: s for s in structure["revolute_spectra"]}
+    scale = field.scale()
+    # the joint that carries the effect: of those where its amplitude exceeds 3 std, the one
+    # whose harmonic alone explains most of the residual (the others' orders are not what is named)
+    carried = [e for e, s in enumerate(sig) if s > 3.0] or [int(np.argmax(sig))]
+    alone = [field.harmonic(act_jac[:, :, effect.axes[e]], data.q[:, effect.axes[e]], k) for e in carried]
+    for e in [carried[int(np.argmax(alone))]]:
+        a = effect.axes[e]
+        joint = data.joints[a]
+        spec = spectra.get(joint)
+        if spec is None:
+            continue
+        col, qv = act_jac[:, :, a], data.q[:, a]
+        e_k = field.harmonic(col, qv, k)
+        orders = np.asarray(spec["cycles_per_revolution"])
+        shares = np.asarray(spec["share"])
+        best = int(np.argmax(shares))
+        e_peak = max(float(shares[best]) * field.total, e_k)
+        span, res = spec["range_rad"], spec["resolution_cycles_per_revolution"]
+        info = {"effect": name, "stage": "spectrum", "joint": joint, "order": k,
+                "peak_cycles_per_revolution": float(orders[best]), "peak_share": float(shares[best]),
+                "range_rad": span, "resolution_cycles_per_revolution": res}
+        if (e_peak - e_k) / scale > EQUIVALENT_CHI2:
+            info["reason"] = (f"the spectrum of joint {joint}'s error peaks at {_cycles(orders[best])} per revolution "
+                              f"({100 * shares[best]:.0f} % of the residual variance), where {k:g} explains "
+                              f"{(e_peak - e_k) / scale:.0f} less (chi-square): the spectrum does not agree with "
+                              f"its order")
+            return info
+        for k2 in (k - 1.0, k + 1.0):
+            if k2 < 0.5:
+                continue
+            e2 = field.harmonic(col, qv, k2)
+            if (e_k - e2) / scale < EQUIVALENT_CHI2:
+                wider = 2.0 * np.pi / abs(k - k2)
+                info["alias"] = k2
+                info["reason"] = (f"over the {span:.2g} rad joint {joint} moved, {_cycles(k2)} per revolution fit its "
+                                  f"error as well as {k:g} (chi-square {e2 / scale:.0f} against {e_k / scale:.0f}; "
+                                  f"orders closer than {res:.2g} cycles per revolution alias there): the order is not "
+                                  f"established (the spectrum peaks at {orders[best]:g}); poses over more than "
+                                  f"{wider:.2g} rad of joint {joint} would establish it")
+                return info
+    return None
+
+
+def _scale_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: np.ndarray) -> dict | None:
+    """A scale error of a joint whose residual the spectrum shows to be periodic is not what is there.
+
+    On the joint that carries the scale error (where its estimate is largest in standard
+    deviations), the spectrum's best periodic error must not explain :data:`EQUIVALENT_CHI2`
+    more than the scale error does; else the candidate is refused, with the peak.
+    """
+    field: ResidualField = structure["field"]
+    est = np.array(list(entry["estimates"].values()))
+    std = np.array(list(entry["std"].values())).clip(min=1e-300)
+    if not len(est):
+        return None
+    e = int(np.argmax(np.abs(est) / std))
+    a = effect.axes[e]
+    joint = data.joints[a]
+    spec = next((s for s in structure["revolute_spectra"] if s["joint"] == joint), None)
+    if spec is None:
+        return None
+    col, qv = act_jac[:, :, a], data.q[:, a]
+    e_scale = field.fit(col[:, :, None] * qv[:, None, None])[4]
+    shares = np.asarray(spec["share"])
+    best = int(np.argmax(shares))
+    gain = (float(shares[best]) * field.total - e_scale) / field.scale()
+    if gain <= EQUIVALENT_CHI2:
+        return None
+    order = spec["cycles_per_revolution"][best]
+    return {"effect": name, "stage": "spectrum", "joint": joint, "peak_cycles_per_revolution": float(order),
+            "reason": (f"the error of joint {joint} is periodic-like: its spectrum peaks at {_cycles(order)} per "
+                       f"revolution ({100 * shares[best]:.0f} % of the residual variance), which explains {gain:.0f} "
+                       f"more (chi-square) than a scale error of that joint")}
