@@ -419,8 +419,8 @@ def run():
         REPORT["stage"] = "templates"
         FreeCADGui.Control.closeDialog()
         pump(0.5)
-        every = {}
-        for name in TEMPLATES:
+        every = {TEMPLATE: REPORT["steps"]["insert"]}  # inserted by clicks at the start of the scenario
+        for name in [t for t in TEMPLATES if t != TEMPLATE]:
             REPORT["stage"] = f"template {name}"
             tdoc = FreeCAD.newDocument(f"t_{name}")
             click_command("Hyperstat_InsertSkeleton")
