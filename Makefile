@@ -15,8 +15,6 @@ STAMP  := $(VENV)/.installed
 DEB_PACKAGES := chromium poppler-utils linuxcnc-uspace linuxcnc-uspace-dev
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-TEMPLATE_NAMES := slider_crank tripteor_x7 triflex_ii scara hexapod five_bar
-
 # pip's and setuptools' own chatter goes to .venv/pip.log (shown only if the install fails).
 PIPLOG := $(VENV)/pip.log
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
@@ -55,13 +53,13 @@ demo: setup
 test: setup system-deps freecad-deps
 	HYPERSTAT_REQUIRE_FREECAD=1 $(PY) -m pytest -q
 
-# Pictures of every template with its markers coloured by verdict (docs/img/, committed).
-images: setup
-	mkdir -p out docs/img
-	for t in $(TEMPLATE_NAMES); do \
-	  $(VENV)/bin/hyperstat analyze templates/$$t.py --json out/$$t.analysis.json --quiet && \
-	  $(VENV)/bin/hyperstat view templates/$$t.py --analysis out/$$t.analysis.json --png docs/img/$$t.png || exit 1; \
-	done
+# The README's and the docs' pictures (docs/img/, committed), drawn again by the real commands: the templates'
+# skeleton drawings, the report's page 1 in Chromium, the accuracy maps (docs/make_images.py), and FreeCAD's
+# screenshots (the clicking test). Each NAME.png has NAME.png.json, the command and the words it shows:
+# tests/test_docs_images.py fails when a committed picture is stale (older words, or redrawn without its record).
+images: setup system-deps
+	$(PY) docs/make_images.py
+	$(MAKE) freecad-screenshot
 
 # Benchmarks with the peers (pinocchio, PyPI 'pin', in the optional 'bench' extra).
 bench: setup
@@ -86,7 +84,8 @@ freecad-deps:
 freecad-install: setup freecad-deps
 	$(PY) cad_plugin/freecad/install.py
 
-# docs/img/freecad_*.png: the screenshots of the clicking GUI test (FreeCAD under Xvfb, throwaway HOME).
+# docs/img/freecad_*.png (with their records of the words they show): the screenshots of the clicking GUI test
+# (FreeCAD under Xvfb, throwaway HOME).
 freecad-screenshot: setup freecad-deps
 	mkdir -p docs/img
 	HYPERSTAT_REQUIRE_FREECAD=1 HYPERSTAT_SCREENSHOTS=$(CURDIR)/docs/img $(PY) -m pytest -q tests/cad_plugin/freecad/test_gui_clicks.py

@@ -7,7 +7,7 @@ Node layout (names legal in CadQuery queries, ``[A-Za-z][A-Za-z0-9_]*``):
 * ``m_<element>``: marker of a joint frame ``L_i`` or of a fixed transform, placed at
   the frame's pose at home; children ``x``, ``y``, ``z`` are arrow solids coloured red,
   green, blue along the frame's axes (paper 1, Fig. 1), and, when an analysis is
-  given, ``v`` a sphere coloured by the element's verdict;
+  given, ``v`` a sphere in the colour of the element's tolerance class;
 * ``f_<frame>``: marker of a configuration frame (base, platform, tool, and frames
   such as ``R51`` that a chain defines);
 * ``link_<name>``: the link bars and the joint barrels, grey.
@@ -38,7 +38,6 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = [
     "AXIS_COLORS",
-    "VERDICT_COLORS",
     "SIDECAR_FORMAT",
     "build_assembly",
     "sidecar",
@@ -46,18 +45,9 @@ __all__ = [
     "sidecar_path",
     "location_from_matrix",
     "matrix_from_location",
-    "element_verdicts",
 ]
 
 AXIS_COLORS = {"x": (0.9, 0.1, 0.1), "y": (0.1, 0.75, 0.1), "z": (0.1, 0.25, 0.95)}
-#: colour per verdict class, shared by CAD markers, pyvista views and the report
-VERDICT_COLORS = {
-    "forced": (0.85, 0.1, 0.6),  # magenta
-    "coupled": (1.0, 0.55, 0.0),  # orange
-    "free-influential": (0.0, 0.7, 0.8),  # cyan
-    "free-non-influent": (0.55, 0.55, 0.55),  # grey
-    "none": (0.95, 0.95, 0.95),  # no defect / gauge only
-}
 SIDECAR_FORMAT = "hyperstat-step-sidecar"
 _LEGAL = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
@@ -111,26 +101,6 @@ def _bar(p: np.ndarray, q: np.ndarray, radius: float):
     return cq.Solid.makeCylinder(radius, length, cq.Vector(*p), cq.Vector(*(d / length)))
 
 
-def element_verdicts(analysis: dict | None) -> dict[str, str]:
-    """Verdict class per element from an analysis JSON: the most severe of its parameters."""
-    if not analysis:
-        return {}
-    order = ["forced", "coupled", "free-influential", "free-non-influent", "none"]
-    out: dict[str, str] = {}
-    for p in analysis.get("parameters", []):
-        v = p["verdict"]
-        if v == "gauge":
-            cls = "none"
-        elif v == "free":
-            cls = "free-influential" if p.get("influential") else "free-non-influent"
-        else:
-            cls = v
-        el = p["element"]
-        if el not in out or order.index(cls) < order.index(out[el]):
-            out[el] = cls
-    return out
-
-
 def build_assembly(skeleton: "Skeleton", analysis: dict | None = None) -> "cq.Assembly":
     """CadQuery assembly of ``skeleton`` at home: links, joint barrels, marker triads.
 
@@ -139,8 +109,8 @@ def build_assembly(skeleton: "Skeleton", analysis: dict | None = None) -> "cq.As
     skeleton : Skeleton
         The declared skeleton (it is built if it was not yet).
     analysis : dict, optional
-        Output of ``hyperstat analyze --json``; adds a verdict-coloured sphere to
-        each joint marker.
+        Output of ``hyperstat analyze --json``; adds a sphere to each joint marker in the
+        colour of its tolerance class (:mod:`hyperstat.cad_plugin.palette`).
 
     Returns
     -------
@@ -156,7 +126,9 @@ def build_assembly(skeleton: "Skeleton", analysis: dict | None = None) -> "cq.As
     assy = cq.Assembly(name=mech.name, metadata={k: v for k, v in meta.items() if k != "nodes"})
     size = skeleton.marker_size
     arrows = {a: _arrow(size, a) for a in "xyz"}
-    verdicts = element_verdicts(analysis)
+    from hyperstat.cad_plugin.palette import CLASS_RGB, element_classes
+
+    classes, _ = element_classes(analysis)
     for node, info in meta["nodes"].items():
         name = info.get("element") or info.get("frame")
         t = poses[name]
@@ -166,9 +138,9 @@ def build_assembly(skeleton: "Skeleton", analysis: dict | None = None) -> "cq.As
             # a copy per marker: STEP shares repeated shapes and then loses the child names
             shape = arrows[a].copy() if scale == 1.0 else arrows[a].scale(scale)
             sub.add(shape, name=a, color=cq.Color(*AXIS_COLORS[a]))
-        if name in verdicts:
+        if name in classes:
             ball = cq.Solid.makeSphere(0.18 * size, angleDegrees1=-90, angleDegrees2=90)
-            sub.add(ball, name="v", color=cq.Color(*VERDICT_COLORS[verdicts[name]]))
+            sub.add(ball, name="v", color=cq.Color(*CLASS_RGB[classes[name]]))
         assy.add(sub)
     grey = cq.Color(0.6, 0.6, 0.62)
     for link in skeleton.links:

@@ -87,7 +87,7 @@ def _cmd_view(args) -> int:
         mech, provenance = solver_cli.load_source(args.source, args.param)
         analysis = _analysis_file(args.analysis, mech)
         progress.next("rendering")
-        out = render_png(mech, args.png, analysis=analysis)
+        out = render_png(mech, args.png, analysis=analysis, words=args.words)
     if not args.quiet:
         print(f"wrote {out}")
     return 0
@@ -125,10 +125,11 @@ def _cmd_report(args) -> int:
     from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values, monte_carlo_at_values
 
     from hyperstat.cad_plugin.background import Background
+    from hyperstat.cad_plugin.palette import element_classes
     from hyperstat.cad_plugin.plots import diagnosis_figures
-    from hyperstat.cad_plugin.report import skeleton_png, write_report
-    from hyperstat.cad_plugin.view import element_classes
+    from hyperstat.cad_plugin.report import skeleton_views, write_report
 
+    date = _report_date(args.date)  # a bad date is refused before any work
     stages = ["stationarity analysis", "verification", "calibration and diagnosis", "tolerances and accuracy",
               "layout and pictures"]
     with solver_cli.stages(args, stages) as progress:
@@ -138,7 +139,7 @@ def _cmd_report(args) -> int:
         # child (pyvista import and rendering) while this process verifies, diagnoses and allocates
         tolerances = classify(mech, result, kin)
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
-        views = Background(skeleton_png, mech, early)
+        views = Background(skeleton_views, mech, early)
         data = read_measurements(args.data, mech) if args.data else None
         validation = read_measurements(args.validation, mech) if args.validation else None
         hypotheses = None
@@ -161,7 +162,7 @@ def _cmd_report(args) -> int:
                 if data.noise is not None:
                     diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
                     identification = diagnosis.final or diagnosis.rigid
-                    figures = Background(diagnosis_figures, diagnosis, data)  # matplotlib, beside the tolerances
+                    figures = Background(diagnosis_figures, diagnosis, data, "svg")  # matplotlib, beside the tolerances
                 else:
                     from hyperstat.solver.calibration.identify import identify
 
@@ -178,13 +179,14 @@ def _cmd_report(args) -> int:
                                                orientation_accuracy=args.orientation_accuracy) or None
         doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, tolerances,
                               accuracy, montecarlo)
+        _title_block(doc, args.revision, date)
         progress.next("layout and pictures")
         if figures is not None:
             images.update(figures.result())
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
         drawn = views.result()
-        if element_classes(analysis_json) == element_classes(early):  # else write_report draws them again
-            images["views"] = drawn
+        if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
+            images["rendered"] = drawn
         written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
@@ -195,11 +197,32 @@ def _cmd_report(args) -> int:
     return 0
 
 
-def _accuracy_section(mech, result, kin) -> dict | None:
-    """Accuracy coefficients and allocation for the report."""
-    from hyperstat.solver.tolerances.accuracy import report_section
+def _report_date(text: str | None) -> str:
+    """``--date`` (YYYY-MM-DD) or today (UTC; ``SOURCE_DATE_EPOCH`` when set, for reproducible reports)."""
+    import datetime as dt
+    import os
 
-    return report_section(mech, result, kin)
+    from hyperstat.solver.errors import HyperstatError
+
+    if text is not None:
+        try:
+            return dt.date.fromisoformat(text).isoformat()
+        except ValueError:
+            raise HyperstatError(f"--date '{text}' is not a date of the form YYYY-MM-DD.") from None
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    now = dt.datetime.fromtimestamp(int(epoch), dt.timezone.utc) if epoch and epoch.isdigit() else \
+        dt.datetime.now(dt.timezone.utc)
+    return now.date().isoformat()
+
+
+def _title_block(doc: dict, revision: str, date: str) -> None:
+    """The report's title block: version, date, revision, and the source path as printed (never absolute)."""
+    from hyperstat.cad_plugin.report_words import display_path
+
+    shown = display_path(doc["title"].get("template"))
+    doc["title"].update({"template": shown, "hyperstat_version": solver_cli._installed_version(),
+                         "date": date, "revision": revision})
+    doc["source"] = {**doc["source"], "source": shown}
 
 
 def _cmd_parameters(args) -> int:
@@ -270,8 +293,11 @@ def build_parser():
     p = sub.add_parser("view", help="render the skeleton with its markers (PNG, off-screen)")
     p.add_argument("source", help="template (.py), model file (.json) or STEP file")
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")
-    p.add_argument("--analysis", metavar="RESULT.json", help="colour markers by the verdicts of this analysis")
+    p.add_argument("--analysis", metavar="RESULT.json",
+                   help="colour the joints by the tolerance classes of this analysis")
     p.add_argument("--png", required=True, metavar="OUT.png", help="output picture")
+    p.add_argument("--words", metavar="OUT.json", help="also write the words the picture shows (legend, views, "
+                   "callouts) as JSON")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_cmd_view)
     p = sub.add_parser("report", help="tolerance report: report.html (self-contained), report.md, report.json")
@@ -287,8 +313,12 @@ def build_parser():
                    "(rad), overrides the template's")
     p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
     p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
+    p.add_argument("--revision", default="-", metavar="TEXT", help="revision printed in the title block (default '-')")
+    p.add_argument("--date", metavar="YYYY-MM-DD", help="date printed in the title block (default: today, or "
+                   "SOURCE_DATE_EPOCH when set)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
-    p.set_defaults(func=_cmd_report, known_outputs=("report.json", "report.md", "report.html", "skeleton_views.png"))
+    p.set_defaults(func=_cmd_report, known_outputs=("report.json", "report.md", "report.html", "skeleton_views.png",
+                                               "skeleton_views.png.json"))
     p = sub.add_parser("parameters", help="list a template's parameters: name, default, unit, meaning, bounds")
     p.add_argument("template", help="template file (.py)")
     p.add_argument("--json", metavar="OUT.json", help="write them as JSON")

@@ -13,6 +13,7 @@ import math
 import re
 from typing import Any
 
+from hyperstat.solver.cli.suggest import did_you_mean
 from hyperstat.solver.errors import TemplateError
 from hyperstat.solver.plausibility import plausible_angle, plausible_length
 
@@ -77,7 +78,7 @@ def parse_overrides(items: list[str] | None, parameters_cls: type) -> dict[str, 
             raise TemplateError(f"parameter '{name}' is given twice (-p {name}=...); give it once.")
         if name not in fields:
             valid = ", ".join(f"{n} [{f.metadata.get('unit', '1')}]" for n, f in fields.items())
-            raise TemplateError(f"unknown parameter '{name}'; valid parameters: {valid}.")
+            raise TemplateError(f"unknown parameter '{name}'{did_you_mean(name, fields)}; valid parameters: {valid}.")
         out[name] = parse_value(text, fields[name].metadata.get("unit", "1"), name)
     return out
 
@@ -88,7 +89,8 @@ def make_parameters(parameters_cls: type, values: dict[str, Any]) -> Any:
     unknown = [k for k in values if k not in fields]
     if unknown:
         valid = ", ".join(fields)
-        raise TemplateError(f"unknown parameter '{unknown[0]}'; valid parameters: {valid}.")
+        raise TemplateError(f"unknown parameter '{unknown[0]}'{did_you_mean(unknown[0], fields)}; "
+                            f"valid parameters: {valid}.")
     for name, value in values.items():
         md = fields[name].metadata
         try:

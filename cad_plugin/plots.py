@@ -1,4 +1,4 @@
-"""Residual plots of a diagnosis (PNG, matplotlib with the Agg backend; residuals in um, joints in mm / rad).
+"""Residual plots of a diagnosis (PNG or SVG, matplotlib with the Agg backend; residuals in µm, joints in mm / rad).
 
 Plotting lives on the CAD / presentation side: ``solver`` stays numpy / scipy / sympy only
 and reaches these through :func:`hyperstat.solver.cli.register_plotter`.
@@ -16,39 +16,67 @@ from hyperstat.solver.atomic import all_or_nothing, write_bytes
 __all__ = ["write_diagnosis_plots", "diagnosis_figures", "revolute_spectra_figure", "answered_frequency"]
 
 
-def diagnosis_figures(diag, data) -> dict:
-    """PNG bytes by file name: residuals against each actuated joint, per region, spectra, before/after."""
+#: the figures are drawn at the size they print on A4 (the text width, 186 mm), with 8 pt type
+A4_WIDTH_IN = 186.0 / 25.4
+PRINT_STYLE = {"font.size": 8.0, "axes.titlesize": 8.5, "axes.labelsize": 8.0, "xtick.labelsize": 7.5,
+               "ytick.labelsize": 7.5, "legend.fontsize": 7.5, "figure.titlesize": 9.0, "font.family": "DejaVu Sans"}
+
+
+def diagnosis_figures(diag, data, fmt: str = "png") -> dict:
+    """Figures by file name (``fmt``: ``"png"`` bytes, or ``"svg"`` text with the type kept as text), drawn at
+    their printed size on A4: residuals against each actuated joint, per region, spectra, before/after."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    with matplotlib.rc_context(PRINT_STYLE):
+        figures = _diagnosis_figures(diag, data, plt)
+    out = {}
+    for name, fig in figures.items():
+        out[f"{name}.{fmt}"] = _save(fig, fmt)
+        plt.close(fig)
+    return out
+
+
+def _save(fig, fmt: str):
+    from hyperstat.cad_plugin.drawing import figure_png, figure_svg
+
+    return figure_svg(fig) if fmt == "svg" else figure_png(fig, int(150 * fig.get_figwidth()))
+
+
+def _diagnosis_figures(diag, data, plt) -> dict:
     out = {}
     um = 1000.0
     resid = diag.rigid.residuals
     norm = np.linalg.norm(resid, axis=1) * um
     n_act = data.q.shape[1]
-    fig, axes = plt.subplots(1, n_act, figsize=(3.2 * n_act, 3.0), squeeze=False)
-    for a in range(n_act):
-        ax = axes[0, a]
-        ax.scatter(data.q[:, a], norm, s=8)
-        ax.set_xlabel(f"q{data.joints[a]}")
-        ax.set_ylabel("|residual| (um)" if a == 0 else "")
-    fig.suptitle("Rigid-model residuals against the actuated joints")
+    cols = min(n_act, 3)
+    rows = -(-n_act // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(A4_WIDTH_IN, 2.1 * rows + 0.4), squeeze=False)
+    for a in range(rows * cols):
+        ax = axes[a // cols, a % cols]
+        if a >= n_act:
+            ax.set_axis_off()
+            continue
+        ax.scatter(data.q[:, a], norm, s=6)
+        ax.set_xlabel(f"joint {data.joints[a]}")
+        ax.set_ylabel("|residual| (\u00b5m)" if a % cols == 0 else "")
+    fig.suptitle("Rigid-model residuals against the actuated joints (mm or rad)")
     fig.tight_layout()
-    out["residuals_vs_joints.png"] = fig
-    fig, ax = plt.subplots(figsize=(5, 3))
+    out["residuals_vs_joints"] = fig
+    fig, ax = plt.subplots(figsize=(A4_WIDTH_IN, 2.4))
     regions = diag.where["regions"]
     ax.bar([f"#{r['region']}" for r in regions], [um * r["rms"] for r in regions])
     if diag.rigid.noise_rms:
         ax.axhline(um * diag.rigid.noise_rms, color="k", ls="--", label="noise RMS")
         ax.legend()
-    ax.set_ylabel("RMS residual (um)")
+    ax.set_ylabel("RMS residual (\u00b5m)")
     ax.set_title("Residual RMS per workspace region")
     fig.tight_layout()
-    out["residuals_by_region.png"] = fig
+    out["residuals_by_region"] = fig
     if diag.where["spectra"]:
-        fig, ax = plt.subplots(figsize=(5, 3))
+        fig, ax = plt.subplots(figsize=(A4_WIDTH_IN, 2.4))
         for s in diag.where["spectra"]:
             ax.plot(s["periods_mm"], s["power"], label=f"q{s['joint']}")
         ax.set_xlabel("period along the actuator travel (mm)")
@@ -56,12 +84,12 @@ def diagnosis_figures(diag, data) -> dict:
         ax.set_title("Periodic error per screw (harmonic regression)")
         ax.legend()
         fig.tight_layout()
-        out["spectra.png"] = fig
+        out["spectra"] = fig
     rspectra = diag.where.get("revolute_spectra") or []
     if rspectra:
-        out["spectra_revolute.png"] = revolute_spectra_figure(diag, rspectra, plt)
+        out["spectra_revolute"] = revolute_spectra_figure(diag, rspectra, plt)
     if diag.validation_before:
-        fig, ax = plt.subplots(figsize=(5, 3))
+        fig, ax = plt.subplots(figsize=(0.5 * A4_WIDTH_IN, 2.2))
         labels = ["before"] + (["after"] if diag.validation_after else [])
         values = [diag.validation_before] + ([diag.validation_after] if diag.validation_after else [])
         x = np.arange(len(labels))
@@ -70,17 +98,11 @@ def diagnosis_figures(diag, data) -> dict:
         if diag.rigid.noise_rms:
             ax.axhline(um * diag.rigid.noise_rms, color="k", ls="--", label="noise RMS")
         ax.set_xticks(x, labels)
-        ax.set_ylabel("validation error (um)")
+        ax.set_ylabel("validation error (\u00b5m)")
         ax.legend()
         fig.tight_layout()
-        out["before_after.png"] = fig
-    pngs = {}
-    for name, fig in out.items():
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
-        plt.close(fig)
-        pngs[name] = buf.getvalue()
-    return pngs
+        out["before_after"] = fig
+    return out
 
 
 def answered_frequency(diag) -> tuple[str, float] | None:
@@ -100,19 +122,25 @@ def revolute_spectra_figure(diag, rspectra: list, plt):
     ("unexplained" or "partly explained", see :func:`answered_frequency`) is drawn as a red line.
     """
     n = len(rspectra)
-    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.0), squeeze=False, sharey=True)
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    fig, grid = plt.subplots(rows, cols, figsize=(A4_WIDTH_IN, 2.1 * rows + 0.4), squeeze=False, sharey=True)
+    for k in range(n, rows * cols):
+        grid[k // cols, k % cols].set_axis_off()
+    axes = grid.reshape(1, -1)
     named = answered_frequency(diag)
     for ax, sp in zip(axes[0], rspectra):
         ax.plot(sp["cycles_per_revolution"], sp["share"], marker=".", ms=3)
         ax.plot([sp["peak_cycles_per_revolution"]], [sp["peak_share"]], "o", mfc="none", color="k")
         ax.annotate(f"p = {sp['peak_p_value']:.1g}", (sp["peak_cycles_per_revolution"], sp["peak_share"]),
-                    textcoords="offset points", xytext=(4, 4), fontsize=7)
+                    textcoords="offset points", xytext=(4, 4), fontsize=7.5)
         if named is not None and named[0] == str(sp["joint"]):
             ax.axvline(named[1], color="r", lw=1.0, label=f"answer: {named[1]:g} /rev")
-            ax.legend(fontsize=7)
+            ax.legend(fontsize=7.5)
         ax.set_title(f"joint {sp['joint']}")
         ax.set_xlabel("cycles per revolution")
-    axes[0, 0].set_ylabel("share of the residual variance")
+    for r in range(rows):
+        grid[r, 0].set_ylabel("share of the residual variance")
     fig.suptitle(f"Residual spectrum per revolute joint ({diag.outcome})")
     fig.tight_layout()
     return fig

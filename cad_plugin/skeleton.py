@@ -98,12 +98,24 @@ class Skeleton(MechanismBuilder):
                 return np.asarray(self._items[ref].origin, float)
             if ref in self._frames:
                 return np.asarray(self._frames[ref].origin, float)
-            raise KeyError(f"link point '{ref}' is not a declared joint or frame")
+            from hyperstat.solver.errors import TemplateError
+
+            known = ", ".join(sorted(set(self._items) | set(self._frames)))
+            raise TemplateError(f"link point '{ref}' is not a declared joint or frame (declared: {known}).")
         return np.asarray(ref, float)
 
     def mechanism(self) -> Mechanism:
-        """The solver model of this skeleton (built once, then cached)."""
+        """The solver model of this skeleton (built once, then cached).
+
+        The declared links travel with it in ``metadata["links"]`` (name, points in world
+        coordinates at home, mm, and bar radius), so that a model file and a STEP file draw the
+        template's base, platform and legs as the template itself does.
+        """
         if self._mechanism is None:
+            if self.links:
+                self.metadata["links"] = [{"name": link.name, "radius": link.radius,
+                                           "points": [[float(c) for c in self.point(p)] for p in link.points]}
+                                          for link in self.links]
             self._mechanism = self.build()
         return self._mechanism
 

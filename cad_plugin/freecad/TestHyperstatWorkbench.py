@@ -5,7 +5,7 @@ Units: lengths in mm, angles in rad.
 Registered in ``Init.py`` (``FreeCAD.__unit_test__``), so the Test workbench lists
 them too.  They use the real ``hyperstat`` command line (found as the workbench
 finds it) and the real FreeCAD document machinery; ``freecadcmd -t`` exits 1 when
-one fails.  The per-template checks (all five templates, verdicts and colours
+one fails.  The per-template checks (all six templates, classes and colours
 against the solver, save and reopen) are in the project's pytest suite
 (``tests/cad_plugin/freecad/``), which runs FreeCAD as a subprocess.
 """
@@ -105,7 +105,8 @@ class TestSkeleton(unittest.TestCase):
         m = hs.markers(sk)
         self.assertAlmostEqual(_distance(m["m_1"], m["m_2"]), 55.0, places=6)
         self.assertEqual(sk.Status, "analysed")
-        self.assertEqual(set(hs.verdict_spheres(sk)), set(hs.element_verdicts(analysis)))
+        self.assertEqual(set(hs.class_spheres(sk)), set(hs.element_classes(analysis)[0]))
+        self.assertEqual(dict(sk.ToleranceCounts), {k: str(v) for k, v in hs.tolerances(sk)["counts"].items()})
         # an angle goes to hyperstat in rad and comes back as FreeCAD degrees
         self.assertAlmostEqual(hs.current_parameters(sk)["home_angle"], math.pi / 3, places=12)
 

@@ -31,7 +31,8 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent.parent
 NAME = "Hyperstat"
 #: what goes into the installed workbench (install.py and tools/ stay in the checkout)
-CONTENT = ["Init.py", "InitGui.py", "package.xml", "TestHyperstatWorkbench.py", "hyperstat_freecad", "Resources"]
+CONTENT = ["Init.py", "InitGui.py", "package.xml", "TestHyperstatWorkbench.py", "hyperstat_freecad", "Resources",
+           "hyperstat_palette.py", "classes.json"]
 
 _PROBE = """import FreeCAD, sys
 if {autoload!r}:

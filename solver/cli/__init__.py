@@ -24,6 +24,7 @@ from hyperstat.solver.cli.common import (
     stages,
 )
 from hyperstat.solver.cli.outputs import command_outputs
+from hyperstat.solver.cli.suggest import SuggestingParser
 from hyperstat.solver.errors import HyperstatError
 
 __all__ = ["main", "build_parser", "register_source", "register_plotter", "load_source", "jsonable", "analysis_of",
@@ -41,7 +42,7 @@ def _installed_version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser with the solver's commands."""
-    parser = argparse.ArgumentParser(
+    parser = SuggestingParser(
         prog="hyperstat",
         description="Geometric defects of over-constrained mechanisms: stationarity analysis, accuracy, "
         "identification, diagnosis (lengths in mm, angles in rad).",

@@ -153,7 +153,7 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
 
 
 def format_identification(result) -> str:
-    """Readable summary of an :class:`~hyperstat.solver.calibration.identify.IdentificationResult` (units: mm, rad; residuals in um)."""
+    """Readable summary of an :class:`~hyperstat.solver.calibration.identify.IdentificationResult` (units: mm, rad; residuals in µm)."""
     lines = [
         f"Identification: {result.rank} identifiable of {result.n_unknowns} unknowns "
         f"(singular-value gap {_fmt_gap(result.singular_value_gap)}), condition number "
@@ -179,8 +179,8 @@ def format_identification(result) -> str:
     def row(label: str, s: dict | None) -> str:
         if s is None:
             return f"{label:<15} -"
-        return (f"{label:<15} mean {1000 * s['mean']:8.2f} um  max {1000 * s['max']:8.2f} um  "
-                f"RMS {1000 * s['rms']:8.2f} um  ({s['n']} points)")
+        return (f"{label:<15} mean {1000 * s['mean']:8.2f} µm  max {1000 * s['max']:8.2f} µm  "
+                f"RMS {1000 * s['rms']:8.2f} µm  ({s['n']} points)")
 
     lines += ["", row("identification", result.identification), row("validation", result.validation)]
     nominal = getattr(result, "nominal", None)
@@ -188,17 +188,17 @@ def format_identification(result) -> str:
         lines += ["nominal model (tracker frame and targets fitted, geometry nominal):",
                   row("  identification", nominal["identification"]), row("  validation", nominal["validation"])]
     if result.noise_rms is not None:
-        lines.append(f"{'noise floor':<15} RMS {1000 * result.noise_rms:8.2f} um (the data's noise model)")
+        lines.append(f"{'noise floor':<15} RMS {1000 * result.noise_rms:8.2f} µm (the data's noise model)")
     ori = getattr(result, "orientation", None)
     if ori:
         def arow(label: str, a: dict | None) -> str:
             if a is None:
                 return f"{label:<15} -"
-            return (f"{label:<15} mean {1e6 * a['mean']:8.1f} urad max {1e6 * a['max']:8.1f} urad "
-                    f"RMS {1e6 * a['rms']:8.1f} urad ({a['n']} orientations)")
+            return (f"{label:<15} mean {1e6 * a['mean']:8.1f} µrad max {1e6 * a['max']:8.1f} µrad "
+                    f"RMS {1e6 * a['rms']:8.1f} µrad ({a['n']} orientations)")
 
         lines += [arow("orientation id.", ori["identification"]), arow("orientation val.", ori["validation"]),
-                  f"{'orient. noise':<15} RMS {1e6 * ori['noise_rms']:8.1f} urad (the file's orientation noise)"]
+                  f"{'orient. noise':<15} RMS {1e6 * ori['noise_rms']:8.1f} µrad (the file's orientation noise)"]
     weighted = result.noise_rms is not None
     lines.append(f"sigma {result.sigma:.3g} " + ("(weighted residuals: 1 when the noise model holds)" if weighted
                                                  else "mm (no noise model in the file: residual std per axis)"))
@@ -213,7 +213,7 @@ def format_identification(result) -> str:
                      f"held at their prior")
     sel = getattr(result, "model_selection", None)
     if sel:
-        values = (" -> CV RMS (um) " + " ".join(f"{1000 * v:.1f}" for v in sel["cv_rms"])) if sel.get("cv_rms") \
+        values = (" -> CV RMS (µm) " + " ".join(f"{1000 * v:.1f}" for v in sel["cv_rms"])) if sel.get("cv_rms") \
             else (" -> criterion " + " ".join(f"{v:.1f}" for v in sel["criterion"]))
         lines.append(f"model size by {sel['method']}: geometry sizes {sel['sizes']}{values}; kept {sel['chosen']}")
     table = getattr(result, "residual_table", [])
@@ -225,7 +225,7 @@ def format_identification(result) -> str:
 
 
 def format_diagnosis(diag) -> str:
-    """Readable summary of a :class:`~hyperstat.solver.diagnosis.diagnose.Diagnosis` (residuals in um)."""
+    """Readable summary of a :class:`~hyperstat.solver.diagnosis.diagnose.Diagnosis` (residuals in µm)."""
     um = 1000.0
     t = diag.gap_test
     lines = ["Is there a gap?"]
@@ -236,8 +236,8 @@ def format_diagnosis(diag) -> str:
                             else "no significant gap: the residuals are at the noise level of the data"))
     w = diag.where
     lines += ["", "Where?",
-              "  by direction (base frame, RMS um): " + "  ".join(f"{k} {um * v:.1f}" for k, v in w["direction_rms"].items()),
-              "  by workspace region (RMS um): " + "  ".join(f"#{r['region']} {um * r['rms']:.1f} ({r['points']} pts)"
+              "  by direction (base frame, RMS µm): " + "  ".join(f"{k} {um * v:.1f}" for k, v in w["direction_rms"].items()),
+              "  by workspace region (RMS µm): " + "  ".join(f"#{r['region']} {um * r['rms']:.1f} ({r['points']} pts)"
                                                            for r in w["regions"]),
               "  share of the residual explained by: " + ", ".join(f"{e['variable']} {100 * e['share']:.0f} %"
                                                                   for e in w["explained_by"][:5])]
@@ -247,7 +247,7 @@ def format_diagnosis(diag) -> str:
     lines += ["", "Which effect? (blocked cross-validation; BIC relative to the rigid model)"]
     for e in diag.ranking:
         note = f"  [{e['note']}]" if e.get("note") else ""
-        lines.append(f"  {e['effect']:<20} CV RMS {um * e['cv_rms']:7.1f} um   dBIC {e['criterion']:8.1f}{note}")
+        lines.append(f"  {e['effect']:<20} CV RMS {um * e['cv_rms']:7.1f} µm   dBIC {e['criterion']:8.1f}{note}")
     for name, why in diag.not_applicable.items():
         lines.append(f"  {name:<20} not tried: {why}")
     lines.append("  selected: " + (", ".join(diag.selected) or "none"))
@@ -264,18 +264,18 @@ def format_diagnosis(diag) -> str:
         if v.get("alternatives"):
             lines.append("    next candidates: " + ", ".join(
                 f"{a['defect']} = {a['estimate']:.3g} {a['unit']} ({a['times_realistic']:.0f}x, "
-                f"CV RMS {um * a['cv_rms']:.1f} um)" for a in v["alternatives"]))
+                f"CV RMS {um * a['cv_rms']:.1f} µm)" for a in v["alternatives"]))
     for p in diag.effect_parameters:
         std = "-" if p["std"] is None else f"{p['std']:.2g}"
         lines.append(f"    {p['name']:<22} {p['estimate']:.4g} +- {std} {p['unit']}")
     lines += ["", "How far does it shrink?"]
     b, a = diag.validation_before, diag.validation_after
     if b:
-        lines.append(f"  validation before: mean {um * b['mean']:.1f}  max {um * b['max']:.1f}  RMS {um * b['rms']:.1f} um")
+        lines.append(f"  validation before: mean {um * b['mean']:.1f}  max {um * b['max']:.1f}  RMS {um * b['rms']:.1f} µm")
     if a:
-        lines.append(f"  validation after:  mean {um * a['mean']:.1f}  max {um * a['max']:.1f}  RMS {um * a['rms']:.1f} um")
+        lines.append(f"  validation after:  mean {um * a['mean']:.1f}  max {um * a['max']:.1f}  RMS {um * a['rms']:.1f} µm")
     if diag.rigid.noise_rms is not None:
-        lines.append(f"  noise floor RMS {um * diag.rigid.noise_rms:.1f} um")
+        lines.append(f"  noise floor RMS {um * diag.rigid.noise_rms:.1f} µm")
     if diag.share_explained is not None:
         lines.append(f"  share of the gap explained: {100 * diag.share_explained:.0f} %")
     c = diag.ceiling

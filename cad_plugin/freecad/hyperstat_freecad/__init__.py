@@ -1,4 +1,4 @@
-"""hyperstat in FreeCAD: skeletons from templates, stationarity verdicts on the markers.
+"""hyperstat in FreeCAD: skeletons from templates, tolerance classes and values on the markers.
 
 Units: lengths in mm, angles in rad (FreeCAD shows angles in degrees).
 
@@ -7,7 +7,7 @@ The scripting API (works in ``freecadcmd``, no GUI needed)::
     import FreeCAD, hyperstat_freecad as hs
     doc = FreeCAD.newDocument("study")
     sk = hs.insert_skeleton(doc, "tripteor_x7")
-    analysis = hs.analyze(sk)          # paper 1, section 3: forced / coupled / free defects
+    analysis = hs.analyze(sk)          # tolerance classes and values, as the report gives them
     hs.identify(sk, "data.csv", "val.csv")
 
 The solver runs as the ``hyperstat`` command line (see :mod:`.runner` for why and
@@ -15,7 +15,8 @@ how it is found); GUI commands live in :mod:`.commands` and :mod:`.panels`.
 """
 
 from .feature import SkeletonFeature, is_skeleton
-from .geometry import markers, verdict_spheres
+from .classes import CLASS_COLORS, element_classes, parameter_classes
+from .geometry import callout_labels, class_spheres, markers
 from .operations import (
     analyze,
     describe_template,
@@ -30,18 +31,19 @@ from .operations import (
     results,
     set_parameters,
     skeletons,
+    tolerances,
     work_dir,
 )
 from .parameters import current_parameters, parameter_specs
 from .runner import CommandMissing, HyperstatWorkbenchError, find_cli, list_templates, run_cli, templates_dir
-from .verdicts import VERDICT_COLORS, element_verdicts, parameter_class
 
 __all__ = [
     "SkeletonFeature",
     "is_skeleton",
     "parameter_specs",
     "markers",
-    "verdict_spheres",
+    "class_spheres",
+    "callout_labels",
     "analyze",
     "describe_template",
     "diagnose",
@@ -55,6 +57,7 @@ __all__ = [
     "results",
     "set_parameters",
     "skeletons",
+    "tolerances",
     "work_dir",
     "current_parameters",
     "CommandMissing",
@@ -63,7 +66,7 @@ __all__ = [
     "list_templates",
     "run_cli",
     "templates_dir",
-    "VERDICT_COLORS",
-    "element_verdicts",
-    "parameter_class",
+    "CLASS_COLORS",
+    "element_classes",
+    "parameter_classes",
 ]

@@ -127,7 +127,7 @@ class Rebuild(_Command):
 class Analyze(_Command):
     icon = "analyze"
     menu = "Analyse"
-    tip = "Stationarity analysis: colour each marker by the verdict of its defects (forced, coupled, free)"
+    tip = "Analyse: tolerance classes and values of every defect, as the printed report gives them; colour the markers"
 
     def run(self) -> None:
         from .operations import analyze_steps
@@ -141,7 +141,7 @@ class Analyze(_Command):
 class Results(_Command):
     icon = "results"
     menu = "Results"
-    tip = "Show the verdict of every defect parameter and the relations between coupled defects"
+    tip = "Show the tolerances (ids, classes, values, drawing frames) and the class of every defect parameter"
 
     def run(self) -> None:
         from .panels import open_results

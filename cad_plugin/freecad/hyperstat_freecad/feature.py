@@ -47,8 +47,11 @@ BASE_PROPERTIES = [
     ("App::PropertyInteger", "Mobility", "Results", "Mobility of the nominal mechanism", READ_ONLY),
     ("App::PropertyInteger", "Overconstraint", "Results", "Degree of over-constraint", READ_ONLY),
     ("App::PropertyInteger", "Rank", "Results", "Rank of the stacked stationarity rows", READ_ONLY),
-    ("App::PropertyMap", "VerdictCounts", "Results", "Number of defect parameters per verdict class", READ_ONLY),
-    ("App::PropertyMap", "ParameterVerdicts", "Results", "Verdict class of every defect parameter", READ_ONLY),
+    ("App::PropertyString", "Tolerances", "Results", "Tolerances with their values (the report's JSON, hyperstat "
+     "report)", HIDDEN),
+    ("App::PropertyMap", "ToleranceCounts", "Results", "Number of tolerances per class (as the report counts them)",
+     READ_ONLY),
+    ("App::PropertyMap", "ParameterClasses", "Results", "Tolerance class of every defect parameter", READ_ONLY),
     ("App::PropertyFile", "MeasurementFile", "Measurements", "Identification measurements (CSV)", 0),
     ("App::PropertyFile", "ValidationFile", "Measurements", "Validation measurements (CSV), never fitted", 0),
     ("App::PropertyString", "Identification", "Measurements", "Last identification (hyperstat identify --json)", HIDDEN),

@@ -1,4 +1,4 @@
-"""The skeleton's geometry in the document: STEP import, marker tags, verdict spheres.
+"""The skeleton's geometry in the document: STEP import, marker tags, class spheres and callouts.
 
 Units: mm (FreeCAD's internal length unit, and the STEP files' unit).
 
@@ -8,10 +8,10 @@ and blue arrows, and the link bars.  The import gives one ``App::Part`` per node
 placed at the frame's pose; each is tagged with the dynamic property
 ``HyperstatNode`` (its node name) so that the markers are found again even when
 FreeCAD relabels them.  After an analysis every element's marker receives a sphere
-coloured by its verdict (the colours of :mod:`.verdicts`, the same as the CadQuery
-and pyvista views), stored as an App property (``HyperstatColor``) so that the
-colours exist and are saved also without a GUI, and applied to the view when there
-is one.
+in the colour of its tolerance class (:mod:`.classes`: the colours of the report and the
+pictures), stored as an App property (``HyperstatColor``) so that the colours exist and
+are saved also without a GUI, and applied to the view when there is one, and a callout
+with its tolerance ids.
 
 STEP import needs ``UseLinkGroup`` off (with it on, importing a CadQuery STEP file
 crashes ``freecadcmd`` 0.20); duplicate labels are allowed during the import so
@@ -23,13 +23,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .classes import CLASS_RGB, callout_text, element_classes
 from .runner import HyperstatWorkbenchError
-from .verdicts import VERDICT_COLORS, element_verdicts
 
-__all__ = ["import_step", "geometry_root", "markers", "remove_tree", "verdict_spheres", "color_markers",
-           "clear_verdicts", "verdict_labels", "coincident_offsets", "SPHERE_SCALE"]
+__all__ = ["import_step", "read_step", "update_in_place", "geometry_root", "markers", "remove_tree", "class_spheres", "color_markers",
+           "clear_classes", "callout_labels", "coincident_offsets", "SPHERE_SCALE"]
 
-#: verdict sphere radius as a fraction of the marker size (0.18 in the CadQuery / pyvista views;
+#: class sphere radius as a fraction of the marker size (0.18 in the CadQuery / pyvista views;
 #: larger here so that the colour shows around the joint barrels at FreeCAD's usual zoom)
 SPHERE_SCALE = 0.35
 IMPORT_PREFS = "User parameter:BaseApp/Preferences/Mod/Import"
@@ -97,6 +97,95 @@ def import_step(doc, step: Path, node_names: set[str]):
     return root
 
 
+def _tree(root) -> dict:
+    """The objects below ``root`` keyed by their path of labels (a marker by its node name), origins left out."""
+    out = {}
+
+    def walk(obj, path):
+        for child in getattr(obj, "Group", []) or []:
+            if getattr(child, "HyperstatRole", "") in ("class", "callout"):
+                continue  # results, not geometry
+            key = path + (getattr(child, "HyperstatNode", "") or child.Label,)
+            out[key] = child
+            walk(child, key)
+
+    walk(root, ())
+    return out
+
+
+def read_step(step: Path, node_names: set[str]) -> dict | None:
+    """The placements and shapes of a STEP file's skeleton, keyed as :func:`_tree` keys them (no document changed).
+
+    The file is imported into a hidden scratch document, read and closed.  Call it outside any
+    undo transaction: opening and closing a document inside one ends the transaction in the
+    GUI, and what follows would escape the undo.  ``None`` when the file has no single root.
+    """
+    import FreeCAD
+
+    active = FreeCAD.ActiveDocument.Name if FreeCAD.ActiveDocument else None
+    scratch = FreeCAD.newDocument("HyperstatScratch", hidden=True)
+    try:
+        imp = FreeCAD.ParamGet(IMPORT_PREFS)
+        docp = FreeCAD.ParamGet(DOCUMENT_PREFS)
+        old_link, old_dup = imp.GetBool("UseLinkGroup", True), docp.GetBool("DuplicateLabels", False)
+        imp.SetBool("UseLinkGroup", False)
+        docp.SetBool("DuplicateLabels", True)
+        try:
+            import Import
+
+            Import.insert(str(step), scratch.Name)
+        finally:
+            imp.SetBool("UseLinkGroup", old_link)
+            docp.SetBool("DuplicateLabels", old_dup)
+        roots = [o for o in scratch.Objects if not o.InList and o.TypeId == "App::Part"]
+        if len(roots) != 1:
+            return None
+        for o in scratch.Objects:
+            if o.TypeId == "App::Part" and o.Label in node_names:
+                o.addProperty("App::PropertyString", "HyperstatNode", "Hyperstat")
+                o.HyperstatNode = o.Label
+        return {key: (o.TypeId, o.Placement,
+                      o.Shape.copy() if o.TypeId.startswith("Part::") and hasattr(o, "Shape") else None)
+                for key, o in _tree(roots[0]).items()}
+    finally:
+        FreeCAD.closeDocument(scratch.Name)
+        if active is not None and active in FreeCAD.listDocuments():
+            FreeCAD.setActiveDocument(active)
+            if FreeCAD.GuiUp:
+                import FreeCADGui
+
+                FreeCADGui.setActiveDocument(active)
+
+
+def update_in_place(root, new: dict | None) -> bool:
+    """Move and reshape the geometry below ``root`` to ``new`` (:func:`read_step`), in place.
+
+    When ``new`` holds the same objects (same paths of node names and labels, same types),
+    their placements and shapes are copied onto the existing ones and True is returned.  The
+    document then changes only properties: an undo puts the old values back, with no part
+    deleted and re-created (re-creating an ``App::Part`` on undo is what printed "Can't find
+    Origin" in FreeCAD's report view).  False (nothing changed) when the structure differs:
+    the caller replaces the geometry instead.
+    """
+    if new is None:
+        return False
+    old = _tree(root)
+    if set(new) != set(old) or any(new[k][0] != old[k].TypeId for k in new):
+        return False
+    for key, (_, placement, shape) in new.items():
+        dst = old[key]
+        if _pose(dst.Placement) != _pose(placement):
+            dst.Placement = placement
+        if shape is not None:
+            dst.Shape = shape
+    return True
+
+
+def _pose(placement) -> tuple:
+    """A placement as numbers (position mm, quaternion), rounded far below any build's change."""
+    return tuple(round(c, 12) for c in (*placement.Base, *placement.Rotation.Q))
+
+
 def geometry_root(skeleton):
     """The imported geometry group of a skeleton object (``None`` before the first build)."""
     for child in skeleton.Group:
@@ -126,7 +215,7 @@ def markers(skeleton) -> dict:
 
 
 def remove_tree(doc, root) -> None:
-    """Delete ``root`` and everything below it (parts, origins, shapes, verdict spheres)."""
+    """Delete ``root`` and everything below it (parts, origins, shapes, class spheres)."""
     tree = [(o.Name, o.TypeId) for o in _walk(root)]
     origin_types = ("App::Origin", "App::Line", "App::Plane")
     # parts first (a part takes its origin with it), then whatever is left
@@ -135,28 +224,28 @@ def remove_tree(doc, root) -> None:
             doc.removeObject(name)
 
 
-def verdict_spheres(skeleton) -> dict:
-    """Verdict spheres of a skeleton, keyed by element name."""
+def class_spheres(skeleton) -> dict:
+    """Class spheres of a skeleton, keyed by element name."""
     out = {}
     for node, part in markers(skeleton).items():
         for child in part.Group:
-            if getattr(child, "HyperstatRole", "") == "verdict":
+            if getattr(child, "HyperstatRole", "") == "class":
                 out[child.HyperstatElement] = child
     return out
 
 
-def clear_verdicts(skeleton) -> None:
-    """Remove the verdict spheres (the markers stay)."""
+def clear_classes(skeleton) -> None:
+    """Remove the class spheres and their callouts (the markers stay)."""
     doc = skeleton.Document
-    for sphere in verdict_spheres(skeleton).values():
+    for sphere in class_spheres(skeleton).values():
         doc.removeObject(sphere.Name)
-    for label in verdict_labels(skeleton).values():
+    for label in callout_labels(skeleton).values():
         doc.removeObject(label.Name)
 
 
-def verdict_labels(skeleton) -> dict:
-    """Text labels of the spheres spread around a shared point, keyed by element name."""
-    return {o.HyperstatElement: o for o in skeleton.Group if getattr(o, "HyperstatRole", "") == "verdict-label"}
+def callout_labels(skeleton) -> dict:
+    """The callouts (tolerance ids) of the markers, keyed by their joints (``"11,21,41"`` for a shared point)."""
+    return {o.HyperstatElement: o for o in skeleton.Group if getattr(o, "HyperstatRole", "") == "callout"}
 
 
 def coincident_offsets(centres: dict[str, tuple[float, float, float]], radius: float,
@@ -195,24 +284,26 @@ def coincident_offsets(centres: dict[str, tuple[float, float, float]], radius: f
 
 
 def color_markers(skeleton, analysis: dict) -> list[str]:
-    """Add a sphere coloured by verdict to every element's marker; return elements without a marker.
+    """Add a sphere in its class colour to every element's marker, and the callouts; return elements without a marker.
 
-    Where several joints share a point (e.g. joints 11, 21 and 41 of the Tripteor), their spheres
-    are spread on a small ring around it (:func:`coincident_offsets`) and each gets a text label
-    with its element's name, so that forced cannot be mistaken for coupled.
+    Each joint takes the most severe tolerance class of its defects (the colours of the report
+    and the pictures).  Where several joints share a point (e.g. joints 11, 21 and 41 of the
+    Tripteor), their spheres are spread on a small ring around it (:func:`coincident_offsets`).
+    Every marker is called out with its joint and tolerance ids, the rows of the report's
+    tolerance table (``41: T1, T20``); joints that share a point share one callout, one line each.
     """
     import FreeCAD
     import Part
 
-    clear_verdicts(skeleton)
+    clear_classes(skeleton)
     doc = skeleton.Document
     parts = markers(skeleton)
     size = float(skeleton.MarkerSize.Value or 1.0)
     radius = SPHERE_SCALE * size
     missing = []
-    verdicts = element_verdicts(analysis)
+    classes, ids = element_classes(analysis)
     placed = {}
-    for element in sorted(verdicts):
+    for element in sorted(classes):
         part = parts.get(f"m_{element}")
         if part is None:
             missing.append(element)
@@ -221,46 +312,48 @@ def color_markers(skeleton, analysis: dict) -> list[str]:
     centres = {e: tuple(p.getGlobalPlacement().Base) for e, p in placed.items()}
     offsets = coincident_offsets(centres, radius, 1e-6 * max(size, 1.0))
     for element, part in placed.items():
-        verdict = verdicts[element]
-        color = VERDICT_COLORS[verdict]
-        sphere = doc.addObject("Part::Feature", "Verdict")
+        cls = classes[element]
+        color = CLASS_RGB[cls]
+        sphere = doc.addObject("Part::Feature", "ClassMarker")
         sphere.Shape = Part.makeSphere(radius)
         offset = FreeCAD.Vector(*offsets[element])
         if offset.Length > 0:
             local = part.getGlobalPlacement().Rotation.inverted().multVec(offset)
             sphere.Placement = FreeCAD.Placement(local, FreeCAD.Rotation())
-        sphere.Label = f"v_{element}"
-        _tag(sphere, "HyperstatRole", "verdict", "What this object is for hyperstat")
+        sphere.Label = f"class_{element}"
+        _tag(sphere, "HyperstatRole", "class", "What this object is for hyperstat")
         _tag(sphere, "HyperstatElement", element, "Element (joint or fixed transform) of this marker")
-        _tag(sphere, "HyperstatVerdict", verdict, "Most severe verdict of the element's defect parameters")
-        sphere.addProperty("App::PropertyColor", "HyperstatColor", "Hyperstat", "Colour of the verdict")
+        _tag(sphere, "HyperstatClass", cls, "Most severe tolerance class of the element's defect parameters")
+        sphere.addProperty("App::PropertyColor", "HyperstatColor", "Hyperstat", "Colour of the class")
         sphere.HyperstatColor = color
         sphere.setEditorMode("HyperstatColor", 1)
         part.addObject(sphere)
         if FreeCAD.GuiUp and sphere.ViewObject is not None:
             sphere.ViewObject.ShapeColor = color
-    _label_groups(skeleton, centres, offsets, verdicts, radius)
+    _callouts(skeleton, centres, offsets, ids, radius)
     if missing:
         FreeCAD.Console.PrintWarning(f"hyperstat: no marker found for element(s) {', '.join(missing)}.\n")
     return missing
 
 
-def _label_groups(skeleton, centres: dict, offsets: dict, verdicts: dict, radius: float) -> None:
-    """One text label per shared point, one line per joint ("11: forced"), above the ring of spheres."""
+def _callouts(skeleton, centres: dict, offsets: dict, ids: dict, radius: float) -> None:
+    """One text callout per marker point, one line per joint there (``"21: T13, T15-T19"``), above its sphere."""
     import FreeCAD
 
     doc = skeleton.Document
     groups: dict[tuple, list[str]] = {}
-    for element, offset in offsets.items():
-        if any(offset):
-            key = tuple(round(c, 6) for c in centres[element])
-            groups.setdefault(key, []).append(element)
+    for element in offsets:
+        groups.setdefault(tuple(round(c, 6) for c in centres[element]), []).append(element)
+    middle = FreeCAD.Vector(*[sum(p[i] for p in groups) / max(len(groups), 1) for i in range(3)])
     for members in groups.values():
         members.sort()
-        ring = max(sum(c * c for c in offsets[members[0]]) ** 0.5, radius)
-        label = doc.addObject("App::Annotation", "VerdictLabel")
-        label.LabelText = [f"{e}: {verdicts[e]}" for e in members]
-        label.Position = FreeCAD.Vector(*centres[members[0]]) + FreeCAD.Vector(ring, 0, 2.0 * ring)
-        _tag(label, "HyperstatRole", "verdict-label", "What this object is for hyperstat")
-        _tag(label, "HyperstatElement", ",".join(members), "Joints sharing this point")
+        ring = max(max(sum(c * c for c in offsets[m]) ** 0.5 for m in members), radius)
+        centre = FreeCAD.Vector(*centres[members[0]])
+        away = centre - middle  # outwards from the middle of the skeleton, so that neighbours' callouts part
+        away = away.normalize() if away.Length > 1e-9 else FreeCAD.Vector(1, 0, 0)
+        label = doc.addObject("App::Annotation", "Callout")
+        label.LabelText = [callout_text(e, ids.get(e, [])) for e in members]
+        label.Position = centre + away * (2.0 * ring) + FreeCAD.Vector(0, 0, ring)
+        _tag(label, "HyperstatRole", "callout", "What this object is for hyperstat")
+        _tag(label, "HyperstatElement", ",".join(members), "Joints at this point")
         skeleton.addObject(label)  # a plain group: the position stays global

@@ -6,8 +6,9 @@ An action of :mod:`.operations` is a generator that yields a :class:`~.operation
 for each run of ``hyperstat`` and touches the document only after the last one.  A
 :class:`Job` starts each call as a ``QProcess`` and returns to Qt's event loop: FreeCAD
 stays responsive (the 3D view turns, the tree scrolls), a progress bar in the status
-bar (and in the task panel that started the job) names the stage and counts the
-seconds, and *Cancel* stops the process.  When a process ends, the generator resumes
+bar (and in the task panel that started the job) names the stage, counts the seconds
+and says how long the stage usually takes (:mod:`.estimates`: the last runs of that
+command for that template, or its typical duration), and *Cancel* stops the process.  When a process ends, the generator resumes
 in the GUI thread with its output, so every document change happens in the GUI thread,
 after the last call, in one undo transaction.
 
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import time
 
+from . import estimates
 from .runner import DEFAULT_TIMEOUT_S, HyperstatWorkbenchError, interpret, prepare_command
 
 __all__ = ["Job", "running", "CURRENT"]
@@ -46,8 +48,9 @@ class _StatusProgress:
         layout = QtGui.QHBoxLayout(self.widget)
         layout.setContentsMargins(0, 0, 0, 0)
         self.label = QtGui.QLabel()
+        self.label.setObjectName("HyperstatProgressText")
         self.bar = QtGui.QProgressBar()
-        self.bar.setRange(0, 0)  # busy: the command line reports no fraction
+        self.bar.setRange(0, 100)  # the share of the stage's estimated duration
         self.bar.setMaximumWidth(160)
         self.cancel = QtGui.QPushButton("Cancel")
         self.cancel.setObjectName("HyperstatCancel")
@@ -57,8 +60,9 @@ class _StatusProgress:
         bar.addPermanentWidget(self.widget)
         self.widget.show()
 
-    def update(self, text: str) -> None:
+    def update(self, text: str, percent: int) -> None:
         self.label.setText(text)
+        self.bar.setValue(percent)
 
     def close(self) -> None:
         import FreeCADGui
@@ -95,6 +99,10 @@ class Job:
         self.progress = progress
         self.process = None
         self.stage = ""
+        self.step = 0
+        self.call = None
+        self.stage_started = 0.0
+        self.estimate = (0.0, False)
         self.started = 0.0
         self.cancelled = False
         self.finished = False
@@ -132,9 +140,12 @@ class Job:
 
     # ------------------------------------------------------------------ internals
     def _tick(self) -> None:
-        text = f"{self.title}: {self.stage} ({time.monotonic() - self.started:.0f} s)"
+        elapsed = time.monotonic() - self.stage_started
+        seconds, measured = self.estimate
+        text = estimates.progress_text(self.title, self.stage, self.step, elapsed, seconds, measured)
+        percent = int(min(95.0, 100.0 * elapsed / max(seconds, 1e-3)))
         if self._status is not None:
-            self._status.update(text)
+            self._status.update(text, percent)
         if self.progress is not None:
             try:
                 self.progress(text)
@@ -157,6 +168,10 @@ class Job:
         from PySide import QtCore
 
         self.stage = call.label
+        self.step += 1
+        self.call = call
+        self.stage_started = time.monotonic()
+        self.estimate = estimates.expected(call.arguments[0], getattr(call, "subject", ""))
         self._tick()
         try:
             command, env = prepare_command(call.arguments, check_optional=False)
@@ -197,7 +212,10 @@ class Job:
         self.process = None
         stdout = bytes(proc.readAllStandardOutput()).decode("utf-8", "replace")
         stderr = bytes(proc.readAllStandardError()).decode("utf-8", "replace")
-        self._log(f"hyperstat: '{' '.join(command)}' exit {code} after {time.monotonic() - self.started:.1f} s\n")
+        took = time.monotonic() - self.stage_started
+        self._log(f"hyperstat: '{' '.join(command)}' exit {code} after {took:.1f} s\n")
+        if code == 0 and status == QtCore.QProcess.NormalExit and not self.cancelled and self.call is not None:
+            estimates.record(self.call.arguments[0], getattr(self.call, "subject", ""), took)
         if self.cancelled:
             self.steps.close()
             self._close()

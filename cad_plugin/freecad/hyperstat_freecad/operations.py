@@ -41,7 +41,7 @@ from .feature import SkeletonFeature, is_skeleton
 from .parameters import (add_parameter_properties, bind_spreadsheet, cli_overrides, current_parameters, expression_of,
                          parameter_specs, set_parameter)
 from .runner import CliResult, HyperstatWorkbenchError, list_templates, run_cli, templates_dir
-from .verdicts import parameter_class, verdict_counts
+from .classes import parameter_classes, tolerance_counts
 
 __all__ = [
     "Call",
@@ -60,6 +60,7 @@ __all__ = [
     "analyze_steps",
     "analyze",
     "results",
+    "tolerances",
     "identify_steps",
     "identify",
     "diagnose_steps",
@@ -74,10 +75,14 @@ __all__ = [
 
 @dataclass
 class Call:
-    """One run of the command line requested by a step generator: ``hyperstat ARGUMENTS``."""
+    """One run of the command line requested by a step generator: ``hyperstat ARGUMENTS``.
+
+    ``subject`` (a template's name) keys the time estimate of the run (:mod:`.estimates`).
+    """
 
     arguments: list[str]
     label: str
+    subject: str = ""
 
 
 def drive(steps):
@@ -185,29 +190,47 @@ def _cached_model(obj) -> Path:
 
 def _build_call(template: str, values: dict[str, float], folder: Path, name: str) -> Call:
     return Call(["build", template, *cli_overrides(values), "--step", str(folder / "skeleton.step"),
-                 "--model", str(folder / "skeleton.skel.json")], f"building {name} (hyperstat build)")
+                 "--model", str(folder / "skeleton.skel.json")], f"building {name} (hyperstat build)", name)
 
 
-def _analyze_call(obj_or_none, model: Path, folder: Path, configurations: int, seed: int) -> Call:
-    return Call(["analyze", str(model), "--json", str(folder / "analysis.json"), "--configurations",
-                 str(configurations), "--seed", str(seed), "--quiet"],
-                "stationarity analysis (hyperstat analyze)")
+def _analysis_calls(model: Path, folder: Path, configurations: int, seed: int, name: str):
+    """Steps of an analysis: the classes (``hyperstat analyze``), then the tolerance values of the report
+    (``hyperstat report``, the same command as *Export the tolerance report*); returns both JSON texts."""
+    sample = ["--configurations", str(configurations), "--seed", str(seed)]
+    yield Call(["analyze", str(model), "--json", str(folder / "analysis.json"), *sample, "--quiet"],
+               "tolerance classes (hyperstat analyze)", name)
+    yield Call(["report", str(model), "--out", str(folder / "report"), *sample, "--quiet"],
+               "tolerance values (hyperstat report)", name)
+    return ((folder / "analysis.json").read_text(encoding="utf-8"),
+            (folder / "report" / "report.json").read_text(encoding="utf-8"))
 
 
 def _same(a: dict[str, float], b: dict[str, float]) -> bool:
     return set(a) == set(b) and all(math.isclose(a[k], b[k], rel_tol=1e-12, abs_tol=1e-12) for k in a)
 
 
-def _apply_build(obj, folder: Path, values: dict[str, float], res: CliResult) -> None:
-    """Import the STEP file of a build in ``folder`` and replace the skeleton's geometry (inside a transaction)."""
+def _read_build(obj, folder: Path):
+    """The new geometry of a build, read before the transaction (:func:`~.geometry.read_step`); None for a first
+    build."""
+    if obj is None or geometry.geometry_root(obj) is None:
+        return None
+    sidecar = json.loads((folder / "skeleton.step.json").read_text(encoding="utf-8"))
+    return geometry.read_step(folder / "skeleton.step", set(sidecar["nodes"]))
+
+
+def _apply_build(obj, folder: Path, values: dict[str, float], res: CliResult, new=None) -> None:
+    """Bring the skeleton's geometry to the STEP file of a build in ``folder`` (inside a transaction): in place when
+    the skeleton keeps the same markers and links (``new`` from :func:`_read_build`), else a new import."""
     doc = obj.Document
     sidecar = json.loads((folder / "skeleton.step.json").read_text(encoding="utf-8"))
-    root = geometry.import_step(doc, folder / "skeleton.step", set(sidecar["nodes"]))
     old = geometry.geometry_root(obj)
-    if old is not None:
-        geometry.remove_tree(doc, old)
-    obj.addObject(root)
-    root.Label = f"{obj.Label} geometry"
+    _clear_results(obj)
+    if old is None or not geometry.update_in_place(old, new):
+        root = geometry.import_step(doc, folder / "skeleton.step", set(sidecar["nodes"]))
+        if old is not None:
+            geometry.remove_tree(doc, old)
+        obj.addObject(root)
+        root.Label = f"{obj.Label} geometry"
     obj.ModelJson = (folder / "skeleton.skel.json").read_text(encoding="utf-8")
     obj.MarkerSize = float(sidecar.get("marker_size", 1.0))
     obj.Mechanism = str(sidecar.get("name", ""))
@@ -215,18 +238,21 @@ def _apply_build(obj, folder: Path, values: dict[str, float], res: CliResult) ->
     # the values as the properties give them back (degrees <-> rad), so that a recompute sees no change
     read = current_parameters(obj)
     obj.BuiltParameters = json.dumps(read if _same(read, values) else values, sort_keys=True)
-    _clear_results(obj)
     obj.Status = "built; not analysed"
 
 
-def _apply_analysis(obj, text: str) -> dict:
+def _apply_analysis(obj, texts: tuple[str, str]) -> dict:
+    """Store the analysis and the report's tolerances (with their values), colour and call out the markers."""
+    text, report = texts
     analysis = json.loads(text)
+    tolerances = json.loads(report)["tolerances"]
     obj.Analysis = text
+    obj.Tolerances = json.dumps(tolerances, sort_keys=True)
     obj.Mobility = int(analysis.get("mobility") or 0)
     obj.Overconstraint = int(analysis.get("overconstraint") or 0)
     obj.Rank = int(analysis.get("rank") or 0)
-    obj.VerdictCounts = {k: str(v) for k, v in verdict_counts(analysis).items()}
-    obj.ParameterVerdicts = {p["name"]: parameter_class(p) for p in analysis["parameters"]}
+    obj.ToleranceCounts = {k: str(v) for k, v in tolerance_counts(tolerances).items()}
+    obj.ParameterClasses = parameter_classes(analysis)
     geometry.color_markers(obj, analysis)
     obj.Status = "analysed"
     return analysis
@@ -252,7 +278,7 @@ def insert_steps(doc, template: str | os.PathLike, parameters: dict[str, float] 
     try:
         out = stage / "parameters.json"
         yield Call(["parameters", str(path), "--json", str(out), "--quiet"],
-                   f"reading the parameters of {path.stem} (hyperstat parameters)")
+                   f"reading the parameters of {path.stem} (hyperstat parameters)", path.stem)
         specs = json.loads(out.read_text(encoding="utf-8"))["parameters"]
         known = {s["name"]: s for s in specs}
         unknown = sorted(set(parameters or {}) - set(known))
@@ -264,8 +290,7 @@ def insert_steps(doc, template: str | os.PathLike, parameters: dict[str, float] 
         res = yield _build_call(str(path), values, stage, path.stem)
         text = None
         if analyse:
-            yield _analyze_call(None, stage / "skeleton.skel.json", stage, 24, 0)
-            text = (stage / "analysis.json").read_text(encoding="utf-8")
+            text = yield from _analysis_calls(stage / "skeleton.skel.json", stage, 24, 0, path.stem)
         created: list[str] = []
         try:
             with transaction(doc, f"Insert skeleton {path.stem}"):
@@ -369,11 +394,11 @@ def needs_rebuild(obj) -> bool:
 
 
 def _clear_results(obj) -> None:
-    geometry.clear_verdicts(obj)
-    obj.Analysis = ""
+    geometry.clear_classes(obj)
+    obj.Analysis = obj.Tolerances = ""
     obj.Mobility = obj.Overconstraint = obj.Rank = 0
-    obj.VerdictCounts = {}
-    obj.ParameterVerdicts = {}
+    obj.ToleranceCounts = {}
+    obj.ParameterClasses = {}
 
 
 def rebuild_steps(obj, values: dict[str, float] | None = None, analyse: bool = False, title: str = "Rebuild"):
@@ -393,16 +418,17 @@ def rebuild_steps(obj, values: dict[str, float] | None = None, analyse: bool = F
             res = yield _build_call(obj.Template, full, stage, obj.Label)
             text = None
             if analyse:
-                yield _analyze_call(obj, stage / "skeleton.skel.json", stage, obj.Configurations, obj.Seed)
-                text = (stage / "analysis.json").read_text(encoding="utf-8")
+                text = yield from _analysis_calls(stage / "skeleton.skel.json", stage, obj.Configurations, obj.Seed,
+                                                  obj.Label)
         except HyperstatWorkbenchError as exc:
             if not values:  # the document's own parameters failed; refused new values are simply not written
                 obj.Status = f"error: {exc}"
             raise
+        new = _read_build(obj, stage)
         with transaction(doc, f"{title} {obj.Label}"):
             if values:
                 _write_parameters(obj, values)
-            _apply_build(obj, stage, full, res)
+            _apply_build(obj, stage, full, res, new)
             if text is not None:
                 _apply_analysis(obj, text)
             doc.recompute()
@@ -439,11 +465,10 @@ def analyze_steps(obj, configurations: int | None = None, seed: int | None = Non
     stage = _stage(work_dir(obj))
     try:
         try:
-            yield _analyze_call(obj, model, stage, configurations, seed)
+            text = yield from _analysis_calls(model, stage, configurations, seed, obj.Label)
         except HyperstatWorkbenchError as exc:
             obj.Status = f"error: {exc}"
             raise
-        text = (stage / "analysis.json").read_text(encoding="utf-8")
         with transaction(obj.Document, f"Analyse {obj.Label}"):
             if (obj.Configurations, obj.Seed) != (configurations, seed):
                 obj.Configurations, obj.Seed = configurations, seed
@@ -456,7 +481,8 @@ def analyze_steps(obj, configurations: int | None = None, seed: int | None = Non
 
 
 def analyze(obj, configurations: int | None = None, seed: int | None = None) -> dict:
-    """``hyperstat analyze``: store the verdicts and colour the markers (rebuilds first if outdated).
+    """``hyperstat analyze`` and ``hyperstat report``: store the tolerance classes and values, colour and call out
+    the markers (rebuilds first if outdated).
 
     Returns
     -------
@@ -470,6 +496,11 @@ def analyze(obj, configurations: int | None = None, seed: int | None = None) -> 
 def results(obj) -> dict | None:
     """The last analysis stored in the object (``None`` if it was not analysed since its last build)."""
     return json.loads(obj.Analysis) if obj.Analysis else None
+
+
+def tolerances(obj) -> dict | None:
+    """The tolerances of the last analysis with their values, as the report gives them (``None`` if none)."""
+    return json.loads(obj.Tolerances) if getattr(obj, "Tolerances", "") else None
 
 
 def _measurements(obj, data, validation) -> list[str]:
@@ -503,7 +534,7 @@ def identify_steps(obj, data: str | os.PathLike | None = None, validation: str |
     model = yield from _model_steps(obj)
     out = work_dir(obj) / "identification.json"
     res = yield Call(["identify", str(model), *meas, "--json", str(out), *_sample_args(obj)],
-                     "identification (hyperstat identify)")
+                     "identification (hyperstat identify)", obj.Label)
     text = out.read_text(encoding="utf-8")
     with transaction(obj.Document, f"Identify {obj.Label}"):
         obj.MeasurementFile, obj.ValidationFile = meas[0], (meas[2] if len(meas) > 2 else "")
@@ -526,7 +557,7 @@ def diagnose_steps(obj, data: str | os.PathLike | None = None, validation: str |
     meas = _measurements(obj, data, validation)
     model = yield from _model_steps(obj)
     out = work_dir(obj) / "diagnosis.json"
-    res = yield Call(["diagnose", str(model), *meas, "--json", str(out)], "diagnosis (hyperstat diagnose)")
+    res = yield Call(["diagnose", str(model), *meas, "--json", str(out)], "diagnosis (hyperstat diagnose)", obj.Label)
     text = out.read_text(encoding="utf-8")
     with transaction(obj.Document, f"Diagnose {obj.Label}"):
         obj.MeasurementFile, obj.ValidationFile = meas[0], (meas[2] if len(meas) > 2 else "")
@@ -558,7 +589,8 @@ def _data_options(obj) -> list[str]:
 def report_steps(obj, out_dir: str | os.PathLike):
     """Steps of :func:`export_report`."""
     model = yield from _model_steps(obj)
-    yield Call(["report", str(model), *_data_options(obj), "--out", str(out_dir)], "tolerance report (hyperstat report)")
+    yield Call(["report", str(model), *_data_options(obj), "--out", str(out_dir)], "tolerance report (hyperstat report)",
+               obj.Label)
     with transaction(obj.Document, f"Report of {obj.Label}"):
         obj.ReportDir = str(out_dir)
     return Path(out_dir)
@@ -579,7 +611,7 @@ def controller_steps(obj, out_file: str | os.PathLike):
     model = yield from _model_steps(obj)
     extra = ["--validation", obj.ValidationFile] if obj.ValidationFile else []
     yield Call(["export-controller", str(model), obj.MeasurementFile, *extra, "--diagnose", "--out", str(out_file)],
-               "controller file (hyperstat export-controller)")
+               "controller file (hyperstat export-controller)", obj.Label)
     with transaction(obj.Document, f"Controller file of {obj.Label}"):
         obj.ControllerFile = str(out_file)
     return Path(out_file)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 from .messages import icon_path, show_error, show_info
-from .verdicts import VERDICT_COLORS, VERDICT_ORDER, VERDICT_TEXT, parameter_class, tolerance_class
+from .classes import CLASS_COLORS, CLASS_LABELS, CLASS_ORDER, CLASS_RGB, relations_of, tolerance_counts, tolerance_rows
 
 __all__ = ["InsertPanel", "ParametersPanel", "ResultsPanel", "TextPanel", "show_panel", "show_later",
            "open_parameters", "open_results", "open_text", "open_identification", "open_diagnosis", "ACTIVE",
@@ -59,6 +59,9 @@ def show_later(opener, *args, tries: int = 40) -> None:
 def _close() -> None:
     import FreeCADGui
 
+    for panel in ACTIVE:
+        if hasattr(panel, "detach"):
+            panel.detach()
     ACTIVE.clear()
     FreeCADGui.Control.closeDialog()
 
@@ -359,88 +362,173 @@ class _NonModal:
         return True
 
 
+class _FollowDocument:
+    """Document observer of an open results panel: after Edit > Undo or Redo, the panel shows the document again."""
+
+    def __init__(self, panel):
+        self.panel = panel
+
+    def _later(self, doc) -> None:
+        from PySide import QtCore
+
+        if getattr(doc, "Name", None) == self.panel.doc_name:
+            QtCore.QTimer.singleShot(0, self.panel.refresh)
+
+    def slotUndoDocument(self, doc) -> None:  # noqa: N802 - FreeCAD's name
+        self._later(doc)
+
+    def slotRedoDocument(self, doc) -> None:  # noqa: N802 - FreeCAD's name
+        self._later(doc)
+
+
 class ResultsPanel(_NonModal):
-    """The analysis: summary, one row per defect parameter coloured by verdict, the relations."""
+    """The analysis as the report gives it: counts per class, the tolerance table with the values, T-ids and
+    drawing frames, the class of every defect parameter, the colour legend.  Follows Undo and Redo."""
+
+    COLUMNS = ["id", "class", "statement", "feature", "without calibration", "with calibration", "drawing"]
 
     def __init__(self, obj):
+        import FreeCAD
         from PySide import QtCore, QtGui
 
-        from .operations import results
-
+        self.doc_name, self.name = obj.Document.Name, obj.Name
         self.obj = obj
-        analysis = results(obj)
         self.form = QtGui.QWidget()
-        self.form.setWindowTitle("Analysis")
+        self.form.setWindowTitle("Tolerances")
         self.form.setWindowIcon(QtGui.QIcon(icon_path("results")))
         layout = QtGui.QVBoxLayout(self.form)
         self.summary = QtGui.QLabel()
         self.summary.setWordWrap(True)
+        self.summary.setObjectName("HyperstatResultsSummary")
         layout.addWidget(self.summary)
-        self.table = QtGui.QTableWidget(0, 6)
-        self.table.setHorizontalHeaderLabels(["parameter", "element", "class", "influence", "unit", "reason"])
-        self.table.setEditTriggers(QtGui.QAbstractItemView.NoEditTriggers)
-        self.table.setSelectionBehavior(QtGui.QAbstractItemView.SelectRows)
-        self.table.itemSelectionChanged.connect(self.select_marker)
-        _fit_dock(self.table, 300)
-        layout.addWidget(self.table, 1)
+        self.tabs = QtGui.QTabWidget()
+        self.table = self._new_table(self.COLUMNS, self.select_tolerance)
+        self.parameters = self._new_table(["parameter", "joint", "class", "tolerance", "unit"], self.select_parameter)
+        self.tabs.addTab(self.table, "Tolerances")
+        self.tabs.addTab(self.parameters, "Defect parameters")
+        _fit_dock(self.tabs, 300)
+        layout.addWidget(self.tabs, 1)
         self.relations = QtGui.QPlainTextEdit()
         self.relations.setReadOnly(True)
-        self.relations.setMaximumHeight(110)
+        self.relations.setMaximumHeight(90)
         _fit_dock(self.relations, 0)
         layout.addWidget(self.relations)
         self.legend = QtGui.QLabel()
         self.legend.setWordWrap(True)
         self.legend.setTextFormat(QtCore.Qt.RichText)
         layout.addWidget(self.legend)
-        if analysis is None:
-            self.summary.setText(f"{obj.Label}: not analysed since its last build ({obj.Status}). Run Analyse.")
-            self.rows = []
-            self.legend.setText(legend_html(None))
+        self.rows: list = []
+        self.items: list = []
+        self.refresh()
+        self._observer = _FollowDocument(self)
+        FreeCAD.addDocumentObserver(self._observer)
+
+    @staticmethod
+    def _new_table(headers: list[str], on_select):
+        from PySide import QtGui
+
+        table = QtGui.QTableWidget(0, len(headers))
+        table.setHorizontalHeaderLabels(headers)
+        table.setEditTriggers(QtGui.QAbstractItemView.NoEditTriggers)
+        table.setSelectionBehavior(QtGui.QAbstractItemView.SelectRows)
+        table.itemSelectionChanged.connect(on_select)
+        return table
+
+    def detach(self) -> None:
+        """Stop following the document (the panel closes)."""
+        import FreeCAD
+
+        if getattr(self, "_observer", None) is not None:
+            FreeCAD.removeDocumentObserver(self._observer)
+            self._observer = None
+
+    def _object(self):
+        import FreeCAD
+
+        doc = FreeCAD.listDocuments().get(self.doc_name)
+        return doc.getObject(self.name) if doc is not None else None
+
+    def refresh(self) -> None:
+        """Show what the document holds now (called again after each Undo and Redo)."""
+        from .operations import results, tolerances
+
+        try:
+            self.form.isVisible()
+        except RuntimeError:  # the panel's widgets are gone
+            self.detach()
+            return
+        obj = self._object()
+        self.obj = obj
+        analysis = results(obj) if obj is not None else None
+        tol = tolerances(obj) if obj is not None else None
+        self.legend.setText(legend_html(tol))
+        if obj is None or analysis is None:
+            self.summary.setText("The skeleton is not in the document (undone)." if obj is None else
+                                 f"{obj.Label}: not analysed since its last build ({obj.Status}). Run Analyse.")
+            self._fill(self.table, [], None)
+            self._fill(self.parameters, [], None)
+            self.rows, self.items = [], []
+            self.relations.setPlainText("")
             return
         self.rows = analysis["parameters"]
-        self.classes = [tolerance_class(analysis, p) for p in self.rows]
-        self.table.setRowCount(len(self.rows))
-        for i, p in enumerate(self.rows):
-            verdict = parameter_class(p)
-            influence = p.get("influence")
-            cells = [p["name"], p["element"], self.classes[i], "" if influence is None else f"{influence:.3g}",
-                     p.get("unit", ""), p.get("reason", "")]
-            for j, text in enumerate(cells):
-                item = QtGui.QTableWidgetItem(str(text))
-                item.setToolTip(f"{p['name']} ({p['element']}): {self.classes[i]}; {p.get('reason', '')}")
-                if j == 2:
-                    item.setBackground(QtGui.QColor.fromRgbF(*VERDICT_COLORS[verdict]))
-                self.table.setItem(i, j, item)
-        self.table.resizeColumnsToContents()
-        counts: dict[str, int] = {}
-        for c in self.classes:
-            counts[c] = counts.get(c, 0) + 1
+        entries = (analysis.get("tolerances") or {}).get("parameters") or {}
+        tol = tol or analysis.get("tolerances") or {}
+        self.items = tol.get("items", [])
+        self._fill(self.table, tolerance_rows(tol), 1)
+        self._fill(self.parameters, [[p["name"], p["element"], entries.get(p["name"], {}).get("class", "-"),
+                                      entries.get(p["name"], {}).get("tolerance_id") or "-", p.get("unit", "")]
+                                     for p in self.rows], 2)
+        counts = tolerance_counts(tol)
         per_class = ", ".join(f"{n} {c}" for c, n in counts.items())
         self.summary.setText(
             f"<b>{analysis.get('mechanism', obj.Mechanism)}</b>: mobility {analysis.get('mobility')}, "
-            f"over-constraint {analysis.get('overconstraint')}, rank {analysis.get('rank')} "
-            f"(singular-value gap {analysis.get('singular_value_gap') or 0:.3g}); {len(self.rows)} defect parameters: "
-            f"{per_class}. Lengths in mm, angles in rad.")
-        rel = analysis.get("relations") or []
-        self.relations.setPlainText("Relations between coupled defects:\n" + "\n".join(r["text"] for r in rel)
+            f"over-constraint {analysis.get('overconstraint')}; {len(self.items)} tolerances from {len(self.rows)} "
+            f"defect parameters: {per_class} (the report's table). Values in mm / rad, rounded down as printed; "
+            f"drawing: ISO 1101 frames.")
+        rel = relations_of(tol)
+        self.relations.setPlainText("Assembly conditions relating several defects:\n" + "\n".join(rel)
                                     if rel else "No relation between defects.")
-        self.legend.setText(legend_html(analysis))
 
-    def select_marker(self) -> None:
-        """Select the verdict sphere of the element of the selected row in the 3D view."""
+    @staticmethod
+    def _fill(table, rows: list[list[str]], class_column: int | None) -> None:
+        from PySide import QtGui
+
+        table.clearContents()
+        table.setRowCount(len(rows))
+        for i, row in enumerate(rows):
+            for j, text in enumerate(row):
+                item = QtGui.QTableWidgetItem(str(text))
+                if j == class_column and text in CLASS_RGB:
+                    item.setBackground(QtGui.QColor.fromRgbF(*CLASS_RGB[text]))
+                    item.setForeground(QtGui.QColor("white"))
+                    item.setToolTip(CLASS_LABELS.get(text, text))
+                table.setItem(i, j, item)
+        table.resizeColumnsToContents()
+
+    def _select_elements(self, elements: set) -> None:
         import FreeCADGui
 
-        from .geometry import verdict_spheres
+        from .geometry import class_spheres
 
-        rows = {i.row() for i in self.table.selectedItems()}
-        if not rows:
+        if self.obj is None or not elements:
             return
-        spheres = verdict_spheres(self.obj)
+        spheres = class_spheres(self.obj)
         FreeCADGui.Selection.clearSelection()
-        for r in rows:
-            sphere = spheres.get(self.rows[r]["element"])
-            if sphere is not None:
-                FreeCADGui.Selection.addSelection(sphere)
+        for element in sorted(elements):
+            if element in spheres:
+                FreeCADGui.Selection.addSelection(spheres[element])
+
+    def select_tolerance(self) -> None:
+        """Select the class spheres of the joints of the selected tolerances in the 3D view."""
+        element_of = {p["name"]: p["element"] for p in self.rows}
+        rows = {i.row() for i in self.table.selectedItems()}
+        self._select_elements({element_of[n] for r in rows if r < len(self.items)
+                               for n in self.items[r].get("parameters", []) if n in element_of})
+
+    def select_parameter(self) -> None:
+        """Select the class sphere of the joint of the selected defect parameters."""
+        rows = {i.row() for i in self.parameters.selectedItems()}
+        self._select_elements({self.rows[r]["element"] for r in rows if r < len(self.rows)})
 
 
 def _fit_dock(widget, min_height: int) -> None:
@@ -453,16 +541,18 @@ def _fit_dock(widget, min_height: int) -> None:
         widget.setMinimumHeight(min_height)
 
 
-def legend_html(analysis) -> str:
-    """The marker colours and what they mean, with the labels drawn next to the markers."""
-    rows = [f"<span style='background:{_hex(VERDICT_COLORS[c])}'>&nbsp;&nbsp;&nbsp;</span> <b>{c}</b>: "
-            f"{VERDICT_TEXT[c]}" for c in VERDICT_ORDER]
-    return ("Marker colours (a joint takes its most severe verdict; where joints coincide the spheres are "
-            "spread around the point and labelled):<br>" + "<br>".join(rows))
-
-
-def _hex(rgb) -> str:
-    return "#" + "".join(f"{round(255 * c):02x}" for c in rgb)
+def legend_html(tolerances: dict | None) -> str:
+    """The class colours with their words, as the report and the pictures draw them."""
+    meaning = (tolerances or {}).get("classes") or {}
+    rows = []
+    for c in CLASS_ORDER:
+        text = meaning.get(c, "")
+        if text.startswith(CLASS_LABELS[c]):  # the JSON's meaning may begin with the class's own words
+            text = text[len(CLASS_LABELS[c]):].lstrip(": ")
+        rows.append(f"<span style='background:{CLASS_COLORS[c]}'>&nbsp;&nbsp;&nbsp;</span> <b>{CLASS_LABELS[c]}</b>"
+                    + (f": {text}" if text else ""))
+    return ("Marker colours (a joint takes the most severe class of its defects; each marker is called out with its "
+            "joint and tolerance ids, the rows of the table):<br>" + "<br>".join(rows))
 
 
 class TextPanel(_NonModal):
@@ -610,14 +700,14 @@ class IdentificationPanel(_ReportPanel):
         ident, val = data.get("identification") or {}, data.get("validation") or {}
         summary = (f"<b>{obj.Label}</b>: {len(data.get('parameters', []))} parameters identified, rank "
                    f"{data.get('rank')} of {data.get('unknowns')} unknowns, condition number "
-                   f"{data.get('condition_number') or 0:.3g}.<br>Residual RMS (um): identification "
+                   f"{data.get('condition_number') or 0:.3g}.<br>Residual RMS (\u00b5m): identification "
                    f"{_um(ident.get('rms'))} ({ident.get('n')} points), validation {_um(val.get('rms'))} "
                    f"({val.get('n', 0)} points, never fitted). Estimates in mm / rad, with 1-sigma.")
         rows = [[p["name"], f"{p.get('estimate', 0):.4g}", f"{p.get('std') or 0:.2g}", p.get("unit", ""),
                  "yes" if p.get("identifiable", True) else "no"] for p in data.get("parameters", [])]
         table = _table(["parameter", "estimate", "1-sigma", "unit", "identifiable"], rows)
         plot = BarPlot("residual RMS", [("identification", 1000.0 * float(ident.get("rms") or 0)),
-                                        ("validation", 1000.0 * float(val.get("rms") or 0))], "um")
+                                        ("validation", 1000.0 * float(val.get("rms") or 0))], "\u00b5m")
         self._build("Identification", "identify", summary, table, plot, obj.IdentificationText)
 
 
@@ -635,17 +725,17 @@ class DiagnosisPanel(_ReportPanel):
                              for s in data.get("selected") or []) or "none"
         gap = "a significant gap" if data.get("gap_significant") else "no significant gap (residuals at noise level)"
         summary = (f"<b>{obj.Label}</b>: {gap}; validation p = {p_val if p_val is None else f'{p_val:.2g}'}; "
-                   f"validation RMS before {_um(before.get('rms'))} um; selected effect: {selected}. "
-                   "Effects ranked by blocked cross-validation (CV RMS in um, lower is better).")
+                   f"validation RMS before {_um(before.get('rms'))} \u00b5m; selected effect: {selected}. "
+                   "Effects ranked by blocked cross-validation (CV RMS in \u00b5m, lower is better).")
         ranking = data.get("ranking") or []
         rows = [[r.get("effect", ""), r.get("defect") or "", _um(r.get("cv_rms")),
                  f"{r.get('criterion', 0):.3g}", r.get("criterion_name", "")] for r in ranking]
         for name, why in (data.get("not_applicable") or {}).items():
             rows.append([name, "", "", "", f"not tried: {why}"])
-        table = _table(["effect", "defect", "CV RMS (um)", "criterion", "criterion name"], rows)
+        table = _table(["effect", "defect", "CV RMS (\u00b5m)", "criterion", "criterion name"], rows)
         ceiling = data.get("ceiling") or {}
         plot = BarPlot("CV RMS per effect", [(r.get("effect", ""), 1000.0 * float(r.get("cv_rms") or 0))
-                                             for r in ranking], "um",
+                                             for r in ranking], "\u00b5m",
                        ("rigid", 1000.0 * float(ceiling["cv_rms_rigid"])) if ceiling.get("cv_rms_rigid") else None)
         self._build("Diagnosis", "diagnose", summary, table, plot, obj.DiagnosisText)
 

@@ -21,15 +21,15 @@ OUT = os.environ["HYPERSTAT_SCENARIO_OUT"]
 
 
 def state(sk):
-    """What the test compares: proxy, parameters, stored results, marker poses, verdict spheres."""
+    """What the test compares: proxy, parameters, stored results, marker poses, class spheres and callouts."""
     import hyperstat_freecad as hs
 
     markers = {node: list(part.getGlobalPlacement().toMatrix().A) for node, part in hs.markers(sk).items()}
     spheres = {}
-    for element, sphere in hs.verdict_spheres(sk).items():
+    for element, sphere in hs.class_spheres(sk).items():
         parent = [p for p in sphere.InList if getattr(p, "HyperstatRole", "") == "marker"]
         spheres[element] = {
-            "verdict": sphere.HyperstatVerdict,
+            "class": sphere.HyperstatClass,
             "color": list(sphere.HyperstatColor)[:3],
             "marker": parent[0].HyperstatNode if parent else None,
             "center": list(sphere.getGlobalPlacement().Base),
@@ -47,8 +47,10 @@ def state(sk):
         "expressions": dict(sk.ExpressionEngine),
         "spreadsheet": sk.Spreadsheet.Name if sk.Spreadsheet else None,
         "analysis": hs.results(sk),
-        "verdict_counts": dict(sk.VerdictCounts),
-        "parameter_verdicts": dict(sk.ParameterVerdicts),
+        "tolerances": hs.tolerances(sk),
+        "tolerance_counts": dict(sk.ToleranceCounts),
+        "parameter_classes": dict(sk.ParameterClasses),
+        "callouts": {k: list(v.LabelText) for k, v in hs.callout_labels(sk).items()},
         "mobility": sk.Mobility,
         "overconstraint": sk.Overconstraint,
         "marker_size": sk.MarkerSize.Value,

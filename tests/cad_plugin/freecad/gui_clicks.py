@@ -31,6 +31,8 @@ OUT = os.environ.get("HYPERSTAT_CLICKS_OUT", os.path.join(os.getcwd(), "hypersta
 DATA = os.environ.get("HYPERSTAT_CLICKS_DATA", "")
 VALIDATION = os.environ.get("HYPERSTAT_CLICKS_VALIDATION", "")
 TEMPLATE = "tripteor_x7"
+#: every shipped template: inserted by clicks, its results panel read and compared with its report
+TEMPLATES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"]
 STEP_TIMEOUT_S = 300
 REPORT = {"ok": False, "stage": "start", "steps": {}, "boxes": [], "events": []}
 
@@ -137,14 +139,36 @@ def state(doc):
         out.update({
             "status": sk.Status, "touched": "Touched" in sk.State, "state": list(sk.State),
             "parameters": hs.current_parameters(sk),
-            "verdicts": dict(sk.ParameterVerdicts),
+            "classes": dict(sk.ParameterClasses),
             "markers": {n: list(p.getGlobalPlacement().Base) for n, p in hs.markers(sk).items()},
-            "spheres": {el: {"verdict": s.HyperstatVerdict, "view_color": list(s.ViewObject.ShapeColor)[:3],
+            "spheres": {el: {"class": s.HyperstatClass, "view_color": list(s.ViewObject.ShapeColor)[:3],
                              "center": list(s.getGlobalPlacement().Base)}
-                        for el, s in hs.verdict_spheres(sk).items()},
+                        for el, s in hs.class_spheres(sk).items()},
+            "callouts": {k: list(v.LabelText) for k, v in hs.callout_labels(sk).items()},
             "analysis": json.loads(sk.Analysis) if sk.Analysis else None,
+            "tolerances": hs.tolerances(sk),
             "identification": bool(sk.Identification), "diagnosis": bool(sk.Diagnosis),
         })
+    return out
+
+
+def table_rows(t):
+    return [[t.item(r, c).text() if t.item(r, c) else "" for c in range(t.columnCount())] for r in range(t.rowCount())]
+
+
+def panel_contents(panel):
+    """What a panel shows: its table(s), their heads, its summary."""
+    out = {}
+    if panel is not None and hasattr(panel, "table"):
+        t = panel.table
+        out["table"] = table_rows(t)
+        out["table_header"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]
+    if panel is not None and hasattr(panel, "parameters") and hasattr(panel.parameters, "rowCount"):
+        out["parameter_table"] = table_rows(panel.parameters)
+    if panel is not None and hasattr(panel, "summary"):
+        out["summary"] = panel.summary.text()
+    if panel is not None and hasattr(panel, "legend"):
+        out["legend"] = panel.legend.text()
     return out
 
 
@@ -154,6 +178,37 @@ def edges(panel):
     return {"panel_width_hint": panel.form.minimumSizeHint().width(), "panel_width": panel.form.width(),
             "panel_right": panel.form.mapToGlobal(QtCore.QPoint(panel.form.width(), 0)).x(),
             "dock_right": dock.mapToGlobal(QtCore.QPoint(dock.width(), 0)).x()}
+
+
+def _report_view():
+    dock = main_window().findChild(QtGui.QDockWidget, "Report view")
+    edits = dock.findChildren(QtGui.QTextEdit) if dock is not None else []
+    return edits[0] if edits else None
+
+
+def report_view_text():
+    """Everything FreeCAD's report view shows (messages, warnings, errors)."""
+    view = _report_view()
+    return view.toPlainText() if view is not None else ""
+
+
+def report_view_errors():
+    """The lines the report view shows in its error colour (red by default).
+
+    The report view colours its lines with a syntax highlighter, whose formats live in each
+    text block's layout (not in the document's HTML): read them there.
+    """
+    view = _report_view()
+    if view is None:
+        return []
+    out = []
+    block = view.document().begin()
+    while block.isValid():
+        colours = [r.format.foreground().color() for r in block.layout().formats()]
+        if any(c.red() > 180 and c.green() < 90 and c.blue() < 90 for c in colours):
+            out.append(block.text().strip())
+        block = block.next()
+    return out
 
 
 def _undo_action():
@@ -176,11 +231,7 @@ def record(name, doc, **extra):
     panel = active_panel()
     info = {"state": state(doc), "panel": type(panel).__name__ if panel else None,
             "dialog_open": bool(FreeCADGui.Control.activeDialog()), **extra}
-    if panel is not None and hasattr(panel, "table"):
-        t = panel.table
-        info["table"] = [[t.item(r, c).text() if t.item(r, c) else "" for c in range(t.columnCount())]
-                         for r in range(t.rowCount())]
-        info["table_header"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]
+    info.update(panel_contents(panel))
     info["screenshot"] = screenshot(name)
     if panel is not None:
         info.update(edges(panel))
@@ -227,7 +278,11 @@ def run():
         ticker.start(100)
         REPORT["steps"]["insert_click_s"] = click_task_button("OK")
         # right after the click: still the insert panel, busy, and nothing in the document yet
+        status_text = main_window().findChild(QtGui.QLabel, "HyperstatProgressText")
+        pump(1.2)  # the progress ticks twice a second
         REPORT["steps"]["after_ok"] = {"panel": type(active_panel()).__name__,
+                                        "progress_text": panel.progress_label.text(),
+                                        "status_text": status_text.text() if status_text is not None else None,
                                         "progress_visible": panel.progress_bar.isVisible(),
                                         "inputs_enabled": panel.combo.isEnabled(),
                                         "objects": len(doc.Objects), "job": _job_running(), **edges(panel)}
@@ -327,26 +382,67 @@ def run():
         pump(0.5)
         REPORT["steps"]["spreadsheet_undone"] = state(doc)
 
-        # ---------------------------------------------------------------- undo, step by step
+        # ---------------------------------------------------------------- undo, then redo, step by step,
+        # with the results panel open: it follows the document
         REPORT["stage"] = "undo"
-        FreeCADGui.Control.closeDialog()
-        pump(0.5)
+        click_command("Hyperstat_Results")
+        results_panel = wait_panel("ResultsPanel")
         undo = []
         while doc.UndoCount:
             action = _undo_action()
             name = doc.UndoNames[0]
             enabled = action.isEnabled()
+            errors_before = len(report_view_errors())
             action.trigger()  # Edit > Undo
-            pump(0.5)
-            undo.append({"undone": name, "action_enabled": enabled, "state": state(doc)})
+            pump(0.8)
+            undo.append({"undone": name, "action_enabled": enabled, "state": state(doc),
+                         "panel_is_same": active_panel() is results_panel, **panel_contents(active_panel()),
+                         "new_error_lines": report_view_errors()[errors_before:]})
             if len(undo) > 12:
                 break
         REPORT["steps"]["undo"] = undo
         screenshot("undo")
+        REPORT["stage"] = "redo"
+        redo = []
+        while doc.RedoCount:
+            name = doc.RedoNames[0]
+            errors_before = len(report_view_errors())
+            main_window().findChild(QtGui.QAction, "Std_Redo").trigger()  # Edit > Redo
+            pump(0.8)
+            redo.append({"redone": name, "state": state(doc), "panel_is_same": active_panel() is results_panel,
+                         **panel_contents(active_panel()), "new_error_lines": report_view_errors()[errors_before:]})
+            if len(redo) > 12:
+                break
+        REPORT["steps"]["redo"] = redo
+
+        # ---------------------------------------------------------------- every template: insert, read the panel
+        REPORT["stage"] = "templates"
+        FreeCADGui.Control.closeDialog()
+        pump(0.5)
+        every = {TEMPLATE: REPORT["steps"]["insert"]}  # inserted by clicks at the start of the scenario
+        for name in [t for t in TEMPLATES if t != TEMPLATE]:
+            REPORT["stage"] = f"template {name}"
+            tdoc = FreeCAD.newDocument(f"t_{name}")
+            click_command("Hyperstat_InsertSkeleton")
+            insert = wait_panel("InsertPanel")
+            insert.combo.setCurrentIndex(insert.combo.findText(name))
+            click_task_button("OK")
+            wait_panel("ResultsPanel")
+            every[name] = {"state": state(tdoc), **panel_contents(active_panel()), "screenshot": screenshot(name)}
+            _event("recorded")
+            FreeCADGui.Control.closeDialog()
+            pump(0.3)
+            FreeCAD.closeDocument(tdoc.Name)
+            pump(0.3)
+        REPORT["steps"]["templates"] = every
+        REPORT["report_view"] = report_view_text()
+        REPORT["report_view_errors"] = report_view_errors()
         REPORT["stage"] = "done"
         REPORT["ok"] = True
     except Exception:  # noqa: BLE001 - written to the report, the test reads it
         REPORT["error"] = traceback.format_exc()
+        REPORT["report_view"] = report_view_text()
+        REPORT["report_view_errors"] = report_view_errors()
     _write()
     QtCore.QTimer.singleShot(200, _quit)
 

@@ -3,11 +3,13 @@
 Units: lengths in mm, angles in rad.
 
 One FreeCAD start runs the whole scenario (insert, identify, diagnose, edit parameters
-with a refused then a good value, analyse from the toolbar, a spreadsheet edit, undo step
-by step); this test judges what it recorded: the document's state after each click, the
-panels, every message box, and the screenshots (verdict colours present in the 3D view).
-Expected verdicts come from the solver run in this process on the template (no FreeCAD,
-no STEP, no model file).  ``HYPERSTAT_REQUIRE_FREECAD=1`` (``make test``) makes a missing
+with a refused then a good value, analyse from the toolbar, a spreadsheet edit, undo then
+redo step by step with the results panel open, then every shipped template inserted by
+clicks); this test judges what it recorded: the document's state after each click, the
+panels, every message box, the report view's error lines, and the screenshots (class
+colours present in the 3D view).  Expected classes come from the solver run in this process
+on the template (no FreeCAD, no STEP, no model file); each template's panel is compared with
+the report the command line writes here from the template.  ``HYPERSTAT_REQUIRE_FREECAD=1`` (``make test``) makes a missing
 FreeCAD or Xvfb a failure, not a skip.  ``HYPERSTAT_SCREENSHOTS=DIR`` copies the
 screenshots that ``docs/freecad.md`` shows there (``make freecad-screenshot`` uses it for ``docs/img``).
 """
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -34,9 +37,12 @@ TIMEOUT_S = 1500
 DOC_SCREENSHOTS = ("workbench", "insert_running", "identify", "diagnose")
 
 sys.path.insert(0, str(WORKBENCH))
-from hyperstat_freecad.verdicts import VERDICT_COLORS, element_verdicts, parameter_class, tolerance_class  # noqa: E402
+from hyperstat_freecad.classes import CLASS_RGB, element_classes, tolerance_rows  # noqa: E402
 
 sys.path.pop(0)
+
+#: every shipped template: the clicking scenario inserts each one and the test compares its panel with its report
+TEMPLATE_NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"]
 
 
 @pytest.fixture(scope="module")
@@ -57,10 +63,17 @@ def clicks(tmp_path_factory) -> dict:
     env = {k: v for k, v in os.environ.items() if k != "HYPERSTAT_CLI"}
     env.update({"HOME": str(home), "HYPERSTAT_CLICKS_OUT": str(out), "HYPERSTAT_CLICKS_DATA": str(data),
                 "HYPERSTAT_CLICKS_VALIDATION": str(validation), "QTWEBENGINE_CHROMIUM_FLAGS": "--no-sandbox"})
+    reports = {}
     with open(out / "log.txt", "w", encoding="utf-8") as log:
         run = subprocess.Popen([tools["xvfb-run"], "-a", "-s", "-screen 0 1700x1000x24", tools["freecad"], str(SCRIPT)],
                                stdout=log, stderr=subprocess.STDOUT, env=env, cwd=out, start_new_session=True)
         try:
+            # meanwhile, each template's report by the command line here, from the template (no FreeCAD, no STEP)
+            for name in TEMPLATE_NAMES:
+                rep = subprocess.run([cli, "report", str(TEMPLATES / f"{name}.py"), "--out", str(root / "reports" / name),
+                                      "--quiet"], capture_output=True, text=True, timeout=600)
+                assert rep.returncode == 0, rep.stderr
+                reports[name] = json.loads((root / "reports" / name / "report.json").read_text())
             run.wait(timeout=TIMEOUT_S)
         except subprocess.TimeoutExpired:
             pytest.fail(f"FreeCAD did not finish the clicking scenario within {TIMEOUT_S} s")
@@ -72,12 +85,33 @@ def clicks(tmp_path_factory) -> dict:
     report_path = out / "report.json"
     assert report_path.is_file(), (out / "log.txt").read_text(errors="replace")[-3000:]
     report = json.loads(report_path.read_text())
-    if os.environ.get("HYPERSTAT_SCREENSHOTS"):
+    if os.environ.get("HYPERSTAT_SCREENSHOTS") and report.get("ok"):
         dest = Path(os.environ["HYPERSTAT_SCREENSHOTS"])
         dest.mkdir(parents=True, exist_ok=True)
         for name in DOC_SCREENSHOTS:
             shutil.copy(out / f"freecad_{name}.png", dest / f"freecad_{name}.png")
-    return {"report": report, "out": out}
+            _record_screenshot(dest / f"freecad_{name}.png", name, report["steps"])
+    return {"report": report, "out": out, "reports": reports}
+
+
+def _record_screenshot(png: Path, name: str, steps: dict) -> None:
+    """The record of a screenshot docs/ shows (tests/test_docs_images.py): the words on it, from the panel."""
+    from hyperstat.cad_plugin.view import write_record
+
+    step = {"workbench": "insert", "insert_running": "after_ok"}.get(name, name)
+    got = steps[step]
+    words = {"title": f"FreeCAD: {name}"}
+    if name == "workbench":
+        words.update(classes=sorted({row[1] for row in got["table"]}),
+                     legend=[re.sub(r"<[^>]+>", "", line).replace("&nbsp;", "").strip()
+                             for line in got["legend"].split("<br>")],
+                     callouts=[line for text in got["state"]["callouts"].values() for line in text])
+    elif name == "insert_running":
+        words["legend"] = [got["progress_text"]]
+    else:
+        words["legend"] = list(got.get("table_header") or [])
+    write_record(png, "make freecad-screenshot (tests/cad_plugin/freecad/gui_clicks.py: FreeCAD 0.20 under Xvfb)",
+                 words)
 
 
 def _steps(clicks) -> dict:
@@ -103,32 +137,59 @@ def test_insert_ok_does_not_block_and_opens_the_results(clicks, tripteor, tripte
     after = steps["after_ok"]
     assert after["panel"] == "InsertPanel" and after["job"] is True and after["objects"] == 0
     assert after["progress_visible"] is True and after["inputs_enabled"] is False
+    # the progress names the step and its stage, with an estimate of its duration
+    assert re.search(r"Insert skeleton, step \d: .+, \d+ s (of about \d+ s|\((usually|typically) \d+ s)",
+                     after["progress_text"]), after["progress_text"]
+    assert after["status_text"] == after["progress_text"] or "of about" in after["status_text"] or \
+        "typically" in after["status_text"] or "usually" in after["status_text"]
     insert = steps["insert"]
     assert [b for b in clicks["report"]["boxes"] if b["stage"] == "insert"] == []  # no "Another task panel"
     assert insert["panel"] == "ResultsPanel" and insert["dialog_open"]
     state = insert["state"]
     assert state["skeletons"] == ["tripteor_x7"] and state["status"] == "analysed" and not state["touched"]
-    want = tripteor_analysis.to_dict()
-    assert state["verdicts"] == {p["name"]: parameter_class(p) for p in want["parameters"]}
-    # the results table: one row per defect, class = the tolerance class when the JSON has one, else the verdict
-    assert [row[0] for row in insert["table"]] == [p["name"] for p in want["parameters"]]
-    assert [row[2] for row in insert["table"]] == [tolerance_class(state["analysis"], p)
-                                                   for p in state["analysis"]["parameters"]]
-    # the panel's counts per tolerance class are the analysis's, computed here in-process by the one
-    # classification module (a second path: no CLI, no FreeCAD)
-    from collections import Counter
-
+    # the classes: computed here in-process by the one classification module (a second path: no CLI, no FreeCAD)
+    from hyperstat.solver.cli import jsonable
     from hyperstat.solver.tolerances.classification import classify
 
-    classes_here = classify(tripteor, tripteor_analysis).to_dict()["parameters"]
-    assert Counter(row[2] for row in insert["table"]) == Counter(classes_here[p["name"]]["class"]
-                                                                 for p in want["parameters"])
-    classes = element_verdicts(want)
+    here = jsonable({**tripteor_analysis.to_dict(), "tolerances": classify(tripteor, tripteor_analysis).to_dict()})
+    assert state["classes"] == {n: e["class"] for n, e in here["tolerances"]["parameters"].items()}
+    # the panel's tables: the tolerance table of the report, one row per defect parameter with its class
+    assert insert["table"] == tolerance_rows(state["tolerances"])
+    assert [row[0] for row in insert["parameter_table"]] == [p["name"] for p in here["parameters"]]
+    assert [row[2] for row in insert["parameter_table"]] == [here["tolerances"]["parameters"][p["name"]]["class"]
+                                                            for p in here["parameters"]]
+    classes, ids = element_classes(here)
     assert set(state["spheres"]) == set(classes)
     for element, sphere in state["spheres"].items():
-        np.testing.assert_allclose(sphere["view_color"], VERDICT_COLORS[classes[element]], atol=1e-6)
-    for cls in ("forced", "coupled", "free-influential"):
-        assert _hue_pixels(insert["screenshot"], VERDICT_COLORS[cls]) > 30, cls
+        assert sphere["class"] == classes[element]
+        np.testing.assert_allclose(sphere["view_color"], CLASS_RGB[classes[element]], atol=1e-6)
+    assert sum(len(v) for v in state["callouts"].values()) == len(classes)  # a callout line per marker
+    for cls in ("assembly", "compensable"):
+        assert _hue_pixels(insert["screenshot"], CLASS_RGB[cls]) > 30, cls
+
+
+@pytest.mark.parametrize("name", TEMPLATE_NAMES)
+def test_the_panel_says_what_the_report_says(clicks, name):
+    """Inserted by clicks, each template's Results panel shows its report's counts, ids, classes and values."""
+    from hyperstat.cad_plugin.palette import CLASS_LABELS, tolerance_counts
+    from hyperstat.cad_plugin.report_words import tolerance_value
+
+    got = _steps(clicks)["templates"][name]
+    report = clicks["reports"][name]
+    items = report["tolerances"]["items"]
+    assert got["state"]["status"] == "analysed"
+    assert [row[:4] for row in got["table"]] == [[t["id"], t["class"], t["statement"], t["feature"]] for t in items]
+    assert [row[4] for row in got["table"]] == [tolerance_value(t) for t in items]  # the printed values
+    counts = tolerance_counts({"counts": report["summary"]["tolerance_classes"]})
+    assert ", ".join(f"{n} {c}" for c, n in counts.items()) in got["summary"]
+    assert f"{len(items)} tolerances from {report['summary']['parameters']} defect parameters" in got["summary"]
+    by_name = {p["name"]: p for j in report["joints"] for p in j["parameters"]}
+    assert {row[0]: (row[2], row[3]) for row in got["parameter_table"]} == {
+        n: (p["class"], p["tolerance_id"] or "-") for n, p in by_name.items()}
+    for cls in counts:  # the legend uses the report's words
+        assert CLASS_LABELS[cls] in got["legend"]
+    for word in ("forced", "coupled", "free-", "gauge"):
+        assert word not in got["legend"] and word not in got["summary"]
 
 
 def test_undo_one_transaction_per_action_and_edit_undo_enabled(clicks):
@@ -149,6 +210,36 @@ def test_undo_one_transaction_per_action_and_edit_undo_enabled(clicks):
         np.testing.assert_allclose(xyz, before[node], atol=1e-9, err_msg=node)
     gone = by_name["Insert skeleton tripteor_x7"]
     assert gone["skeletons"] == [] and gone["objects"] == 0
+    assert [r["redone"] for r in steps["redo"]] == names[::-1] + ["sheet edit"]  # the edit undone earlier, too
+
+
+def test_the_results_panel_follows_undo_and_redo(clicks):
+    steps = _steps(clicks)
+    for step in steps["undo"] + steps["redo"]:
+        assert step["panel_is_same"], step.get("undone", step.get("redone"))
+        state = step["state"]
+        if state["skeletons"]:
+            assert step["table"] == tolerance_rows(state["tolerances"])
+        else:
+            assert step["table"] == [] and "not in the document" in step["summary"]
+    undone = {u["undone"]: u for u in steps["undo"]}
+    # after undoing the edit (depth 850 -> 800 mm), the panel shows the insert's values again, not the undone ones
+    assert undone["Edit parameters of tripteor_x7"]["table"] == steps["insert"]["table"]
+    assert steps["edit"]["table"] != steps["insert"]["table"]
+    assert steps["redo"][-1]["table"] == steps["analyse"]["table"]
+
+
+def test_no_error_line_in_the_report_view(clicks):
+    """Only the refusal of a bad value is an error line; undo and redo print none (no "Can't find Origin")."""
+    steps = _steps(clicks)
+    report = clicks["report"]
+    assert "Can't find" not in report["report_view"]
+    for step in steps["undo"] + steps["redo"]:
+        assert step["new_error_lines"] == [], step.get("undone", step.get("redone"))
+    refused = steps["refused"]["boxes"][0]["text"]
+    errors = report["report_view_errors"]
+    # the refusal is found as an error line (so the reading works), and nothing else is one
+    assert errors and all(line.endswith(f"Hyperstat - Edit parameters: {refused}") for line in errors), errors
 
 
 def test_edit_parameters_refused_then_accepted(clicks):
@@ -172,7 +263,7 @@ def test_edit_parameters_refused_then_accepted(clicks):
     moves = {n: float(np.linalg.norm(np.subtract(state["markers"][n], before[n]))) for n in before}
     assert max(moves.values()) == pytest.approx(50.0, abs=1e-6)
     assert min(moves.values()) == pytest.approx(0.0, abs=1e-9)
-    assert _hue_pixels(edit["screenshot"], VERDICT_COLORS["forced"]) > 30
+    assert _hue_pixels(edit["screenshot"], CLASS_RGB["assembly"]) > 30
 
 
 def test_commands_stay_available_while_result_panels_are_open(clicks):

@@ -7,8 +7,9 @@ installed there by the real installer.  All FreeCAD runs start together (a
 module fixture) so that they share the two cores; each test waits for its own:
 
 * one ``freecadcmd`` scenario per template (``fc_scenario.py``): insert, analyse,
-  save, close, reopen; compared here with the solver run in-process on the template
-  (a second path: no STEP, no model file, no FreeCAD) and with the solver's own JSON;
+  save, close, reopen; the classes, counts, colours and callouts compared here with the
+  solver run in-process on the template (a second path: no STEP, no model file, no
+  FreeCAD) and with the solver's own JSON;
 * ``freecadcmd -t TestHyperstatWorkbench``: the workbench's registered unit tests.
 
 The GUI, clicked for real under Xvfb, is tested in ``test_gui_clicks.py``.
@@ -36,14 +37,16 @@ from ...conftest import ROOT, TEMPLATES
 
 WORKBENCH = ROOT / "cad_plugin" / "freecad"
 SCENARIO = Path(__file__).resolve().parent / "fc_scenario.py"
-NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod"]
+NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"]
 REQUIRED = os.environ.get("HYPERSTAT_REQUIRE_FREECAD") == "1"
 TIMEOUT_S = 900
 
 sys.path.insert(0, str(WORKBENCH))  # the workbench's pure modules (no FreeCAD import) and installer
-from hyperstat_freecad.verdicts import VERDICT_COLORS as WB_COLORS  # noqa: E402
-from hyperstat_freecad.verdicts import element_verdicts as wb_element_verdicts  # noqa: E402
-from hyperstat_freecad.verdicts import parameter_class  # noqa: E402
+from hyperstat_freecad.classes import CLASS_RGB as WB_RGB  # noqa: E402
+from hyperstat_freecad.classes import callout_text as wb_callout_text  # noqa: E402
+from hyperstat_freecad.classes import element_classes as wb_element_classes  # noqa: E402
+
+import hyperstat_palette  # noqa: E402,F401 - the workbench's copy of the classes, as FreeCAD imports it
 
 sys.path.pop(0)
 
@@ -146,6 +149,9 @@ def expected(jobs, request) -> dict:
     from hyperstat.cad_plugin.templates import build_template
     from hyperstat.solver.analysis.stationarity import analyze
 
+    from hyperstat.solver.cli import jsonable
+    from hyperstat.solver.tolerances.classification import classify
+
     shared = {"slider_crank": "slider_crank_analysis", "tripteor_x7": "tripteor_analysis", "scara": "scara_analysis"}
     out = {}
     for name in NAMES:
@@ -158,7 +164,8 @@ def expected(jobs, request) -> dict:
                 result = analyze(skeleton.mechanism(), n_configurations=24, seed=0)
         nodes = sidecar(skeleton)["nodes"]
         poses = {node: skeleton.poses[info.get("element") or info.get("frame")] for node, info in nodes.items()}
-        out[name] = {"analysis": result.to_dict(), "poses": poses, "marker_size": skeleton.marker_size}
+        analysis = jsonable({**result.to_dict(), "tolerances": classify(skeleton.mechanism(), result).to_dict()})
+        out[name] = {"analysis": analysis, "poses": poses, "marker_size": skeleton.marker_size}
     return out
 
 
@@ -189,15 +196,19 @@ def _verdicts(analysis: dict) -> dict[str, tuple]:
     return {p["name"]: (p["element"], p["verdict"], p.get("influential")) for p in analysis["parameters"]}
 
 
-# --------------------------------------------------------------------------- install
-def test_the_same_colours_and_classes_as_the_cad_side(slider_crank_analysis, tripteor_analysis, scara_analysis):
-    from hyperstat.cad_plugin.assembly import VERDICT_COLORS, element_verdicts
+def _classes(tolerances: dict) -> dict[str, str]:
+    return {n: e["class"] for n, e in tolerances["parameters"].items()}
 
-    assert WB_COLORS == VERDICT_COLORS
-    for result in (slider_crank_analysis, tripteor_analysis, scara_analysis):
-        analysis = result.to_dict()
-        assert wb_element_verdicts(analysis) == element_verdicts(analysis)
-        assert {parameter_class(p) for p in analysis["parameters"]} <= set(WB_COLORS)
+
+# --------------------------------------------------------------------------- install
+def test_the_workbench_reads_the_one_definition_of_the_classes():
+    """FreeCAD's Python imports the palette from the installed workbench, the project from this checkout: one file."""
+    import hyperstat_palette as wb
+
+    from hyperstat.cad_plugin import palette
+
+    assert Path(wb.DEFINITION).resolve() == Path(palette.DEFINITION).resolve()
+    assert WB_RGB == palette.CLASS_RGB and set(WB_RGB) == set(palette.CLASS_ORDER)
 
 
 def test_install_puts_the_workbench_where_freecad_looks_and_records_the_cli(installed):
@@ -207,6 +218,8 @@ def test_install_puts_the_workbench_where_freecad_looks_and_records_the_cli(inst
     for item in ("Init.py", "InitGui.py", "package.xml", "TestHyperstatWorkbench.py", "Resources/icons/analyze.svg",
                  "Resources/ui/preferences.ui", "hyperstat_freecad/operations.py"):
         assert (dest / item).is_file(), item
+    assert (dest / "hyperstat_palette.py").read_bytes() == (WORKBENCH / "hyperstat_palette.py").read_bytes()
+    assert (dest / "classes.json").read_bytes() == (WORKBENCH / "classes.json").read_bytes()
     assert not (dest / "install.py").exists() and not (dest / "tools").exists()
     record = json.loads((dest / "hyperstat_freecad" / "install.json").read_text())
     assert record["cli"] == str(Path(_cli()).resolve())
@@ -238,15 +251,21 @@ def _scenario(jobs, name: str) -> dict:
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_template_in_freecadcmd_verdicts_colours_and_reopen(jobs, expected, name):
+def test_template_in_freecadcmd_classes_colours_callouts_and_reopen(jobs, expected, name):
     result = _scenario(jobs, name)
     before, after = result["before"], result["after"]
     want = expected[name]
     solver_json = json.loads((jobs[name].out / "solver_analysis.json").read_text())
 
-    # verdicts: stored in the document == the solver's JSON == the solver run here on the template
+    # stationarity and tolerance classes: stored in the document == the solver's JSON == the solver run here
     assert _verdicts(before["analysis"]) == _verdicts(solver_json) == _verdicts(want["analysis"])
-    assert before["parameter_verdicts"] == {p["name"]: parameter_class(p) for p in want["analysis"]["parameters"]}
+    assert before["parameter_classes"] == _classes(want["analysis"]["tolerances"]) == _classes(before["tolerances"])
+    here = want["analysis"]["tolerances"]
+    assert before["tolerances"]["counts"] == here["counts"]  # the report's counts, computed here without FreeCAD
+    assert before["tolerance_counts"] == {k: str(v) for k, v in here["counts"].items()}
+    assert [(t["id"], t["statement"], t["class"]) for t in before["tolerances"]["items"]] == \
+        [(t["id"], t["statement"], t["class"]) for t in here["items"]]
+    assert all(t["value"] is not None for t in before["tolerances"]["items"] if t["class"] != "non-influent")
     assert before["mobility"] == want["analysis"]["mobility"]
     assert before["overconstraint"] == want["analysis"]["overconstraint"]
     assert before["status"] == "analysed" and not before["needs_rebuild"]
@@ -256,15 +275,18 @@ def test_template_in_freecadcmd_verdicts_colours_and_reopen(jobs, expected, name
     for node, matrix in before["markers"].items():
         np.testing.assert_allclose(np.reshape(matrix, (4, 4)), want["poses"][node], atol=1e-6, err_msg=node)
 
-    # verdict spheres: one per element with defects, on its marker, coloured as the CAD side colours it
-    classes = wb_element_verdicts(want["analysis"])
+    # class spheres: one per element with defects, on its marker, in the colour of the report and the pictures
+    classes, ids = wb_element_classes(want["analysis"])
     assert set(before["spheres"]) == set(classes)
     for element, sphere in before["spheres"].items():
-        assert sphere["verdict"] == classes[element]
-        np.testing.assert_allclose(sphere["color"], WB_COLORS[classes[element]], atol=1e-6)
+        assert sphere["class"] == classes[element]
+        np.testing.assert_allclose(sphere["color"], WB_RGB[classes[element]], atol=1e-6)
         assert sphere["marker"] == f"m_{element}"
         assert sphere["radius"] == pytest.approx(0.35 * want["marker_size"], rel=1e-3)
     _check_sphere_places(before["spheres"], want)
+    # callouts: every marker with its tolerance ids, once
+    lines = sorted(line for text in before["callouts"].values() for line in text)
+    assert lines == sorted(wb_callout_text(e, ids.get(e, [])) for e in classes)
 
     # parameters are bound to the spreadsheet, and equal the template's defaults (mm, rad)
     assert before["parameters"] == pytest.approx({p["name"]: p["default"] for p in _template_parameters(name)},
@@ -276,17 +298,18 @@ def test_template_in_freecadcmd_verdicts_colours_and_reopen(jobs, expected, name
     assert result["skeletons_after_reopen"] == ["Skeleton"]
     assert after["proxy"] == "SkeletonFeature" and after["proxy_module"] == "hyperstat_freecad.feature"
     assert after["proxy_state"] == before["proxy_state"] == {"Type": "HyperstatSkeleton", "version": 1}
-    for key in ("type_id", "status", "mechanism", "summary", "parameters", "expressions", "analysis",
-                "verdict_counts", "parameter_verdicts", "mobility", "overconstraint", "marker_size", "needs_rebuild"):
+    for key in ("type_id", "status", "mechanism", "summary", "parameters", "expressions", "analysis", "tolerances",
+                "tolerance_counts", "parameter_classes", "callouts", "mobility", "overconstraint", "marker_size",
+                "needs_rebuild"):
         assert after[key] == before[key], key
     assert set(after["markers"]) == set(before["markers"])
     for node, matrix in after["markers"].items():
         np.testing.assert_allclose(matrix, before["markers"][node], atol=1e-9)
     assert set(after["spheres"]) == set(before["spheres"])
     for element, sphere in after["spheres"].items():
-        assert (sphere["verdict"], sphere["marker"]) == (before["spheres"][element]["verdict"], f"m_{element}")
+        assert (sphere["class"], sphere["marker"]) == (before["spheres"][element]["class"], f"m_{element}")
         # FreeCAD saves a colour as 8 bits per channel
-        np.testing.assert_allclose(sphere["color"], WB_COLORS[classes[element]], atol=0.5 / 255)
+        np.testing.assert_allclose(sphere["color"], WB_RGB[classes[element]], atol=0.5 / 255)
         np.testing.assert_allclose(sphere["center"], before["spheres"][element]["center"], atol=1e-9)
 
 

@@ -15,7 +15,9 @@ from tests.cad_plugin.freecad.test_workbench import WORKBENCH
 
 sys.path.insert(0, str(WORKBENCH))
 from hyperstat_freecad.geometry import coincident_offsets  # noqa: E402
-from hyperstat_freecad.verdicts import TOLERANCE_CLASSES, parameter_class, tolerance_class  # noqa: E402
+from hyperstat_freecad.classes import (CLASS_ORDER, TOLERANCE_CLASSES, parameter_classes,  # noqa: E402
+                                      tolerance_counts, tolerance_rows)
+from hyperstat_freecad.estimates import expected, progress_text, record  # noqa: E402
 
 sys.path.pop(0)
 
@@ -35,17 +37,41 @@ def test_coincident_spheres_never_touch_and_lone_ones_stay(n):
     assert len(rings) == 1 and all(offsets[k][2] == 0.0 for k in placed)
 
 
-def test_tolerance_class_is_read_when_present_and_falls_back_to_the_verdict():
-    forced = {"name": "dK41", "verdict": "forced"}
-    free = {"name": "db21", "verdict": "free", "influential": True}
-    analysis = {"tolerances": {"parameters": {"dK41": {"class": "assembly"}}}}
-    assert tolerance_class(analysis, forced) == "assembly" and "assembly" in TOLERANCE_CLASSES
-    assert tolerance_class(analysis, free) == parameter_class(free) == "free-influential"
-    assert tolerance_class(None, forced) == "forced"
-
-
 def test_the_workbench_speaks_the_classification_vocabulary():
-    """FreeCAD cannot import the package, so the words are repeated there: guarded here."""
+    """The classes of the one definition are the classification's, plus the two that are not tolerances."""
     from hyperstat.solver.tolerances.classification import CLASSES
 
-    assert set(TOLERANCE_CLASSES) == set(CLASSES) | {"normalisation"}
+    assert tuple(TOLERANCE_CLASSES) == tuple(CLASSES)
+    assert set(CLASS_ORDER) == set(CLASSES) | {"redundant", "normalisation"}
+
+
+def test_the_panel_table_is_the_report_table(tmp_path):
+    """The rows the Results panel shows, from a real report JSON: ids, classes and values as the report prints them."""
+    import json
+
+    from hyperstat.cad_plugin.cli import main
+    from hyperstat.cad_plugin.report_words import calibrated_value, tolerance_value
+
+    from tests.cad_plugin.contract import with_contract_fields
+    from tests.conftest import TEMPLATES
+
+    assert main(["report", str(TEMPLATES / "slider_crank.py"), "--out", str(tmp_path), "--quiet"]) == 0
+    doc = with_contract_fields(json.loads((tmp_path / "report.json").read_text()))
+    rows = tolerance_rows(doc["tolerances"])
+    assert tolerance_counts(doc["tolerances"]) == doc["summary"]["tolerance_classes"]
+    for row, t in zip(rows, doc["tolerances"]["items"], strict=True):
+        assert row[:4] == [t["id"], t["class"], t["statement"], t["feature"]]
+        assert row[4] == tolerance_value(t) and row[5] == calibrated_value(t).split(" (")[0]
+        assert row[6] == (" ".join(c["frame"] for c in t["drawing"]) or tolerance_value(t, "drawing_value"))
+    assert parameter_classes({"tolerances": doc["tolerances"]}) == {
+        n: e["class"] for n, e in doc["tolerances"]["parameters"].items()}
+
+
+def test_estimates_learn_from_the_runs():
+    seconds, measured = expected("report", "unit-test-template")
+    assert not measured and seconds > 0  # the typical duration before any run
+    record("report", "unit-test-template", 12.0)
+    assert expected("report", "unit-test-template") == (12.0, True)
+    record("report", "unit-test-template", 6.0)
+    assert expected("report", "unit-test-template") == (9.0, True)
+    assert "about 9 s (last runs)" in progress_text("Analyse", "tolerance values", 2, 3.0, 9.0, True)

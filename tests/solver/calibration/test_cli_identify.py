@@ -35,7 +35,7 @@ def test_simulate_identify_round_trip(tmp_path, capsys):
     for n, value in expected.items():
         assert abs(est[n]["estimate"] - value) < 4.5 * est[n]["std"], n
     text = capsys.readouterr().out
-    assert "validation" in text and "um" in text
+    assert "validation" in text and "µm" in text
 
 
 def test_simulate_is_reproducible(tmp_path):
