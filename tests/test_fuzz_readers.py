@@ -138,8 +138,9 @@ def _tally():
 
     for suite, (accepted, refused) in sorted(TALLY.items()):
         sys.stderr.write(f"\nfuzz {suite}: {accepted} read, {refused} refused\n")
-        # a corrupted controller file that still reads is rare by design (hash, version-fixed content):
-        # its accepted path is the uncorrupted file of test_the_suites_start_from_good_inputs
+        # a corrupted file that still reads is rare for the strict readers (a controller file's hash and
+        # version-fixed content; a model file's schema): their accepted path is then the uncorrupted file
+        # of test_the_suites_start_from_good_inputs
         assert refused and (accepted or suite in GOOD_READ), (suite, accepted, refused)
 
 
@@ -345,8 +346,11 @@ def test_the_suites_start_from_good_inputs(tmp_path, model_doc, controller_doc):
     """Each uncorrupted input is accepted (else the suites would test refusals only)."""
     with Workspace(tmp_path) as ws:
         assert ws.run(["analyze", _write(ws, "m.json", json.dumps(model_doc)), "--configurations", "6", "--quiet"])
-        for name, text in (("r.yaml", DH), ("r.csv", DH_CSV), ("r.urdf", URDF)):
+        GOOD_READ.add("model file")
+        for name, text, suite in (("r.yaml", DH, "DH YAML"), ("r.csv", DH_CSV, "DH CSV"), ("r.urdf", URDF, "URDF")):
             assert ws.run(["import-robot", _write(ws, name, text), "--out", ws.dir / "o.json", "--quiet"])
+            GOOD_READ.add(suite)
         assert ws.run(["check-hypotheses", SC, _write(ws, "h.yaml", HYPOTHESES), "--configurations", "6", "--quiet"])
+        GOOD_READ.add("hypothesis file")
         assert ws.run(["check-controller", _write(ws, "c.json", json.dumps(controller_doc)), "--quiet"])
         GOOD_READ.add("controller file")
