@@ -143,8 +143,8 @@ class ContinuationOptions:
     reach: float = 0.1
     retries: int = 1
     one_step: bool = True
-    block: int = 16384
-    node_memory: float = 48.0
+    block: int = 8192
+    node_memory: float = 32.0
 
 
 @dataclass
@@ -881,29 +881,39 @@ def continue_nearest(
     **Method.** ``start`` (and ``pool``) are corrected onto ``F = 0`` and certified (Newton
     converged, ``B_p`` conditioned).  The targets are then taken in waves: first the
     ``4, 16, 64, ...`` targets nearest to ``start`` (up to 256), then the others in the
-    given order in waves as large as the set certified so far.  Every target of a wave
-    starts from its nearest certified configuration (a k-d tree over the actuated values,
-    scaled by the length scale for prismatic joints) and moves on a straight actuated
-    segment in ``ceil(d / reach)`` equal steps: tangent predictor of the start
-    (``dq_p = -B_p^+ B_a dq_a``, paper 1, eq. 3), Newton corrector at fixed actuated values,
-    every step checked like a step of :func:`continue_path`.  A target whose path fails
-    is tried again with twice as many steps (``retries`` times), then once more after
-    the waves from its nearest certified configuration at that time.
+    given order in waves as large as the set certified so far (at most ``block``).  Every
+    target of a wave starts from its nearest certified configuration (a k-d tree over the
+    actuated values, scaled by the length scale for prismatic joints).  With ``one_step``
+    (the default), a target within ``reach`` of it is first reached in **one step** by
+    :func:`one_step`, all of the wave at once, in blocks of about 2,000 on threads: tangent
+    predictor (``dq_p = -B_p^+ B_a dq_a``, paper 1, eq. 3), chord corrector, one Jacobian
+    and the Kantorovich test.  The other targets, and those whose step fails, follow an
+    adaptive path in steps of at most ``reach`` (shortened after a rejected step, longer
+    after easy ones), every step again a :func:`one_step` (without ``one_step``: a Newton
+    corrector, :func:`_correct`, as in issues 18 and 24).  A path is given up after two
+    failed correctors in a row (the first may be the one-step try), or one on a short step;
+    the paths still running after 24 rounds of a wave, and those whose step reached too far,
+    are tried again after the waves from their nearest certified configuration at that
+    time, with first steps half as long.  At most ``node_memory`` MiB of certified
+    configurations are kept as start points; the rest are returned but not continued from.
 
-    **Guarantee** (the same rules as :func:`continue_path`, per step): a configuration
+    **Guarantee** (per step; :func:`one_step` for the one-step certificate): a configuration
     reported ``certified`` is linked to ``start`` by a chain of steps each of which (i)
-    converged by Newton with contraction at most ``theta_max``, (ii) ends where a lower
-    bound of the inverse condition number of the dimensionless ``B_p`` (Frobenius norms,
-    :func:`_inverse_parts`) is at least ``cond_tol``, and (iii) moved the passive joints
-    from the predictor by, and predicted with an error of, at most ``branch_fraction`` of
-    the estimated distance ``2 / omega`` to another solution with the same actuated values,
-    ``omega`` being the largest chord estimate ``||B_p(x1)^+ (B_p(x0) - B_p(x1))||_F / |x1 - x0|``
-    met along the chain (Frobenius, so never below the spectral estimate).  Under that
-    estimate of the Lipschitz constant no step can reach another solution, so the
-    configuration lies on the assembly branch of ``start``.  These are estimates from the
-    computed path, not interval bounds (module docstring).  Targets that cannot be certified
-    are reported with the reason, never as certified; with ``inside``, a certified
-    configuration outside the workspace is reported uncertified with that reason.
+    converged (the Kantorovich number ``h = alpha omega`` at most 1/2 at the last Jacobian
+    with ``one_step``; Newton with contraction at most ``theta_max`` without), (ii) ends
+    where a lower bound of the inverse condition number of the dimensionless ``B_p``
+    (Frobenius norms, :func:`_inverse_parts`) is at least ``cond_tol``, and (iii) moved the
+    passive joints from the predictor by, and predicted with an error of, at most
+    ``branch_fraction`` of the estimated distance ``2 / omega`` to another solution with the
+    same actuated values (with ``one_step`` also: the branch point inside the Kantorovich
+    uniqueness ball), ``omega`` being the largest chord estimate
+    ``||B_p(x1)^+ (B_p(x0) - B_p(x1))||_F / |x1 - x0|`` met along the chain (Frobenius, so
+    never below the spectral estimate).  Under that estimate of the Lipschitz constant no
+    step can reach another solution, so the configuration lies on the assembly branch of
+    ``start``.  These are estimates from the computed path, not interval bounds (module
+    docstring).  Targets that cannot be certified are reported with the reason, never as
+    certified; with ``inside``, a certified configuration outside the workspace is reported
+    uncertified with that reason.
 
     Parameters
     ----------
@@ -1004,7 +1014,7 @@ def continue_nearest(
     code = np.full(k, _NOT_REACHED)  # why a target is not certified (index into _REASONS); 0 = certified
     last_d = np.full(k, np.inf)
 
-    def run(idx: np.ndarray, extra: int) -> None:
+    def run(idx: np.ndarray, extra: int, tried: np.ndarray | None = None) -> None:
         """Paths of targets ``idx`` from their nearest node; first steps ``2**extra`` times shorter than ``reach``.
 
         Adaptive steps as in :func:`continue_path`: a rejected step is shortened (to aim at
@@ -1013,13 +1023,17 @@ def continue_nearest(
         after ``max_rejections`` consecutive rejections, or after two failed correctors in a
         row (the target is then most likely beyond a fold of the workspace).  Every step is
         one :func:`one_step` (a chord corrector, one Jacobian, the Kantorovich test) with
-        ``one_step``, a Newton corrector (:func:`_correct`) without.
+        ``one_step``, a Newton corrector (:func:`_correct`) without.  ``tried``: the node from which
+        :func:`fast` tried each target in one step and failed its corrector (-1: none); from that
+        node the path starts with half that step, and that failure counts as the first of two.
         """
         n_i = len(idx)
         d, nn = cKDTree(node_q[:nodes, act] / ja).query(qa[idx] / ja)
         d, nn = np.atleast_1d(d), np.atleast_1d(nn)
         last_d[idx] = d
         h = np.where(d > 0, np.minimum(opt.reach / (2 ** extra) / np.maximum(d, 1e-300), 1.0), 1.0)
+        again = np.zeros(n_i, bool) if tried is None else tried == nn
+        h[again] *= 0.5
         pos = np.zeros(n_i)
         cur_q, cur_b, cur_t, cur_p = node_q[nn], node_b[nn], node_t[nn], node_p[nn]  # fancy indexing: copies
         cur_qb = node_qb[nn]
@@ -1028,8 +1042,8 @@ def continue_nearest(
         alive = np.ones(n_i, bool)
         finished = np.zeros(n_i, bool)
         why = np.zeros(n_i, int)
-        streak, nonconv = np.zeros(n_i, int), np.zeros(n_i, int)
-        rejected = np.zeros(n_i, int)
+        streak, nonconv = again.astype(int), again.astype(int)
+        rejected = again.astype(int)
         mincond, minsig, endcond = np.ones(n_i), np.full(n_i, np.inf), np.zeros(n_i)
         maxth, maxratio = np.zeros(n_i), np.zeros(n_i)
         steps = np.zeros(n_i, int)
@@ -1120,6 +1134,41 @@ def continue_nearest(
         cert.certified[idx] = keep
         add_nodes(cur_q[keep], cur_qb[keep], cur_b[keep], cur_t[keep], cur_p[keep])
 
+    def fast(idx: np.ndarray, extra: int = 0) -> None:
+        """Targets ``idx`` within ``reach`` of their nearest node in one step each (:func:`one_step`, all at once).
+
+        The others, and those whose step fails, follow the adaptive path of :func:`run`.
+        """
+        d, nn = cKDTree(node_q[:nodes, act] / ja).query(qa[idx] / ja)
+        d, nn = np.atleast_1d(d), np.atleast_1d(nn)
+        near = np.nonzero(d <= opt.reach)[0]
+        tried = np.full(len(idx), -1)
+        done = np.zeros(len(idx), bool)
+        if near.size:
+            m_ = nn[near]
+            st = _one_step_blocks(kin, node_q[m_], node_qb[m_], node_b[m_], node_t[m_], node_p[m_], qa[idx[near]], xi,
+                                  rank, opt, None)
+            inn = np.asarray(inside(st.q), bool)
+            keep = st.ok & inn
+            ks = idx[near[keep]]
+            q[ks] = st.q[keep]
+            cert.certified[ks] = True
+            code[ks] = 0
+            cert.min_condition[ks] = cert.end_condition[ks] = st.cond[keep]
+            cert.min_sigma[ks], cert.max_contraction[ks], cert.max_branch_ratio[ks] = st.sigma[keep], \
+                st.theta[keep], st.ratio[keep]
+            cert.steps[ks] = 1
+            cert.path_length[ks] = last_d[ks] = d[near[keep]]
+            add_nodes(st.q[keep], st.q_b[keep], st.bp[keep], st.tangent[keep], st.pinv[keep])
+            out = st.ok & ~inn  # on the branch, outside the declared passive ranges: no other path changes that
+            ko = idx[near[out]]
+            q[ko], code[ko], cert.steps[ko], cert.path_length[ko] = st.q[out], _OUTSIDE_RANGES, 1, d[near[out]]
+            done[near[st.ok]] = True
+            failed = st.why == _NO_CONVERGENCE
+            tried[near[failed]] = m_[failed]
+        if not done.all():
+            run(idx[~done], extra, tried[~done])
+
     def retryable(idx: np.ndarray) -> np.ndarray:
         return idx[np.isin(code[idx], (_NOT_REACHED, _TOO_FAR))]
 
@@ -1139,7 +1188,7 @@ def continue_nearest(
         waves.append(rest[pos: pos + size])
         pos += size
     for wave in waves:
-        run(wave, 0)
+        (fast if opt.one_step else run)(wave, 0)
     # then, from the nearest certified configuration at that time, with shorter first steps
     for extra in range(1, opt.retries + 1):
         again = retryable(np.arange(k))
