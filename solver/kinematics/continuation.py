@@ -186,14 +186,19 @@ class BranchCertificate:
     end_condition: np.ndarray | None = None
     options: ContinuationOptions = field(default_factory=ContinuationOptions)
 
-    def summary(self) -> str:
-        """One sentence: how many configurations were certified, and why the others were not."""
-        n = len(self.certified)
+    def summary(self, total: int | None = None) -> str:
+        """One sentence: how many configurations were certified, and why the others were not.
+
+        ``total``: the number of configurations when this certificate holds only some of them
+        (e.g. the uncertified ones).
+        """
+        n = len(self.certified) if total is None else int(total)
         bad = [r for r, c in zip(self.reason, self.certified) if not c]
         if not bad:
             return (f"all {n} configuration(s) certified on the start branch (smallest inverse condition of B_p "
-                    f"{float(np.min(self.min_condition)) if n else 1.0:.2g}, steps at most "
-                    f"{float(np.max(self.max_branch_ratio)) if n else 0.0:.2g} of the distance to another solution).")
+                    f"{float(np.min(self.min_condition)) if len(self.certified) else 1.0:.2g}, steps at most "
+                    f"{float(np.max(self.max_branch_ratio)) if len(self.certified) else 0.0:.2g} of the distance to "
+                    "another solution).")
         counts: dict[str, int] = {}
         for r in bad:
             counts[r] = counts.get(r, 0) + 1

@@ -269,6 +269,12 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
 
 
 # ---------------------------------------------------------------------------- workspace
+#: draws assembled by one call of the certified sampler; a larger sample is taken in chunks (memory), each also
+#: starting from up to SAMPLING_POOL configurations certified in the chunk before
+SAMPLING_CHUNK = 200_000
+SAMPLING_POOL = 8192
+
+
 def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict | None = None,
                      kinematics: Kinematics | None = None, workspace: Workspace | None = None,
                      certificate: bool = False):
@@ -276,14 +282,17 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
 
     The box and the assembly branch come from the workspace (:func:`workspace_of`: the
     model's joint ranges, the template's declaration, then ``ranges``).  Every draw is
-    assembled by the certified nearest-neighbour continuation of issue 18
+    assembled by the certified nearest-neighbour sampler
     (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`): from the
-    nearest configuration already certified, tangent predictor and Newton corrector, with
-    a branch certificate per configuration (``sigma_min(B_p)`` bounded below along the
-    path, contracting corrections, every step well inside the estimated distance to
-    another solution).  Draws that cannot be certified (outside the reachable set, beyond
-    a fold, near a singularity of the passive joints) or that leave the declared passive
-    ranges are left out with a warning that says how many and why.
+    nearest configuration already certified, in one step with one Jacobian and a
+    Kantorovich test where it can (issue 32), else on a certified path, with a branch
+    certificate per configuration (``sigma_min(B_p)`` bounded below, every step well
+    inside the estimated distance to another solution).  Draws that cannot be certified
+    (outside the reachable set, beyond a fold, near a singularity of the passive joints)
+    or that leave the declared passive ranges are left out with a warning that says how
+    many and why.  More than :data:`SAMPLING_CHUNK` draws are taken a chunk at a time
+    (memory), each chunk also starting from :data:`SAMPLING_POOL` configurations of the
+    chunk before.
 
     Parameters
     ----------
@@ -303,20 +312,29 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
     """
     import warnings
 
-    from hyperstat.solver.kinematics.continuation import continue_nearest
+    from hyperstat.solver.kinematics.continuation import BranchCertificate, continue_nearest
 
     kin = kinematics or Kinematics(mechanism)
     ws = workspace or workspace_of(mechanism, ranges)
     lo, hi = ws.actuated_box(mechanism)
     rng = np.random.default_rng(seed)
     qa = lo + (hi - lo) * rng.random((n, len(lo)))
-    q, cert = continue_nearest(kin, qa, None, mechanism.home, inside=ws.inside)
-    ok = cert.certified
-    if not ok.all():
-        warnings.warn(f"workspace sampling of '{mechanism.name}': {cert.summary()} They were left out.", stacklevel=2)
+    kept, certs, pool = [], [], None
+    for start in range(0, n, SAMPLING_CHUNK):  # bounded memory: a chunk of draws at a time
+        q, cert = continue_nearest(kin, qa[start:start + SAMPLING_CHUNK], None, mechanism.home, pool=pool,
+                                   inside=ws.inside)
+        ok = cert.certified
+        kept.append(q[ok])
+        certs.append(cert if certificate else cert.take(~ok))
+        pool = q[ok][:SAMPLING_POOL]  # the next chunk also starts from some of these (spread: in draw order)
+    q = np.concatenate(kept)
+    every = BranchCertificate.concatenate(certs)
+    if len(q) < n:
+        warnings.warn(f"workspace sampling of '{mechanism.name}': {every.summary(total=n)} They were left out.",
+                      stacklevel=2)
     if certificate:
-        return q[ok], cert.take(ok), cert
-    return q[ok]
+        return q, every.take(every.certified), every
+    return q
 
 
 def grid_slice(mechanism: Mechanism, axes: tuple, fixed: dict | None = None, n: int = 41,
