@@ -243,7 +243,7 @@ def test_one_step_never_certifies_the_other_branch_across_a_change_point(tmp_pat
 
 @pytest.mark.parametrize("name, draws", [("triflex_ii", 3000), ("tripteor_x7", 300)])
 def test_one_step_sampler_gives_the_configurations_of_the_continuation(name, draws):
-    """The sampler with the one-step certificate against the adaptive path of issues 18 and 24, draw for draw."""
+    """The sampler with the one-step corrector against the Newton corrector of issues 18 and 24, draw for draw."""
     from hyperstat.cad_plugin.templates import TEMPLATE_DIR, build_template
     from hyperstat.solver.kinematics.continuation import continue_nearest
     from hyperstat.solver.tolerances.workspace import workspace_of
@@ -253,7 +253,7 @@ def test_one_step_sampler_gives_the_configurations_of_the_continuation(name, dra
     ws = workspace_of(mech)
     lo, hi = ws.actuated_box(mech)
     qa = lo + (hi - lo) * np.random.default_rng(5).random((draws, len(lo)))
-    new, cn = continue_nearest(kin, qa, None, mech.home, ContinuationOptions(), inside=ws.inside)
+    new, cn = continue_nearest(kin, qa, None, mech.home, ContinuationOptions(one_step=True), inside=ws.inside)
     old, co = continue_nearest(kin, qa, None, mech.home, ContinuationOptions(one_step=False), inside=ws.inside)
     both = cn.certified & co.certified
     diff = new[both] - old[both]

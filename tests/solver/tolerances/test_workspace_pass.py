@@ -15,9 +15,6 @@ import warnings
 import numpy as np
 import pytest
 
-from hyperstat.cad_plugin.templates import build_template
-from hyperstat.solver.analysis.stationarity import analyze
-from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.continuation import ContinuationOptions, continue_nearest
 from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate
 from hyperstat.solver.tolerances.classification import classify
@@ -25,18 +22,14 @@ from hyperstat.solver.tolerances.values import assign_values, task_maps
 from hyperstat.solver.tolerances.workspace import workspace_of
 from hyperstat.solver.tolerances.worst_case import refine_extremes
 
-from tests.conftest import TEMPLATES
+from tests.solver.tolerances.test_values import _setup
 
 AP, A3 = 30 / 47, 40 / 47  # paper 2, section 5.3 (l.u. = mm in the template)
 
 
 @pytest.fixture(scope="module")
 def triflex():
-    mech = build_template(TEMPLATES / "triflex_ii.py").mechanism()
-    kin = Kinematics(mech)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = analyze(mech, kinematics=kin)
+    mech, kin, result, _ = _setup("triflex_ii.py", 8)
     ws = workspace_of(mech)
     lo, hi = ws.actuated_box(mech)
     qa = lo + (hi - lo) * np.random.default_rng(0).random((4000, len(lo)))
