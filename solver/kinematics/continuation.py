@@ -1190,7 +1190,7 @@ def continue_nearest(
             cert.min_sigma[ks], cert.max_contraction[ks], cert.max_branch_ratio[ks] = st.sigma[keep], \
                 st.theta[keep], st.ratio[keep]
             cert.steps[ks] = 1
-            cert.path_length[ks] = last_d[ks] = d[near[keep]]
+            cert.path_length[ks] = d[near[keep]]
             add_nodes(st.q[keep], st.q_b[keep], st.bp[keep], st.tangent[keep], st.pinv[keep])
             out = st.ok & ~inn  # on the branch, outside the declared passive ranges: no other path changes that
             ko = idx[near[out]]
