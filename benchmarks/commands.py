@@ -1,13 +1,34 @@
-"""Whole-command benchmarks: each command in a new process, as a user runs it (units: seconds).
+"""Whole-command benchmarks beside their kernels: each command in a new process, as a user runs it.
+
+Units: seconds (s) of wall-clock and of CPU time (user + system), MiB of peak resident memory.
 
 ``benchmarks/run.py`` times the kernels inside one warm process; this script times what a
 user waits for: imports, loading the template, the stationarity analysis, sampling,
 threads and writing the output included.  Every command runs ``--repeat`` times in a
 fresh ``python -m hyperstat.cad_plugin.cli`` process (the ``hyperstat`` console script
 runs the same entry point); the table gives the median and the range of the wall-clock
-time, the median CPU time (user + system of the child) and the load average of the
-machine before the runs, because on a shared machine the wall-clock time depends on
-what else runs.
+time, the median CPU time and the peak resident memory of the command (``os.wait4`` of its
+process), and the load average of the machine before the runs, because on a shared machine
+the wall-clock time depends on what else runs.
+
+**Kernels.**  Beside every command, in the same run and right after it (so under the same
+load), a new process times the batched kernels the command is built on, warm (imports,
+set-up and one warm-up run excluded; median of ``--repeat``), and the table gives the ratio
+command / kernel for the wall-clock and the CPU time:
+
+* ``accuracy`` over ``K`` workspace configurations: the closure Jacobian of every draw and
+  the inverse of its passive block (the floor of a certificate that costs one Jacobian),
+  then the accuracy maps with the task rows of the tolerance values (one set of Jacobians
+  per certified configuration); the configurations are a certified sample of 2,000 repeated
+  to the command's sizes (the cost does not depend on which configurations);
+* ``montecarlo``: the two Monte Carlo re-assemblies the command runs (as built, and
+  calibrated), 100,000 samples each;
+* ``analyze``: the stationarity analysis with two samples (the command's default);
+* ``report`` and ``diagnose``: the same command run a second time in one process (what is
+  left without imports and first-call costs); ``make demo`` (three commands) has none.
+
+**Scaling.**  ``accuracy`` runs over 10,000, 100,000 and 1,000,000 configurations (rows
+``accuracy-10k``, ``accuracy``, ``accuracy-1m``; the last once whatever ``--repeat``).
 
 ``make demo`` is timed as the commands of its recipe, read from the Makefile (the
 ``setup`` prerequisite, which only checks the installed venv, is left out).  The data of
@@ -17,12 +38,7 @@ runs.  The commands run as an installed ``hyperstat`` does: compiled bytecode is
 ``hyperstat --version`` before the table writes it, so that "cold" means a new process with
 its imports, not a first compilation of the sources.
 
-Rows: the four goals of issue 24 (accuracy over 100,000 Triflex-II configurations, Monte
-Carlo with 100,000 samples, the Tripteor report with data, ``make demo``), ``hyperstat
-analyze`` on every bundled template (two independent samples, the default) and ``hyperstat
-diagnose`` on the Tripteor (goal of issue 20: 5 s).
-
-Usage (the whole table, 3 runs per row: about 6 minutes of CPU on 2 idle cores)::
+Usage (the whole table: about 15 minutes of CPU on 2 idle cores, most of it the 1,000,000 row)::
 
     .venv/bin/python benchmarks/commands.py [--repeat 3] [--markdown out/commands.md] [--only accuracy]
 """
@@ -30,9 +46,9 @@ Usage (the whole table, 3 runs per row: about 6 minutes of CPU on 2 idle cores):
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
-import resource
 import shlex
 import statistics
 import subprocess
@@ -47,14 +63,19 @@ CLI = [sys.executable, "-m", "hyperstat.cad_plugin.cli"]
 #: the bundled templates timed by ``hyperstat analyze`` (the Makefile's TEMPLATE_NAMES)
 TEMPLATES = ("slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar")
 
-#: name -> (goal in s or None, description); the goals of issue 24 (and issue 20 for diagnose)
+#: the sizes of the ``accuracy`` rows (configurations drawn over the Triflex-II's workspace)
+ACCURACY_SIZES = {"accuracy-10k": 10_000, "accuracy": 100_000, "accuracy-1m": 1_000_000}
+
+#: name -> (goal in s or None, peak-memory goal in MiB or None, description); goals of issues 24, 20 and 32
 GOALS = {
-    "accuracy": (5.0, "hyperstat accuracy, Triflex-II, 100,000 configurations (refined worst cases)"),
-    "montecarlo": (5.0, "hyperstat montecarlo, Triflex-II, 100,000 samples"),
-    "report": (8.0, "hyperstat report, Tripteor X7 with data, cold"),
-    "demo": (15.0, "make demo after set-up (simulate + report + export-controller)"),
-    "diagnose": (5.0, "hyperstat diagnose, Tripteor X7, 107 + 30 points"),
-    **{f"analyze-{t}": (None, f"hyperstat analyze templates/{t}.py (2 samples)") for t in TEMPLATES},
+    "accuracy": (5.0, 300.0, "hyperstat accuracy, Triflex-II, 100,000 configurations (refined worst cases)"),
+    "accuracy-10k": (None, None, "hyperstat accuracy, Triflex-II, 10,000 configurations"),
+    "accuracy-1m": (None, None, "hyperstat accuracy, Triflex-II, 1,000,000 configurations"),
+    "montecarlo": (5.0, None, "hyperstat montecarlo, Triflex-II, 100,000 samples"),
+    "report": (8.0, None, "hyperstat report, Tripteor X7 with data, cold"),
+    "demo": (15.0, None, "make demo after set-up (simulate + report + export-controller)"),
+    "diagnose": (5.0, None, "hyperstat diagnose, Tripteor X7, 107 + 30 points"),
+    **{f"analyze-{t}": (None, None, f"hyperstat analyze templates/{t}.py (2 samples)") for t in TEMPLATES},
 }
 
 #: the environment of the timed commands: bytecode written and read, as in an installed package
@@ -78,35 +99,202 @@ def _demo_commands(out: Path) -> list[list[str]]:
     return cmds
 
 
-def _commands(work: Path) -> dict:
+def _arguments(work: Path) -> dict:
+    """Name -> the ``hyperstat`` arguments of each timed command (``demo``: a list of them)."""
     t = ROOT / "templates"
     data = work / "data"
-    return {
-        "accuracy": [CLI + ["accuracy", str(t / "triflex_ii.py"), "--workspace-configurations", "100000",
-                            "--orientation-accuracy", "0.026180", "--json", str(work / "accuracy.json"), "--quiet"]],
-        "montecarlo": [CLI + ["montecarlo", str(t / "triflex_ii.py"), "--samples", "100000",
-                              "--json", str(work / "montecarlo.json"), "--quiet"]],
-        "report": [CLI + ["report", str(t / "tripteor_x7.py"), "--data", str(data / "measurements.csv"),
-                          "--validation", str(data / "measurements.validation.csv"),
-                          "--hypotheses", str(t / "tripteor_x7.hypotheses.yaml"), "--out", str(work / "report")]],
-        "demo": _demo_commands(work / "demo"),
-        "diagnose": [CLI + ["diagnose", str(t / "tripteor_x7.py"), str(data / "measurements.csv"),
-                            "--validation", str(data / "measurements.validation.csv"), "--quiet"]],
-        **{f"analyze-{n}": [CLI + ["analyze", str(t / f"{n}.py"), "--quiet"]] for n in TEMPLATES},
-    }
+    out = {f"analyze-{n}": ["analyze", str(t / f"{n}.py"), "--quiet"] for n in TEMPLATES}
+    for name, k in ACCURACY_SIZES.items():
+        out[name] = ["accuracy", str(t / "triflex_ii.py"), "--workspace-configurations", str(k),
+                     "--orientation-accuracy", "0.026180", "--json", str(work / f"{name}.json"), "--quiet"]
+    out.update({
+        "montecarlo": ["montecarlo", str(t / "triflex_ii.py"), "--samples", "100000",
+                       "--json", str(work / "montecarlo.json"), "--quiet"],
+        "report": ["report", str(t / "tripteor_x7.py"), "--data", str(data / "measurements.csv"),
+                   "--validation", str(data / "measurements.validation.csv"),
+                   "--hypotheses", str(t / "tripteor_x7.hypotheses.yaml"), "--out", str(work / "report")],
+        "diagnose": ["diagnose", str(t / "tripteor_x7.py"), str(data / "measurements.csv"),
+                     "--validation", str(data / "measurements.validation.csv"), "--quiet"],
+    })
+    return out
 
 
-def _run(cmds: list[list[str]]) -> tuple[float, float]:
-    """Wall-clock and child CPU time (s) of running ``cmds`` one after the other."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+def _commands(work: Path) -> dict:
+    cmds = {name: [CLI + args] for name, args in _arguments(work).items()}
+    cmds["demo"] = _demo_commands(work / "demo")
+    return cmds
+
+
+def _run(cmds: list[list[str]]) -> tuple[float, float, float]:
+    """Wall-clock time, CPU time (s) and the largest peak resident memory (MiB) of ``cmds`` run one after the other.
+
+    Each process is waited for with ``os.wait4``, which gives its own CPU time (its children's
+    included) and its own maximum resident set.
+    """
     t0 = time.perf_counter()
+    cpu, peak = 0.0, 0.0
     for cmd in cmds:
-        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=ENV)
+        proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=ENV)
+        stderr = proc.stderr.read().decode(errors="replace")
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
         if proc.returncode != 0:
-            raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+            raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{stderr[-2000:]}")
+        cpu += usage.ru_utime + usage.ru_stime
+        peak = max(peak, usage.ru_maxrss / 1024)
+    return time.perf_counter() - t0, cpu, peak
+
+
+# ---------------------------------------------------------------------------- kernels (in a child process)
+def _timed(fn, repeat: int) -> tuple[float, float]:
+    """Median wall-clock and CPU time (s) of ``fn()`` after one warm-up run."""
+    fn()
+    walls, cpus = [], []
+    for _ in range(repeat):
+        w0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        walls.append(time.perf_counter() - w0)
+        cpus.append(time.process_time() - c0)
+    return statistics.median(walls), statistics.median(cpus)
+
+
+def _triflex_sample(n: int):
+    """The Triflex-II, its kinematics and ``n`` certified configurations (a sample of 2,000 repeated)."""
+    import warnings
+
+    import numpy as np
+
+    from hyperstat.cad_plugin.templates import TEMPLATE_DIR, build_template
+    from hyperstat.solver.kinematics.closure import Kinematics
+    from hyperstat.solver.tolerances.accuracy import sample_workspace
+
+    mech = build_template(TEMPLATE_DIR / "triflex_ii.py").mechanism()
+    kin = Kinematics(mech)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        base = sample_workspace(mech, 3000, seed=0, kinematics=kin)[:2000]
+    return mech, kin, base[np.arange(n) % len(base)]
+
+
+def _accuracy_kernel(draws: int, certified: int):
+    """One closure Jacobian and passive inverse per draw, then the maps and task rows of the certified configurations."""
+    import numpy as np
+
+    from hyperstat.solver.analysis.stationarity import analyze
+    from hyperstat.solver.tolerances.accuracy import accuracy_maps, in_chunks
+    from hyperstat.solver.tolerances.classification import classify
+
+    mech, kin, q = _triflex_sample(max(draws, certified))
+    result = analyze(mech, kinematics=kin)
+    cl = classify(mech, result, kin)
+    dirs = np.stack([t.direction for t in cl.items if t.cls in ("accuracy-critical", "compensable")], axis=1)
+    pas = mech.passive
+
+    def jacobians(start: int) -> None:
+        b = kin.evaluate(q[start:start + 2048], None, "joints").closure_q
+        np.linalg.inv(kin.dimensionless(b[:, :, pas], kin.joint_scale[pas]))
+
+    def kernel() -> None:
+        in_chunks(jacobians, draws, 2048)
+        accuracy_maps(mech, q[:certified], None, kinematics=kin, task=cl.declaration.task, task_directions=dirs)
+
+    return kernel
+
+
+def _montecarlo_kernel():
+    """The two re-assemblies of ``hyperstat montecarlo`` (every tolerance, then the accuracy-critical ones)."""
+    import warnings
+
+    from hyperstat.solver.analysis.stationarity import analyze
+    from hyperstat.solver.tolerances.classification import classify
+    from hyperstat.solver.tolerances.montecarlo import monte_carlo
+    from hyperstat.solver.tolerances.values import assign_values
+
+    import numpy as np
+
+    from hyperstat.solver.tolerances.accuracy import sample_workspace
+
+    mech, kin, _ = _triflex_sample(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        q = sample_workspace(mech, 2000, seed=0, kinematics=kin)  # the command's sample (its default size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cl = classify(mech, analyze(mech, kinematics=kin), kin)
+        assign_values(cl, mech, kin, q, assembly=False)
+    runs = []
+    for keep in (("accuracy-critical", "compensable"), ("accuracy-critical",)):
+        drawn = [t for t in cl.items if t.cls in keep and t.value]
+        if drawn:
+            runs.append(({t.id: float(t.value) for t in drawn},
+                         ([t.id for t in drawn], np.stack([t.direction for t in drawn], axis=1), [t.unit for t in drawn])))
+
+    def kernel() -> None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for tol, directions in runs:
+                monte_carlo(mech, q, tol, 100_000, "uniform", 0, kinematics=kin, directions=directions,
+                            task=cl.declaration.task)
+
+    return kernel
+
+
+def _analyze_kernel(template: str):
+    from hyperstat.cad_plugin.templates import TEMPLATE_DIR, build_template
+    from hyperstat.solver.analysis.stationarity import analyze
+    from hyperstat.solver.kinematics.closure import Kinematics
+
+    mech = build_template(TEMPLATE_DIR / f"{template}.py").mechanism()
+    return lambda: analyze(mech, kinematics=Kinematics(mech))
+
+
+def _warm_command(args: list[str]):
+    """The command run again in this process (imports and first-call costs excluded)."""
+    from hyperstat.cad_plugin.cli import main
+
+    return lambda: main(list(args))
+
+
+def kernel_child(name: str, repeat: int, work: Path, draws: int, certified: int) -> None:
+    """Print ``{"wall": s, "cpu": s}`` of the kernel of ``name`` (run in a new process by :func:`_kernel`)."""
+    import contextlib
+    import io
+    import warnings
+
+    warnings.simplefilter("ignore")
+    if name in ACCURACY_SIZES:
+        fn = _accuracy_kernel(draws, certified)
+    elif name == "montecarlo":
+        fn = _montecarlo_kernel()
+    elif name.startswith("analyze-"):
+        fn = _analyze_kernel(name.split("-", 1)[1])
+    else:
+        fn = _warm_command(_arguments(work)[name])
+    with contextlib.redirect_stdout(io.StringIO()):
+        wall, cpu = _timed(fn, repeat)
+    print(json.dumps({"wall": wall, "cpu": cpu}))
+
+
+def _kernel(name: str, repeat: int, work: Path) -> tuple[float, float] | None:
+    """Wall-clock and CPU time (s) of the kernel of ``name``, timed in a new process; None for ``demo``."""
+    if name == "demo":
+        return None
+    draws = certified = 0
+    if name in ACCURACY_SIZES:
+        draws = ACCURACY_SIZES[name]
+        certified = json.loads((work / f"{name}.json").read_text())["configurations"]
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--kernel-of", name, "--repeat", str(repeat), "--work",
+           str(work), "--draws", str(draws), "--certified", str(certified)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=ENV)
+    if proc.returncode != 0:
+        raise SystemExit(f"kernel of {name} failed:\n{proc.stderr[-2000:]}")
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    return out["wall"], out["cpu"]
+
+
+# ---------------------------------------------------------------------------- table
+def _ratio(a: float, b: float | None) -> str:
+    return "-" if not b else f"{a / b:.1f}x"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -114,7 +302,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--markdown", metavar="FILE")
     ap.add_argument("--only", action="append", choices=list(GOALS))
+    ap.add_argument("--kernel-of", help=argparse.SUPPRESS)  # the child process that times one kernel
+    ap.add_argument("--work", help=argparse.SUPPRESS)
+    ap.add_argument("--draws", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--certified", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.kernel_of:
+        kernel_child(args.kernel_of, args.repeat, Path(args.work), args.draws, args.certified)
+        return 0
     names = args.only or list(GOALS)
     rows = []
     started = time.perf_counter()
@@ -130,33 +325,49 @@ def main(argv: list[str] | None = None) -> int:
                          "--quiet"]])
         for name in names:
             load = os.getloadavg()[0]
-            walls, cpus = [], []
-            for _ in range(args.repeat):
-                wall, cpu = _run(cmds[name])
-                walls.append(wall)
-                cpus.append(cpu)
-            goal, what = GOALS[name]
-            med = statistics.median(walls)
-            rows.append((what, med, min(walls), max(walls), statistics.median(cpus), load, goal))
+            repeat = 1 if name == "accuracy-1m" else args.repeat
+            runs = [_run(cmds[name]) for _ in range(repeat)]
+            walls, cpus, peaks = ([r[i] for r in runs] for i in range(3))
+            kernel = _kernel(name, repeat, work)
+            goal, mem_goal, what = GOALS[name]
+            med, cpu = statistics.median(walls), statistics.median(cpus)
+            rows.append((what, med, min(walls), max(walls), cpu, max(peaks), load, kernel, goal, mem_goal))
             verdict = "" if goal is None else f", goal < {goal:g} s: {'met' if med < goal else 'NOT met'}"
-            print(f"{what}: median {med:.2f} s (range {min(walls):.2f}-{max(walls):.2f}), CPU "
-                  f"{statistics.median(cpus):.2f} s, load {load:.1f}{verdict}", flush=True)
+            if mem_goal is not None:
+                verdict += f", memory goal < {mem_goal:g} MiB: {'met' if max(peaks) < mem_goal else 'NOT met'}"
+            kern = "" if kernel is None else (f"; kernel {kernel[0]:.2f} s wall, {kernel[1]:.2f} s CPU (ratios "
+                                              f"{_ratio(med, kernel[0])}, {_ratio(cpu, kernel[1])})")
+            print(f"{what}: median {med:.2f} s (range {min(walls):.2f}-{max(walls):.2f}), CPU {cpu:.2f} s, peak "
+                  f"{max(peaks):.0f} MiB, load {load:.1f}{kern}{verdict}", flush=True)
     cores = os.cpu_count()
     total = time.perf_counter() - started
-    lines = [f"Whole commands, new process each, median of {args.repeat} (wall-clock s); {cores} cores; "
-             "load = 1-minute load average before the runs; CPU = user + system of the command and its "
-             f"children (median). Generated by `python benchmarks/commands.py` in {total:.0f} s.", "",
-             "| command | median (s) | range (s) | CPU user+sys (s) | load | goal (s) | |",
-             "|---|---|---|---|---|---|---|"]
-    for what, med, lo, hi, cpu, load, goal in rows:
-        met = "" if goal is None else ("met" if med < goal else "not met")
-        lines.append(f"| {what} | {med:.2f} | {lo:.2f}-{hi:.2f} | {cpu:.2f} | {load:.1f} | "
-                     f"{'-' if goal is None else f'< {goal:g}'} | {met} |")
+    lines = [f"Whole commands, new process each, median of {args.repeat} (the 1,000,000 row: one run); {cores} cores; "
+             "load = 1-minute load average before the runs; CPU = user + system of the command and its children "
+             "(median); peak = largest resident memory of the command's process; kernel = the batched kernels the "
+             "command is built on, warm, in a new process right after the command (median; see the script), and the "
+             f"ratios command / kernel. Generated by `python benchmarks/commands.py` in {total:.0f} s.", "",
+             "| command | median (s) | range (s) | CPU (s) | peak (MiB) | load | kernel wall / CPU (s) | "
+             "ratio wall | ratio CPU | goal | |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for what, med, lo, hi, cpu, peak, load, kernel, goal, mem_goal in rows:
+        goals, verdicts = [], []
+        if goal is not None:
+            goals.append(f"< {goal:g} s")
+            verdicts.append("met" if med < goal else "not met")
+        if mem_goal is not None:
+            goals.append(f"< {mem_goal:g} MiB")
+            verdicts.append("met" if peak < mem_goal else "not met")
+        kern = "-" if kernel is None else f"{kernel[0]:.2f} / {kernel[1]:.2f}"
+        lines.append(f"| {what} | {med:.2f} | {lo:.2f}-{hi:.2f} | {cpu:.2f} | {peak:.0f} | {load:.1f} | {kern} | "
+                     f"{_ratio(med, kernel and kernel[0])} | {_ratio(cpu, kernel and kernel[1])} | "
+                     f"{', '.join(goals) or '-'} | {', '.join(verdicts)} |")
     table = "\n".join(lines) + "\n"
     print(table)
     if args.markdown:
         Path(args.markdown).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.markdown).write_text(table)
+        tmp_md = Path(args.markdown).with_suffix(".md.tmp")
+        tmp_md.write_text(table)
+        tmp_md.replace(args.markdown)
     return 0
 
 

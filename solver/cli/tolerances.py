@@ -58,16 +58,30 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
     return mech, provenance, kin, (result if over else None), q, over
 
 
-def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True):
-    """The tolerances of the classification module with their values (spec from the options or the template)."""
+def _classes(args: argparse.Namespace, mech, kin):
+    """The tolerance classes, and the directions of those with a value from accuracy, (n_xi, n) or None."""
+    import numpy as np
+
     from hyperstat.solver.tolerances.classification import classify
+
+    cl = classify(mech, args._stationarity, kin)
+    influential = [t for t in cl.items if t.cls in ("accuracy-critical", "compensable")]  # as assign_values
+    return cl, (np.stack([t.direction for t in influential], axis=1) if influential else None)
+
+
+def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True, cl=None, task_maps_at=None):
+    """The tolerances of the classification module with their values (spec from the options or the template).
+
+    ``cl`` and ``task_maps_at``: the classes and their task rows at ``q`` when already computed (by
+    :func:`_classes` and the accuracy maps, from the same Jacobians).
+    """
     from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values
 
     result = args._stationarity
-    cl = classify(mech, result, kin)
+    cl = _classes(args, mech, kin)[0] if cl is None else cl
     assign_values(cl, mech, kin, q, args.position_accuracy, args.orientation_accuracy, assembly=assembly,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE],
-                  workspace=args.workspace_used if args.range else None)
+                  workspace=args.workspace_used if args.range else None, task_maps_at=task_maps_at)
     return cl
 
 
@@ -104,7 +118,10 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
     with stages(args, names) as progress:
         mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress)
         progress.next("accuracy maps")
-        maps = accuracy_maps(mech, q, analysis, kinematics=kin)
+        # one set of Jacobians per configuration: the coefficients and the task rows of the tolerance values
+        classes, directions = _classes(args, mech, kin)
+        maps = accuracy_maps(mech, q, analysis, kinematics=kin, task=None if directions is None else
+                             classes.declaration.task, task_directions=directions)
         extremes = {}
         if not args.no_refine:
             progress.next("worst cases")
@@ -117,7 +134,7 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
         allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed),
                               maxima=maxima)
         progress.next("tolerances")
-        tolerances = _tolerances(args, mech, kin, q).to_dict()
+        tolerances = _tolerances(args, mech, kin, q, cl=classes, task_maps_at=maps.task_rows).to_dict()
     coefficients = maps.summary()
     for name, v in coefficients.items():
         v["sampled_min"], v["sampled_max"] = v["min"], v["max"]

@@ -184,7 +184,7 @@ def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | N
 def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
                   position_accuracy: float | None = None, orientation_accuracy: float | None = None,
                   assembly: bool = True, assembly_configurations: np.ndarray | None = None, refine: bool = True,
-                  workspace=None) -> Classification:
+                  workspace=None, task_maps_at: tuple | None = None) -> Classification:
     """Fill ``value``, ``value_source`` and ``contribution`` of every tolerance of ``cl`` (in place).
 
     Parameters
@@ -208,13 +208,17 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         maxima (loose: a sampled maximum is low).
     workspace : Workspace, optional
         Bounds of the refinement (default: the mechanism's declared workspace).
+    task_maps_at : tuple of ndarray, optional
+        :func:`task_maps` at ``configurations`` for the accuracy-critical and compensable
+        tolerances in the order of ``cl.items``, when already computed from the same Jacobians
+        (``accuracy_maps(task=..., task_directions=...)``, as ``hyperstat accuracy`` does).
     """
     return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                              assembly_configurations, refine, workspace)
+                              assembly_configurations, refine, workspace, task_maps_at)
 
 
 def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                   assembly_configurations, refine, workspace) -> Classification:
+                   assembly_configurations, refine, workspace, task_maps_at=None) -> Classification:
     """Body of :func:`assign_values` (BLAS single-threaded by the caller)."""
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
@@ -234,7 +238,10 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
                           "the values loose)")}
     if influential:
         dirs = np.stack([t.direction for t in influential], axis=1)
-        rot, pos = task_maps(mechanism, kin, q, decl.task, dirs)
+        rot, pos = task_maps(mechanism, kin, q, decl.task, dirs) if task_maps_at is None else task_maps_at
+        if rot.shape[0] != len(q) or rot.shape[2] != len(influential):
+            raise ValueError(f"task_maps_at: {rot.shape[2]} directions at {rot.shape[0]} configurations, expected "
+                             f"{len(influential)} at {len(q)}.")
         is_len = np.array([t.unit == "mm" for t in influential])
         names = [t.parameters[0] for t in influential]
         has_r, has_p = rot.shape[1] > 0, pos.shape[1] > 0

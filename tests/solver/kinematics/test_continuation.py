@@ -172,3 +172,94 @@ def test_every_configuration_of_the_sampler_meets_the_rules_of_its_certificate(t
 
     assert np.all(cert.end_condition <= passive_conditioning(kin, q) * (1 + 1e-6))
     assert np.all(cert.end_condition >= opt.cond_tol)
+
+
+# ---------------------------------------------------------------------------- the one-step certificate (issue 32)
+def _certified_nodes(kin, theta):
+    """Certified configurations at crank angles ``theta`` (the adaptive path), with B_p, its inverse and tangent."""
+    from hyperstat.solver.kinematics.continuation import _correct
+
+    q, cert = assemble_nearest(kin, theta[:, None], options=ContinuationOptions(one_step=False))
+    assert cert.certified.all()
+    rc = _correct(kin, q.copy(), None, len(kin.mechanism.passive), ContinuationOptions(), tol=1e-12)
+    assert rc.ok.all()
+    return q, rc
+
+
+@pytest.mark.parametrize("dims, sigma, crank_range, home", [
+    (CRANK_ROCKER, +1, (-np.pi, np.pi), 0.5),
+    (CRANK_ROCKER, -1, (-np.pi, np.pi), 3.0),
+    (ISOGRAM, +1, LOWER, -1.6),  # crossed: the parallelogram branch meets it at both ends of the range
+])
+def test_one_step_lands_on_the_closed_form_branch_with_one_jacobian_per_certificate(tmp_path, dims, sigma,
+                                                                                     crank_range, home):
+    from hyperstat.solver.kinematics.continuation import one_step
+
+    m = _model(tmp_path, dims, home, sigma, crank_range, "loop")
+    kin = Kinematics(m)
+    lo, hi = crank_range
+    rng = np.random.default_rng(4)
+    q0, rc = _certified_nodes(kin, rng.uniform(lo + 0.3, hi - 0.3, 200))
+    target = q0[:, :1] + rng.uniform(-0.08, 0.08, (200, 1))  # a step of up to 0.08 rad from each node
+    jacobian_rows = []
+    evaluate = kin.evaluate
+
+    def counting(q, xi=None, jacobians=True):
+        if jacobians:
+            jacobian_rows.append(len(np.atleast_2d(q)))
+        return evaluate(q, xi, jacobians)
+
+    kin.evaluate = counting
+    st = one_step(kin, q0, rc.q_b, rc.bp, rc.tangent, rc.pinv, target)
+    kin.evaluate = evaluate
+    assert st.ok.mean() > 0.9
+    ok = st.ok
+    # every certified end point is the closed-form configuration of the start's branch, closed to round-off
+    assert np.max(_branch_error(st.q[ok], dims, sigma)) < 1e-9
+    assert np.max(kin.residual_norm(kin.evaluate(st.q[ok], jacobians=False).residual)) < 1e-9 * kin.length_scale
+    # the certificate: Kantorovich number at most 1/2, the branch rules, conditioning bounds below the exact ones
+    opt = ContinuationOptions()
+    assert np.all(st.kantorovich[ok] <= 0.5) and np.all(st.ratio[ok] <= opt.branch_fraction)
+    from hyperstat.solver.kinematics.sampling import passive_conditioning
+
+    assert np.all(st.cond[ok] <= passive_conditioning(kin, st.q[ok]) * (1 + 1e-6))
+    # one Jacobian per certificate: rows evaluated with Jacobians beyond one per target only for the rows that
+    # needed Newton (outside the Kantorovich region at the first one)
+    assert jacobian_rows[0] == len(target) and sum(jacobian_rows[1:]) <= 0.1 * len(target)
+
+
+def test_one_step_never_certifies_the_other_branch_across_a_change_point(tmp_path):
+    from hyperstat.solver.kinematics.continuation import one_step
+
+    # parallelogram isogram: the crossed branch meets it at the flat point 0; nodes just below it, targets beyond
+    m = _model(tmp_path, ISOGRAM, -0.5, -1, (-1.0, 1.0), "across")
+    kin = Kinematics(m)
+    q0, rc = _certified_nodes(kin, np.linspace(-0.3, -0.02, 30))
+    target = np.linspace(0.02, 0.3, 30)[:, None]
+    st = one_step(kin, q0, rc.q_b, rc.bp, rc.tangent, rc.pinv, target)
+    assert not st.ok.any()  # beyond the change point no configuration continues the start's branch
+    assert set(st.why.tolist()) <= {2, 3, 4}  # singular, too far, or not converged: a reason each
+
+
+@pytest.mark.parametrize("name, draws", [("triflex_ii", 3000), ("tripteor_x7", 300)])
+def test_one_step_sampler_gives_the_configurations_of_the_continuation(name, draws):
+    """The sampler with the one-step corrector against the Newton corrector of issues 18 and 24, draw for draw."""
+    from hyperstat.cad_plugin.templates import TEMPLATE_DIR, build_template
+    from hyperstat.solver.kinematics.continuation import continue_nearest
+    from hyperstat.solver.tolerances.workspace import workspace_of
+
+    mech = build_template(TEMPLATE_DIR / f"{name}.py").mechanism()
+    kin = Kinematics(mech)
+    ws = workspace_of(mech)
+    lo, hi = ws.actuated_box(mech)
+    qa = lo + (hi - lo) * np.random.default_rng(5).random((draws, len(lo)))
+    new, cn = continue_nearest(kin, qa, None, mech.home, ContinuationOptions(one_step=True), inside=ws.inside)
+    old, co = continue_nearest(kin, qa, None, mech.home, ContinuationOptions(one_step=False), inside=ws.inside)
+    both = cn.certified & co.certified
+    diff = new[both] - old[both]
+    rev = np.array([j.type == "R" for j in mech.joints])
+    diff[:, rev] = np.angle(np.exp(1j * diff[:, rev]))  # revolute joints modulo 2 pi
+    assert np.max(np.abs(diff) / kin.joint_scale) < 1e-8
+    # the same draws kept, up to a few at the edge of what either certificate accepts
+    assert np.sum(cn.certified != co.certified) <= max(2, 0.005 * co.certified.sum())
+    assert np.all(cn.max_branch_ratio[cn.certified] <= ContinuationOptions().branch_fraction)
