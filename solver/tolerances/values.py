@@ -8,11 +8,11 @@ Units: mm and rad.
   task rows (``epsilon`` for position, ``delta`` for orientation, eq. 18), and the budget
   is the spec less what calibration noise leaves (:attr:`Classification.calibration`).
   The allocation divides by the *worst case* of each coefficient over the declared
-  workspace: the sample's maximum refined by a batched ascent over the actuated variables
-  (:func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`; ``refine="slsqp"``
-  runs issue 24's :func:`hyperstat.solver.tolerances.worst_case.refine_extremes` on the
-  task rows instead, :func:`task_extremes`), plus the stated tolerance; a sampled maximum
-  is low by construction and would make the values loose (the unsafe direction);
+  workspace, searched by the one worst-case engine
+  (:func:`hyperstat.solver.tolerances.worst_case.search_extremes`: sample, corners, edges,
+  faces and dead centres, then a projected-gradient search on the configuration manifold),
+  plus its stated tolerance; a sampled maximum is low by construction and would make the
+  values loose (the unsafe direction);
 * **compensable**: the same allocation over every influential direction (accuracy-critical
   and compensable) without calibration: the value that keeps the spec on an
   uncalibrated machine; calibration lets it open;
@@ -28,7 +28,6 @@ task has position components, else the orientation error.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -38,11 +37,10 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, in_chunks, output_twist_maps
 from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
-from hyperstat.solver.tolerances.task_worst import TASK_COEFFICIENTS, TaskCoefficients, task_worst_cases
+from hyperstat.solver.tolerances.worst_case import TASK_COEFFICIENTS, TaskCoefficients, search_extremes
 from hyperstat.solver.threads import limited_blas
 
-__all__ = ["assign_values", "task_maps", "task_extremes", "monte_carlo_at_values", "ASSEMBLY_SAMPLE",
-           "TASK_COEFFICIENTS"]
+__all__ = ["assign_values", "task_maps", "monte_carlo_at_values", "ASSEMBLY_SAMPLE", "TASK_COEFFICIENTS"]
 
 #: configurations of the stationarity sample on which the assemblability programme runs (report, accuracy)
 ASSEMBLY_SAMPLE = 8
@@ -88,76 +86,6 @@ def _coefficients(rot: np.ndarray, pos: np.ndarray, is_len: np.ndarray, names: l
     return AccuracyMaps(coeffs, {}, groups, np.atleast_2d(q), np.zeros((rot.shape[0], 3)))
 
 
-class _TaskColumns:
-    """The tolerance directions as the geometric coordinates of :func:`refine_extremes` (its ``analysis``)."""
-
-    def __init__(self, names: list, matrix: np.ndarray) -> None:
-        self.names, self.matrix = list(names), matrix
-
-    def parameterization(self, mechanism: Mechanism, influential_only: bool = True) -> tuple[list, np.ndarray]:
-        return list(self.names), self.matrix
-
-
-class _TaskKinematics:
-    """Kinematics whose output twists keep only the task components (the other rows projected out).
-
-    The task rows of :func:`task_rows` are orthonormal within the rotation block and within
-    the position block, so the largest singular value of the projected 3-row block equals
-    that of the task rows: the coefficients of :func:`refine_extremes` become the
-    task-restricted ones.  Everything else is the wrapped :class:`Kinematics`.
-    """
-
-    def __init__(self, kin: Kinematics, task: tuple) -> None:
-        self._kin, self._task = kin, tuple(task)
-
-    def __getattr__(self, name: str):
-        return getattr(self._kin, name)
-
-    def evaluate(self, q, xi=None, jacobians=True):
-        st = self._kin.evaluate(q, xi, jacobians)
-        if st.output_xi is None:
-            return st
-        sel = task_rows(self._task, st.output_pose)
-        proj = np.swapaxes(sel, 1, 2) @ sel  # (K, 6, 6), block diagonal
-        return dataclasses.replace(st, output_xi=proj @ st.output_xi,
-                                   output_q=None if st.output_q is None else proj @ st.output_q)
-
-
-def task_extremes(mechanism: Mechanism, kin: Kinematics, maps: AccuracyMaps, task: tuple, names: list,
-                  directions: np.ndarray, workspace=None, starts: int = 2) -> dict:
-    """Refined maxima of the task-restricted coefficients over the workspace.
-
-    :func:`hyperstat.solver.tolerances.worst_case.refine_extremes` (bounded SLSQP from the
-    best separate samples, closures as constraints, branch checked) run on the task rows
-    (:class:`_TaskKinematics`) and the tolerance directions (:class:`_TaskColumns`).
-
-    Parameters
-    ----------
-    maps : AccuracyMaps
-        The sampled task-restricted coefficients (their ``q``: the workspace sample).
-    names : list of str
-        The parameter each direction belongs to (its unit picks the class ``gP`` / ``gR``).
-    directions : ndarray, (n_xi, n)
-        Defect vector per unit of each tolerance (rad / mm).
-    workspace : Workspace, optional
-        Bounds (default: the mechanism's declared workspace).
-
-    Returns
-    -------
-    dict
-        Coefficient name -> :class:`hyperstat.solver.tolerances.worst_case.Extreme` (maxima only).
-    """
-    from hyperstat.solver.tolerances.worst_case import refine_extremes
-
-    present = tuple(n for n in TASK_COEFFICIENTS if len(maps.coefficients.get(n, ())) and
-                    float(np.max(maps.coefficients[n])) > 0)
-    if not present or len(maps.q) == 0:
-        return {}
-    ext = refine_extremes(mechanism, maps, _TaskColumns(names, directions), kinematics=_TaskKinematics(kin, task),
-                          workspace=workspace, kinds=("max",), starts=starts, names=present)
-    return {name: e for (name, kind), e in ext.items()}
-
-
 def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | None,
               extremes: dict | None = None) -> dict:
     """Equal allocation (paper 2, eqs. 30-31) through :func:`hyperstat.solver.tolerances.accuracy.allocate`.
@@ -201,10 +129,9 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         (:func:`hyperstat.solver.tolerances.classification.workspace_checkpoints`: a sample of
         the declared workspace and the corners of its actuated box): e.g. the analysis'
         configurations, whose own worst case is reported beside the value.
-    refine : bool or "slsqp"
-        Refine the sampled maxima of the task-restricted coefficients: ``True``, the batched
-        ascent of :func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`;
-        ``"slsqp"``, :func:`task_extremes` (issue 24's SLSQP, slower); ``False``, the sampled
+    refine : bool
+        Search the worst cases of the task-restricted coefficients
+        (:func:`hyperstat.solver.tolerances.worst_case.search_extremes`); ``False``: the sampled
         maxima (loose: a sampled maximum is low).
     workspace : Workspace, optional
         Bounds of the refinement (default: the mechanism's declared workspace).
@@ -224,12 +151,10 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
     info = {"spec": {"position_mm": spec_p, "orientation_rad": spec_o}, "configurations": int(len(q)),
             "method": "equal allocation, paper 2 eqs. (19), (30)-(31), on the worst case of each task-restricted "
                       "coefficient over the declared workspace: " + (
-                          f"the maximum over {len(q)} sampled configurations refined by "
-                          + ("bounded local optimisation (SLSQP over all joints, closures as constraints, workspace "
-                             "ranges as bounds)" if refine == "slsqp" else
-                             "a projected-gradient ascent over the actuated variables within the workspace's actuated "
-                             "box, passive joints on the sample's branch")
-                          + ", plus the optimiser's stated tolerance" if refine else
+                          f"searched from {len(q)} sampled configurations and the corners, edges, faces and dead "
+                          "centres of the actuated box by a projected-gradient search on the configuration manifold "
+                          "within the workspace bounds (hyperstat.solver.tolerances.worst_case), plus the search's "
+                          "stated tolerance" if refine else
                           f"the maximum over {len(q)} sampled configurations (not refined: may be low, which makes "
                           "the values loose)")}
     if influential:
@@ -247,14 +172,11 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
 
         def allocation(cols: np.ndarray, p_budget, o_budget) -> dict:
             maps = _coefficients(rot[:, :, cols], pos[:, :, cols], is_len[cols], [n for n, c in zip(names, cols) if c], q)
-            sub = [n for n, c in zip(names, cols) if c]
-            if refine == "slsqp":
-                ext = task_extremes(mechanism, kin, maps, decl.task, sub, dirs[:, cols], workspace)
-            elif refine:
-                ext = task_worst_cases(mechanism, kin, q, TaskCoefficients(kin, decl.task, dirs[:, cols], is_len[cols]),
-                                       workspace, sampled=maps.coefficients)
-            else:
-                ext = {}
+            ext = {}
+            if refine:
+                objective = TaskCoefficients(kin, decl.task, dirs[:, cols], is_len[cols])
+                ext = {n: e for (n, _), e in search_extremes(kin, objective, q, workspace, starts=2,
+                                                             sampled=maps.coefficients).items()}
             return _allocate(maps, p_budget if has_p else None, o_budget if has_r else None, ext)
 
         calibrated = allocation(crit, left_p if left_p is None or left_p > 0 else 0.0,

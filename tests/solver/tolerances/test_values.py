@@ -87,15 +87,6 @@ def test_refined_values_are_never_looser_than_sampled_ones(triflex):
         assert any(b.value < a.value * (1 - 1e-4) for a, b in zip(cl_s.items, cl_r.items) if a.value)
 
 
-def test_the_batched_ascent_agrees_with_issue_24s_slsqp_refinement(triflex):
-    mech, kin, result, q = triflex
-    fast = _values(mech, kin, result, q, True)
-    slsqp = _values(mech, kin, result, q, "slsqp")
-    for a, b in zip(fast.items, slsqp.items):
-        if a.value is not None:
-            assert a.value == pytest.approx(b.value, rel=1e-7), a.id
-
-
 def test_the_tripteor_refinement_finds_maxima_above_the_sample_and_says_where():
     mech, kin, result, q = _setup("tripteor_x7.py")
     cl = _values(mech, kin, result, q, True)
