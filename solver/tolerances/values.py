@@ -249,38 +249,44 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
 
         items = cl.by_class("assembly")
         if items:
-            # the same configurations whatever the command: the given ones (the reference set), a fixed
-            # sample of the declared workspace and the corners of its actuated box that assemble on its branch
+            # the search starts from the same configurations whatever the command: the given ones (the
+            # reference set), a fixed sample of the declared workspace and the corners of its actuated box
             ref = None if assembly_configurations is None else np.atleast_2d(assembly_configurations)
             ws_part, corners = workspace_checkpoints(mechanism, kin, workspace)
             parts = ([ref] if ref is not None else []) + [p for p in (ws_part, corners) if len(p)]
             qa = np.vstack(parts) if parts else q
-            vals = assembly_tolerances(mechanism, items, decl, qa, reference=None if ref is None else len(ref))
+            vals = assembly_tolerances(mechanism, items, decl, qa, reference=None if ref is None else len(ref),
+                                       workspace=workspace)
             n_ref = 0 if ref is None else len(ref)
             info["assembly_configurations"] = {"total": int(len(qa)), "analysis": n_ref, "workspace": int(len(ws_part)),
                                                "box_corners": int(len(corners))}
             for t in items:
                 v = vals[t.id]
                 t.value = v["value"]
-                t.evidence["assemblability"] = {k: v.get(k) for k in ("worst_configuration", "limiting", "at_bound",
-                                                                      "configurations", "reference_value")}
-                wc = v["worst_configuration"]
-                if wc is not None:
+                t.evidence["assemblability"] = {k: v.get(k) for k in (
+                    "limiting", "at_bound", "configurations", "reference_value", "sampled_value", "searched",
+                    "search_tolerance", "where", "start", "location", "evidence")}
+                wq = v.get("worst_q")
+                if wq is not None:
                     t.evidence["assemblability"]["worst_actuated"] = {
-                        mechanism.joints[i].name: float(qa[wc, i]) for i in mechanism.actuated}
-                    t.evidence["assemblability"]["worst_in"] = ("analysis" if wc < n_ref else "workspace sample"
-                                                                if wc < n_ref + len(ws_part) else "actuated box corner")
-                t.value_source = (f"largest violation the joint clearances absorb at every one of {v['configurations']} "
-                                  f"configurations ({n_ref} of the analysis, {len(ws_part)} sampled in the declared "
-                                  f"workspace, {len(corners)} corners of its actuated box; worst-case assemblability, "
-                                  "linear programme)")
-                rv = v.get("reference_value")
-                if v["value"] is not None and rv is not None and n_ref:
-                    t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
-                                       f"({100 * (rv / v['value'] - 1):.0f} % looser)" if rv > v["value"] * (1 + 1e-9)
-                                       else "; the analysis configurations alone give the same value")
+                        mechanism.joints[i].name: float(wq[i]) for i in mechanism.actuated}
+                    t.evidence["assemblability"]["worst_configuration"] = wq.tolist()
+                    t.evidence["assemblability"]["worst_in"] = v.get("start")
                 if v["value"] is None:
                     t.value_source = "the clearances absorb any small violation (no limit to first order)"
+                    continue
+                t.value_source = (f"largest violation the joint clearances absorb at every configuration of the declared "
+                                  f"workspace (worst-case assemblability, linear programme), searched from {len(qa)} "
+                                  f"configurations ({n_ref} of the analysis, {len(ws_part)} sampled, {len(corners)} "
+                                  "corners of the actuated box) and the box's edges, faces and dead centres; worst "
+                                  f"{v.get('location') or 'at a configuration'}, from a {v.get('start')} start")
+                rv, sv = v.get("reference_value"), v.get("sampled_value")
+                if sv is not None and sv > v["value"] * (1 + 1e-9):
+                    t.value_source += f"; the starting configurations alone give {sv:.4g} {t.unit} " \
+                                      f"({100 * (sv / v['value'] - 1):.2f} % looser)"
+                if rv is not None and n_ref and rv > v["value"] * (1 + 1e-9):
+                    t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
+                                       f"({100 * (rv / v['value'] - 1):.0f} % looser)")
     cl.allocation = info
     return cl
 

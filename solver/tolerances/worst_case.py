@@ -371,7 +371,7 @@ _CANDIDATES: dict = {}
 
 
 def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarray, points_per_edge: int = 3,
-                         grid: int = 16, max_edges: int = 96) -> tuple[np.ndarray, list]:
+                         grid: int = 16, max_edges: int = 96, varied: np.ndarray | None = None) -> tuple[np.ndarray, list]:
     """Structured configurations of the workspace: corners, edges and dead centres of the actuated box.
 
     * corners: every combination of the bounded actuated joints at their bounds (a full-turn
@@ -386,7 +386,8 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
 
     Everything is assembled on the workspace's branch by certified continuation from the nearest
     configuration of ``sample`` (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`);
-    what does not assemble inside the workspace is left out.
+    what does not assemble inside the workspace is left out.  ``varied`` (bool per actuated joint)
+    restricts the box to the actuators a function depends on (the others stay at home).
 
     Returns
     -------
@@ -394,9 +395,11 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
     labels : list of str
         ``corner``, ``edge``, ``face``, ``dead centre of joint 4 along joint 1`` ...
     """
-    key = (id(kin), id(workspace), len(sample), float(np.sum(sample)) if len(sample) else 0.0, points_per_edge, grid)
-    if _CANDIDATES.get("key") == key:
-        return _CANDIDATES["value"]
+    varied = np.ones(len(kin.mechanism.actuated), dtype=bool) if varied is None else np.asarray(varied, dtype=bool)
+    key = (id(kin), id(workspace), len(sample), float(np.sum(sample)) if len(sample) else 0.0, points_per_edge, grid,
+           tuple(varied))
+    if key in _CANDIDATES:
+        return _CANDIDATES[key]
     from hyperstat.solver.kinematics.continuation import continue_nearest
 
     m = kin.mechanism
@@ -405,7 +408,7 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
     n_a = len(lo)
     rev = np.array([m.joints[i].type == "R" for i in m.actuated])
     turn = rev & (hi - lo >= 2 * math.pi - 1e-9)
-    bounded = np.nonzero(~turn & np.isfinite(lo) & np.isfinite(hi))[0][:8]
+    bounded = np.nonzero(~turn & np.isfinite(lo) & np.isfinite(hi) & varied)[0][:8]
     targets, labels, lines = [], [], []  # lines: (start actuated values, axis, from, to, periodic, label)
     if len(bounded):
         bits = (np.arange(2 ** len(bounded))[:, None] >> np.arange(len(bounded))[None, :]) & 1
@@ -430,7 +433,7 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
             faces[:, bounded] = np.choose(digits, [lo[bounded], hi[bounded], 0.5 * (lo[bounded] + hi[bounded])])
             targets += list(faces)
             labels += ["face"] * len(faces)
-    for a in np.nonzero(turn)[0]:
+    for a in np.nonzero(turn & varied)[0]:
         lines.append((home, a, lo[a], lo[a] + 2 * math.pi, True))
     # grids along the lines, assembled with the other targets
     grid_rows = []
@@ -442,7 +445,7 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
     all_targets = targets + [p for _, _, pts in grid_rows for p in pts]
     if not all_targets:
         out = (np.zeros((0, kin.n_q)), [])
-        _CANDIDATES.update(key=key, value=out)
+        _remember(key, out)
         return out
     q, cert = continue_nearest(kin, np.array(all_targets), None, m.home, pool=sample if len(sample) else None,
                                inside=workspace.inside)
@@ -480,8 +483,15 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
             out_q.append(qd)
             out_l.append(f"dead centre of joint {m.joints[pas[p]].name} along joint {m.joints[m.actuated[a]].name}")
     out = (np.array(out_q) if out_q else np.zeros((0, kin.n_q)), out_l)
-    _CANDIDATES.update(key=key, value=out)
+    _remember(key, out)
     return out
+
+
+def _remember(key, value) -> None:
+    """Keep the candidates of the last few (kinematics, workspace, sample) in memory (one command uses two or three)."""
+    if len(_CANDIDATES) >= 4:
+        _CANDIDATES.pop(next(iter(_CANDIDATES)))
+    _CANDIDATES[key] = value
 
 
 def _passive_velocity(kin: Kinematics, q: np.ndarray, axis) -> np.ndarray:
@@ -581,7 +591,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
         if len(sample) else {n: np.zeros(0) for n in names}
     pool_q, pool_label = sample, ["sample"] * len(sample)
     if candidates and len(sample):
-        cq, cl = workspace_candidates(kin, ws, sample)
+        cq, cl = workspace_candidates(kin, ws, sample, varied=space.free[m.actuated])
         if len(cq):
             cv = objective.values(cq)
             pool_q = np.vstack([sample, cq])
