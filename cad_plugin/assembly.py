@@ -119,7 +119,7 @@ def element_verdicts(analysis: dict | None) -> dict[str, str]:
     out: dict[str, str] = {}
     for p in analysis.get("parameters", []):
         v = p["verdict"]
-        if v == "gauge":
+        if v in ("gauge", "normalisation", "redundant"):  # not a geometric defect of its own
             cls = "none"
         elif v == "free":
             cls = "free-influential" if p.get("influential") else "free-non-influent"

@@ -187,8 +187,8 @@ class StationarityResult:
         return {
             "mechanism": self.mechanism,
             "units": {"length": "mm", "angle": "rad"},
-            "counts": self.counts(),
-            "parameters": [asdict(p) for p in self.parameters],
+            "counts": _public_counts(self.counts(), self.parameters),
+            "parameters": [_public_verdict(asdict(p)) for p in self.parameters],
             "relations": [{"terms": r.terms, "text": r.text} for r in self.relations],
             "rank": self.rank,
             "n_constraint_rows": self.n_constraint_rows,
@@ -205,6 +205,22 @@ class StationarityResult:
             "warnings": list(self.warnings),
             "stability": self.stability,
         }
+
+
+def _public_verdict(entry: dict) -> dict:
+    """One parameter of the JSON: a gauge is named for what it is, ``normalisation`` (an axis component along the
+    nominal axis) or ``redundant`` (a shift along a revolute's own axis, equal to the next element's)."""
+    if entry["verdict"] == "gauge":
+        entry["verdict"] = "normalisation" if entry["component"] in "IJK" else "redundant"
+    return entry
+
+
+def _public_counts(counts: dict, parameters: list) -> dict:
+    """The counts of the JSON, the gauges split into normalisation components and redundant shifts."""
+    out = {k: v for k, v in counts.items() if k != "gauge"}
+    out["normalisation"] = sum(p.verdict == "gauge" and p.component in "IJK" for p in parameters)
+    out["redundant"] = sum(p.verdict == "gauge" and p.component not in "IJK" for p in parameters)
+    return out
 
 
 def gauge_parameters(mechanism: Mechanism) -> dict[str, str]:

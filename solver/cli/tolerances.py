@@ -67,7 +67,7 @@ def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True):
     cl = classify(mech, result, kin)
     assign_values(cl, mech, kin, q, args.position_accuracy, args.orientation_accuracy, assembly=assembly,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE],
-                  workspace=args.workspace_used if args.range else None)
+                  workspace=args.workspace_used if args.range else None, calibrate=assembly)
     return cl
 
 

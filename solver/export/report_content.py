@@ -119,11 +119,10 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
         rows = []
         for p in params:
             entry = tol["parameters"][p.name]
-            verdict = p.verdict
-            if verdict == "gauge":
-                verdict = "normalisation" if p.component in "IJK" else "redundant"
-            row = {"name": p.name, "component": p.component, "unit": p.unit, "verdict": verdict,
+            # one class per parameter (tolerances.parameters'), shown as its verdict too: never the analysis' words
+            row = {"name": p.name, "component": p.component, "unit": p.unit, "verdict": entry["class"],
                    "influential": p.influential, "class": entry["class"], "tolerance_id": entry["tolerance_id"],
+                   "tolerance_ids": list(entry.get("tolerance_ids") or []),
                    "equivalent": entry.get("equivalent"), "reason": p.reason}
             if p.name in checks_by:
                 c = checks_by[p.name]
@@ -165,7 +164,7 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
             "overconstraint": analysis.overconstraint,
             "rank": analysis.rank,
             "singular_value_gap": analysis.gap,
-            "verdicts": analysis.counts(),
+            "verdicts": analysis.to_dict()["counts"],
             "tolerance_classes": counts,
             "tolerances": len(tol["items"]),
             "normalisation_components": len(tol["appendix"]["normalisation"]),

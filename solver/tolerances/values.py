@@ -112,7 +112,7 @@ def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | N
 def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
                   position_accuracy: float | None = None, orientation_accuracy: float | None = None,
                   assembly: bool = True, assembly_configurations: np.ndarray | None = None, refine: bool = True,
-                  workspace=None) -> Classification:
+                  workspace=None, calibrate: bool = True) -> Classification:
     """Fill ``value``, ``value_source`` and ``contribution`` of every tolerance of ``cl`` (in place).
 
     Parameters
@@ -135,13 +135,17 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         maxima (loose: a sampled maximum is low).
     workspace : Workspace, optional
         Bounds of the refinement (default: the mechanism's declared workspace).
+    calibrate : bool
+        Also the compensable tolerances' values with calibration
+        (:func:`hyperstat.solver.tolerances.calibrated.calibrated_values`, simulated), and the share of the
+        calibrated budget kept for their second-order residual.
     """
     return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                              assembly_configurations, refine, workspace)
+                          assembly_configurations, refine, workspace, calibrate)
 
 
 def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                   assembly_configurations, refine, workspace) -> Classification:
+                   assembly_configurations, refine, workspace, calibrate) -> Classification:
     """Body of :func:`assign_values` (BLAS single-threaded by the caller)."""
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
@@ -169,6 +173,21 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         if (left_p is not None and left_p <= 0) or (left_o is not None and left_o <= 0):
             cl.warnings.append("the calibration noise alone uses up the spec: no accuracy-critical tolerance fits.")
         crit = np.array([t.cls == "accuracy-critical" for t in influential])
+        comp = np.array([t.cls == "compensable" for t in influential])
+        # the calibrated machine: the compensable defects leave a second-order residual after calibration, which
+        # shares the budget equally with the accuracy-critical classes (paper 2, eq. 30: one share per class)
+        reserve = {}
+        if calibrate and comp.any():
+            for key, left, rows_of in (("position_mm", left_p, pos), ("orientation_rad", left_o, rot)):
+                if left is None or left <= 0 or not rows_of.shape[1]:
+                    continue
+                classes = sum(1 for kind in (True, False) if np.any(crit & (is_len == kind)) and
+                              np.any(np.abs(rows_of[:, :, crit & (is_len == kind)]) > 0))
+                reserve[key] = left / (classes + 1)
+            if crit.any():
+                left_p = None if left_p is None else left_p - reserve.get("position_mm", 0.0)
+                left_o = None if left_o is None else left_o - reserve.get("orientation_rad", 0.0)
+            info["second_order_share"] = dict(reserve)
 
         def allocation(cols: np.ndarray, p_budget, o_budget) -> dict:
             maps = _coefficients(rot[:, :, cols], pos[:, :, cols], is_len[cols], [n for n, c in zip(names, cols) if c], q)
@@ -287,8 +306,68 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
                 if rv is not None and n_ref and rv > v["value"] * (1 + 1e-9):
                     t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
                                        f"({100 * (rv / v['value'] - 1):.0f} % looser)")
+    if influential:
+        _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o)
+    if calibrate and influential:
+        from hyperstat.solver.tolerances.calibrated import calibrated_values
+
+        info["with_calibration"] = calibrated_values(cl, mechanism, kin, q, spec_p, spec_o, workspace, share=reserve)
+    _drawing_values(cl, mechanism)
     cl.allocation = info
     return cl
+
+
+def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o) -> None:
+    """The attainable linear worst case and the triangle bound of each allocation, searched over the workspace."""
+    from hyperstat.solver.tolerances.bounds import LinearWorstCase
+
+    decl = cl.declaration
+    n_rot = n_rotation_rows(decl.task)
+    for key, members in (("uncalibrated", [True] * len(influential)),
+                         ("calibrated", [t.cls == "accuracy-critical" for t in influential])):
+        if not info.get(key):
+            continue
+        # every tolerance of the allocation at that allocation's value (an accuracy-critical one carries its
+        # calibrated value; without calibration it is held to the uncalibrated one)
+        per_kind = {k: c.get("tolerance") for k, c in info[key]["classes"].items()}
+        values = np.array([per_kind.get("gP" if length else "gR") or 0.0 for length in is_len])
+        cols = np.array(members, dtype=bool) & (values > 0)
+        if not cols.any():
+            continue
+        values = values[cols]
+
+        def rows(qq: np.ndarray, cols=cols) -> np.ndarray:
+            rot, pos = task_maps(mechanism, kin, qq, decl.task, dirs[:, cols])
+            return pos if pos.shape[1] else rot
+
+        objective = LinearWorstCase(rows, values)
+        found = search_extremes(kin, objective, q, workspace, starts=1)
+        unit = "mm" if task_rows(decl.task, np.eye(4)[None]).shape[1] > n_rot else "rad"
+        spec = spec_p if unit == "mm" else spec_o
+        att, tri = found.get(("attainable", "max")), found.get(("triangle", "max"))
+        bounds = {"attainable_linear_worst_case": None if att is None else att.value,
+                  "triangle_bound": None if tri is None else tri.value, "unit": unit, "spec": spec,
+                  "attainable_where": None if att is None else att.where(),
+                  "meaning": "attainable: the largest first-order task error of a machine with every tolerance "
+                             "within its value (the worst sign pattern at the worst configuration found); triangle: "
+                             "every tolerance at its extreme with every effect adding up (a bound no machine need "
+                             "reach)"}
+        info[key]["bounds"] = bounds
+        for t, c in zip(influential, cols):
+            if c and (key == "calibrated") == (t.cls == "accuracy-critical"):
+                t.bounds = {k: bounds[k] for k in ("attainable_linear_worst_case", "triangle_bound", "unit")}
+
+
+def _drawing_values(cl, mechanism) -> None:
+    """The value a drawing carries (rounded to the safe side) and the ISO 1101 callouts."""
+    from hyperstat.solver.tolerances.drawing import add_drawing, safe_round
+
+    calibrated = "measurements" in cl.declaration.declared
+    for t in cl.items:
+        v = t.value_with_calibration if calibrated and t.cls == "compensable" and \
+            t.value_with_calibration is not None else t.value
+        t.drawing_value = safe_round(v)
+    add_drawing(cl, mechanism)
 
 
 def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,

@@ -643,6 +643,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
         return out
     floor_at = CONDITIONING_FLOOR * float(np.median(branch_conditioning(kin, sample))) if len(sample) else 0.0
     result = _ascend(space, objective, np.array(paths), owner, np.array(sense), iterations, floor_at)
+    _polish(space, objective, result, owner, np.array(sense))
     for name in dict.fromkeys(owner):
         for kind in kinds:
             sign = 1.0 if kind == "max" else -1.0
@@ -667,6 +668,7 @@ class _Paths:
     iterations: np.ndarray
     floor: np.ndarray
     start: np.ndarray
+    kink: np.ndarray | None = None
 
 
 def _ascend(space: _Space, objective: Objective, q: np.ndarray, owner: list, sense: np.ndarray,
@@ -683,6 +685,8 @@ def _ascend(space: _Space, objective: Objective, q: np.ndarray, owner: list, sen
     start = q.copy()
     val = sense * objective.pick(q, owner)
     step = np.full(p, 0.05)
+    cap = np.full(p, np.inf)  # half the last refused step: a trust radius near a kink, where a model overshoots
+    kink = np.zeros(p, dtype=bool)
     gain = np.full(p, np.nan)
     active = np.isfinite(val)
     done = ~active
@@ -784,16 +788,83 @@ def _ascend(space: _Space, objective: Objective, q: np.ndarray, owner: list, sen
             if ok[i] and v_new[i] > val[k]:
                 gain[k] = v_new[i] - val[k]
                 q[k], val[k] = cand[i], v_new[i]
-                step[k] = min(float(np.clip(best, 0.5 * s, 4.0 * s)) if np.isfinite(best) else 2.0 * s, 0.25)
+                step[k] = min(float(np.clip(best, 0.5 * s, 4.0 * s)) if np.isfinite(best) else 2.0 * s, 0.25, cap[k])
+                cap[k] = min(2.0 * cap[k], np.inf)
                 stale[k] = True
                 if gain[k] <= 1e-12 * abs(val[k]):
                     active[k], done[k] = False, True
             else:
                 step[k] = float(np.clip(best, 0.05 * s, 0.5 * s)) if ok[i] and np.isfinite(best) else 0.25 * s
+                if ok[i]:  # a step the function refused (not the bounds or the branch): it bounds the next ones
+                    cap[k] = 0.5 * s
             if step[k] < 1e-8 and active[k]:  # no step down to 1e-8 improves: what a shorter one could gain
                 active[k], done[k] = False, True
+                kink[k] = slope[k] > 1e-8 * max(abs(val[k]), 1e-300)  # a slope left: a kink or a ridge
                 gain[k] = min(gain[k], slope[k] * step[k]) if np.isfinite(gain[k]) else slope[k] * step[k]
-    return _Paths(q, sense * val, gain, done, iters, floor, start)
+    return _Paths(q, sense * val, gain, done, iters, floor, start, kink)
+
+
+def _polish(space: _Space, objective: Objective, res: "_Paths", owner: list, sense: np.ndarray) -> None:
+    """Derivative-free polish of the best path of each function that stopped on a kink or a ridge (in place).
+
+    Where the function is the largest (or smallest) of smooth pieces, the extreme may lie on a ridge
+    where two of them are equal; a gradient method zig-zags across it and stops short.  There the
+    search continues without derivatives in the tangent coordinates of the manifold (the joints at a
+    bound held): bounded Brent along a one-dimensional tangent space, Nelder-Mead (which adapts its
+    simplex to a narrow valley) in more dimensions, every point brought back onto the closure.
+    """
+    from scipy.optimize import minimize, minimize_scalar
+
+    best: dict = {}
+    for k, (name, sg) in enumerate(zip(owner, sense)):
+        if np.isfinite(res.value[k]) and ((name, sg) not in best or sg * res.value[k] > sg * res.value[best[(name, sg)]]):
+            best[(name, sg)] = k
+    scale = space.scale
+    lo, hi = space.lo / scale, space.hi / scale
+    for k in best.values():
+        if res.kink is None or not res.kink[k]:
+            continue
+        q0 = res.q[k].copy()
+        _, jac = space.jacobian(q0[None])
+        low, high = space.at_bound(q0[None])
+        held = ~space.free | low[0] | high[0]
+        t = space.tangent(jac[0], held)
+        d = t.shape[1]
+        if d == 0:
+            continue
+        seen: dict = {}
+
+        def negative(c: np.ndarray, t=t, q0=q0, held=held, k=k) -> float:
+            key = tuple(np.round(c, 15))
+            if key not in seen:
+                z = q0 / scale + t @ c
+                if np.any(z < lo - 1e-12) or np.any(z > hi + 1e-12):
+                    seen[key] = (np.inf, None)
+                else:
+                    qq, ok = space.retract((z * scale)[None], held[None])
+                    zq = qq[0] / scale
+                    inside = np.all((zq >= lo - 1e-9) & (zq <= hi + 1e-9))
+                    if ok[0] and inside:
+                        seen[key] = (-sense[k] * float(objective.pick(qq, [owner[k]])[0]), qq[0])
+                    else:
+                        seen[key] = (np.inf, None)
+            return seen[key][0]
+
+        size = 1e-3
+        if d == 1:
+            r = minimize_scalar(lambda x: negative(np.array([x])), bounds=(-size, size), method="bounded",
+                                options={"xatol": 1e-10, "maxiter": 40})
+            x_best = np.array([r.x])
+        else:
+            simplex = np.vstack([np.zeros(d), size * np.eye(d)])
+            r = minimize(negative, np.zeros(d), method="Nelder-Mead",
+                         options={"initial_simplex": simplex, "xatol": 1e-10, "fatol": 1e-15 * abs(res.value[k]),
+                                  "maxiter": 40 * d, "maxfev": 40 * d})
+            x_best = r.x
+        value, qq = seen.get(tuple(np.round(x_best, 15)), (np.inf, None))
+        if qq is not None and -value * sense[k] > sense[k] * res.value[k]:
+            res.gain[k] = -value - sense[k] * res.value[k]
+            res.q[k], res.value[k] = qq, -value * sense[k]
 
 
 def _conclude(space: _Space, objective: Objective, name: str, kind: str, sign: float, sampled: float,

@@ -37,9 +37,10 @@ VERDICT_TEXT = {
 
 
 def parameter_class(parameter: dict) -> str:
-    """Verdict class of one parameter entry of an analysis JSON (``gauge`` maps to ``none``)."""
+    """Verdict class of one parameter entry of an analysis JSON (a normalisation component or a redundant shift,
+    ``gauge`` in older files, maps to ``none``)."""
     verdict = parameter.get("verdict")
-    if verdict == "gauge":
+    if verdict in ("gauge", "normalisation", "redundant"):
         return "none"
     if verdict == "free":
         return "free-influential" if parameter.get("influential") else "free-non-influent"
