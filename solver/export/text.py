@@ -167,6 +167,8 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
                 f"exact check (sympy, rationals): {exact.reason}; forced {', '.join(exact.forced) or 'none'}; "
                 + ("agrees with the numerical analysis" if agree else "DIFFERS from the numerical analysis")
             )
+            for rel in getattr(exact, "relations", []) if agree else []:
+                lines.append(f"  exact relation: {rel['text']}")
         else:
             lines.append(f"exact check unavailable: {exact.reason}")
     for w in result.warnings:

@@ -271,12 +271,14 @@ def _clean(c: float) -> float:
     return float(f"{c:.10g}")
 
 
-def format_terms(terms: dict, rhs: str | None = "0") -> str:
-    """``{"dc2": 1, "dc3": 1}`` -> ``dc2 + dc3 = 0`` (coefficients per mm or per rad)."""
+def format_terms(terms: dict, rhs: str | None = "0", digits: int = 6) -> str:
+    """``{"dc2": 1, "dc3": 1}`` -> ``dc2 + dc3 = 0`` (coefficients per mm or per rad, ``digits`` significant digits)."""
+    from hyperstat.solver.analysis.stationarity import _printed
+
     parts = []
     for i, (n, c) in enumerate(terms.items()):
         mag = abs(c)
-        coef = "" if mag == 1.0 else f"{mag:.6g}*"
+        coef = "" if mag == 1.0 else f"{_printed(c, digits)[0]}*"
         if i == 0:
             parts.append(f"-{coef}{n}" if c < 0 else f"{coef}{n}")
         else:
@@ -439,7 +441,7 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
         direction = np.zeros(len(names))
         direction[index[pivot]] = 1.0 / r.terms[pivot]
         units = {unit[n] for n in terms}
-        items.append(Tolerance("", "assembly", "relation", format_terms(terms), terms, list(terms),
+        items.append(Tolerance("", "assembly", "relation", format_terms(terms, digits=r.digits), terms, list(terms),
                                unit[pivot] if len(units) == 1 else unit[pivot], feature_of(list(terms)),
                                "relation between the defects of " + ", ".join(dict.fromkeys(where[n][0] for n in terms)),
                                "coupled defects: admissible only in this combination; breaking it loads the structure",
