@@ -139,7 +139,9 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
                              "value_source": it["value_source"], "feature": it["feature"],
                              "limiting": it["evidence"].get("assemblability", {}).get("limiting", []),
                              "analysis_only_value": it["evidence"].get("assemblability", {}).get("reference_value"),
-                             "worst_in": it["evidence"].get("assemblability", {}).get("worst_in")})
+                             "worst_in": it["evidence"].get("assemblability", {}).get("worst_in"),
+                             "where": it["evidence"].get("assemblability", {}).get("where"),
+                             "drawing_value": it.get("drawing_value"), "drawing": list(it.get("drawing") or [])})
     alloc = tol.get("allocation") or {}
     worst_cases = [{"allocation": key, "coefficient": name, "max": w["max"], "sampled_max": w["sampled_max"],
                     "optimiser_tolerance": w["optimiser_tolerance"], "location": w["location"], "where": w["where"],

@@ -53,7 +53,7 @@ PROBE = 1e-3
 #: the largest defect the simulation is trusted at (rad, or mm per length scale): the small-defect model
 VALIDITY = 1e-2
 #: configurations of the simulated calibration (evenly taken from the classification's, which span the workspace)
-CALIBRATION_POSES = 48
+CALIBRATION_POSES = 36
 #: configurations the compensated task error is measured at (evenly taken from the workspace sample)
 TASK_POSES = 40
 #: the largest share of the task configurations a compensated machine may miss (its reachable set moved: the
@@ -279,7 +279,7 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     worst, unreached, limiting_kind = {}, 0, None
     # from the probe (scale 1) up, each step by what the residual left so far allows (a residual of second order
     # grows as the square of the scale), every scale checked by simulation; a refused one is bisected
-    good, bad, scale = 0.0, np.inf, 1.0
+    good, bad, scale, missed = 0.0, np.inf, 1.0, False
     for _ in range(6):
         if noise_bound:
             break
@@ -291,7 +291,9 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
         ratio, kind = min(((math.sqrt(b / found[k]) if found[k] > 0 else np.inf, k) for k, b in budget.items()),
                           default=(np.inf, None))
         if np.mean(~ok_c) > MISSED:  # the calibrated model misses the task poses: beyond what it can compensate
-            ratio = min(ratio, 0.5)
+            ratio, missed = min(ratio, 0.5), True
+        elif ratio < 1.0:
+            missed = False
         if ratio >= 1.0:  # within the budget: verified
             good, worst, unreached, limiting_kind = scale, found, int(np.sum(~ok_c)), kind
             if ratio <= 1.15 or np.all(values >= cap):  # within 15 % of the budget: close enough, on the safe side
@@ -342,10 +344,12 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     for i, t in enumerate(items):
         a = int(which[i])
         actuator = m.joints[m.actuated[a]].name
-        limits = {"second-order residual": float(second[i]),
-                  ("actuator stroke" if has_margin[a] else "workspace loss"): float(stroke[i])}
-        if math.isfinite(task_limit[i]) and task_limit[i] < limits.get("workspace loss", np.inf):
-            limits["workspace loss"] = float(task_limit[i])
+        limits: dict = {}
+        for key, v in ((("workspace loss" if missed and not capped[i] else "second-order residual"), second[i]),
+                       (("actuator stroke" if has_margin[a] else "workspace loss"), stroke[i]),
+                       ("workspace loss", task_limit[i])):
+            if math.isfinite(v):
+                limits[key] = min(limits.get(key, np.inf), float(v))
         if noise_bound:
             value, limit = 0.0, "identification noise"
             words = ("identification noise: the calibration's 3-sigma task error from the declared noise "
@@ -354,7 +358,11 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
         else:
             limit = min(limits, key=limits.get)
             value = limits[limit]
-            if limit == "second-order residual" and capped[i]:
+            if limit == "workspace loss" and missed and limits[limit] == float(second[i]):
+                words = (f"workspace loss: beyond it the calibrated machines (nine simulated, every compensable defect "
+                         f"at its value) miss more than {100 * MISSED:g} % of the task poses over the workspace sample: "
+                         "the reachable task space moves by the defects")
+            elif limit == "second-order residual" and capped[i]:
                 words = (f"second-order residual: simulated only up to {VALIDITY:g} rad or {VALIDITY:g} of the length "
                          f"scale ({VALIDITY * ls:.3g} mm), where the nine calibrated machines still keep the spec "
                          "(the small-defect model is not trusted beyond)")
@@ -370,7 +378,7 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
                 words = (f"actuator stroke: compensating it moves actuator {actuator} by {per_actuator[a, i]:.3g} "
                          f"{unit_of(a)} per unit, within the {margin[a]:.3g} {unit_of(a)} its range leaves around the "
                          "workspace")
-            elif limits["workspace loss"] == float(task_limit[i]):
+            elif math.isfinite(task_limit[i]) and limits["workspace loss"] == float(task_limit[i]):
                 words = (f"workspace loss: at the task's dead centres the actuators cannot follow it, and the reachable "
                          f"task space moves by {loss_task[i]:.3g} per unit; the loss is held to "
                          f"{100 * WORKSPACE_LOSS:g} % of the task's extent ({WORKSPACE_LOSS * extent:.3g}, assumed)")

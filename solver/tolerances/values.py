@@ -341,7 +341,7 @@ def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, s
             return pos if pos.shape[1] else rot
 
         objective = LinearWorstCase(rows, values)
-        found = search_extremes(kin, objective, q, workspace, starts=1)
+        found = search_extremes(kin, objective, q, workspace, starts=1, structured=1)
         unit = "mm" if task_rows(decl.task, np.eye(4)[None]).shape[1] > n_rot else "rad"
         spec = spec_p if unit == "mm" else spec_o
         att, tri = found.get(("attainable", "max")), found.get(("triangle", "max"))
@@ -389,8 +389,9 @@ def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinemat
     -------
     dict
         ``samples``, statistics of the task errors (mm, rad), ``out_of_spec_*_percent`` for both
-        machines, ``linear_worst_case`` (triangle-inequality bound over the sample, every
-        tolerance at its extreme, mm / rad), and ``contributors`` by tolerance id, sorted
+        machines, ``linear_worst_case`` (the triangle bound over the sample, every tolerance at its
+        extreme and every effect adding up, mm / rad), ``attainable_linear_worst_case`` (the worst
+        sign pattern), and ``contributors`` by tolerance id, sorted
         by position share.
     """
     from hyperstat.solver.tolerances.montecarlo import monte_carlo
@@ -412,11 +413,20 @@ def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinemat
     for c in out["contributors"]:
         c["label"] = label.get(c["parameter"], c["parameter"])
     out["contributors"].sort(key=lambda c: -c["position_share"])
+    from hyperstat.solver.tolerances.bounds import attainable, triangle
+
     rot, pos = task_maps(mechanism, kin, configurations, decl.task, matrix)
     vals = np.array([tol[n] for n in names])
+    # named for what they are (over the Monte Carlo's configurations): the triangle bound (every tolerance at
+    # its extreme and every effect adding up, which no machine need reach) and the attainable worst case
     out["linear_worst_case"] = {
-        "position_mm": float(np.max(np.linalg.norm(pos, axis=1) @ vals)) if pos.shape[1] else None,
-        "orientation_rad": float(np.max(np.linalg.norm(rot, axis=1) @ vals)) if rot.shape[1] else None}
+        "position_mm": float(np.max(triangle(pos * vals))) if pos.shape[1] else None,
+        "orientation_rad": float(np.max(triangle(rot * vals))) if rot.shape[1] else None,
+        "meaning": "triangle bound: every tolerance at its extreme with every effect adding up"}
+    out["attainable_linear_worst_case"] = {
+        "position_mm": float(np.max(attainable(pos * vals))) if pos.shape[1] else None,
+        "orientation_rad": float(np.max(attainable(rot * vals))) if rot.shape[1] else None,
+        "meaning": "the worst sign pattern of the tolerances at their values, at the worst configuration sampled"}
     crit = [t for t in drawn if t.cls == "accuracy-critical"]
     calibrated = {}
     if crit:

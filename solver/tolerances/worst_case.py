@@ -548,7 +548,8 @@ def _dead_centres(kin: Kinematics, ws: Workspace, brackets: list, iterations: in
 # ---------------------------------------------------------------------------------------------- the search
 def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, workspace: Workspace | None = None,
                     kinds: tuple = ("max",), starts: int = 3, iterations: int = 40, names: tuple | None = None,
-                    sampled: dict | None = None, candidates: bool = True, margin: float = MARGIN) -> dict:
+                    sampled: dict | None = None, candidates: bool = True, margin: float = MARGIN,
+                    structured: int = 2) -> dict:
     """Extremes of ``objective`` over the workspace (see the module docstring).
 
     Parameters
@@ -564,8 +565,9 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
     kinds : tuple
         ``"max"`` and/or ``"min"``.
     starts : int
-        Local searches per extreme from the best separate configurations of the sample, plus two from
-        the best corners, edge points and face centres each and one from the best dead centre.
+        Local searches per extreme from the best separate configurations of the sample, plus
+        ``structured`` from the best corners, edge points and face centres each and one from the best
+        dead centre.
     iterations : int
         Largest number of iterations of a search path.
     names : tuple, optional
@@ -576,6 +578,8 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
         Add the corners, edges and dead centres of :func:`workspace_candidates` to the sample.
     margin : float
         Passive bounds are moved inwards by this much (rad, or times the length scale in mm).
+    structured : int
+        Local searches from the best corners, edge points and face centres (each).
 
     Returns
     -------
@@ -624,7 +628,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
             chosen: list = []
             order = np.argsort(-sv)
             for category in ("sample", "corner", "edge", "face", "dead centre"):  # the best separate ones of each kind
-                limit = starts if category == "sample" else (1 if category == "dead centre" else 2)
+                limit = starts if category == "sample" else (1 if category == "dead centre" else structured)
                 taken = 0
                 for i in order:
                     if taken == limit or not np.isfinite(sv[i]):
@@ -804,23 +808,24 @@ def _ascend(space: _Space, objective: Objective, q: np.ndarray, owner: list, sen
     return _Paths(q, sense * val, gain, done, iters, floor, start, kink)
 
 
-def _polish(space: _Space, objective: Objective, res: "_Paths", owner: list, sense: np.ndarray) -> None:
+def _polish(space: _Space, objective: Objective, res: "_Paths", owner: list, sense: np.ndarray,
+            size: float = 1e-3, iterations: int = 60) -> None:
     """Derivative-free polish of the best path of each function that stopped on a kink or a ridge (in place).
 
     Where the function is the largest (or smallest) of smooth pieces, the extreme may lie on a ridge
     where two of them are equal; a gradient method zig-zags across it and stops short.  There the
-    search continues without derivatives in the tangent coordinates of the manifold (the joints at a
-    bound held): bounded Brent along a one-dimensional tangent space, Nelder-Mead (which adapts its
-    simplex to a narrow valley) in more dimensions, every point brought back onto the closure.
+    search continues by Nelder-Mead (its simplex adapts to a narrow valley) in the tangent coordinates
+    of the manifold at the path's end (the joints at a bound held), every point brought back onto the
+    closure; the simplices of all the paths advance together, one batched evaluation per phase
+    (reflection; expansion or contraction; shrink).
     """
-    from scipy.optimize import minimize, minimize_scalar
-
     best: dict = {}
     for k, (name, sg) in enumerate(zip(owner, sense)):
         if np.isfinite(res.value[k]) and ((name, sg) not in best or sg * res.value[k] > sg * res.value[best[(name, sg)]]):
             best[(name, sg)] = k
     scale = space.scale
     lo, hi = space.lo / scale, space.hi / scale
+    paths = []  # (k, q0, tangent basis, held)
     for k in best.values():
         if res.kink is None or not res.kink[k]:
             continue
@@ -829,42 +834,92 @@ def _polish(space: _Space, objective: Objective, res: "_Paths", owner: list, sen
         low, high = space.at_bound(q0[None])
         held = ~space.free | low[0] | high[0]
         t = space.tangent(jac[0], held)
-        d = t.shape[1]
-        if d == 0:
-            continue
-        seen: dict = {}
+        if t.shape[1]:
+            paths.append((k, q0, t, held))
+    if not paths:
+        return
+    found = {k: (np.inf, None) for k, *_ in paths}  # the best (value to minimise, configuration) of each path
 
-        def negative(c: np.ndarray, t=t, q0=q0, held=held, k=k) -> float:
-            key = tuple(np.round(c, 15))
-            if key not in seen:
-                z = q0 / scale + t @ c
-                if np.any(z < lo - 1e-12) or np.any(z > hi + 1e-12):
-                    seen[key] = (np.inf, None)
-                else:
-                    qq, ok = space.retract((z * scale)[None], held[None])
-                    zq = qq[0] / scale
-                    inside = np.all((zq >= lo - 1e-9) & (zq <= hi + 1e-9))
-                    if ok[0] and inside:
-                        seen[key] = (-sense[k] * float(objective.pick(qq, [owner[k]])[0]), qq[0])
-                    else:
-                        seen[key] = (np.inf, None)
-            return seen[key][0]
+    def evaluate(points: list) -> np.ndarray:
+        """``-sense * f`` at the tangent coordinates ``points[i] = (path index, c)``; inf outside or unclosed."""
+        out = np.full(len(points), np.inf)
+        zs, helds, which = [], [], []
+        for i, (j, c) in enumerate(points):
+            k, q0, t, held = paths[j]
+            z = q0 / scale + t @ c
+            if np.all(z >= lo - 1e-12) and np.all(z <= hi + 1e-12):
+                zs.append(z * scale)
+                helds.append(held)
+                which.append(i)
+        if not which:
+            return out
+        qq, ok = space.retract(np.array(zs), np.array(helds))
+        zq = qq / scale
+        ok &= np.all((zq >= lo - 1e-9) & (zq <= hi + 1e-9), axis=1)
+        if ok.any():
+            rows = np.nonzero(ok)[0]
+            ks = [paths[points[which[r]][0]][0] for r in rows]
+            vals = -sense[ks] * objective.pick(qq[rows], [owner[k] for k in ks])
+            for r, v in zip(rows, vals):
+                i = which[r]
+                out[i] = v
+                k = paths[points[i][0]][0]
+                if v < found[k][0]:
+                    found[k] = (float(v), qq[r].copy())
+        return out
 
-        size = 1e-3
-        if d == 1:
-            r = minimize_scalar(lambda x: negative(np.array([x])), bounds=(-size, size), method="bounded",
-                                options={"xatol": 1e-10, "maxiter": 40})
-            x_best = np.array([r.x])
-        else:
-            simplex = np.vstack([np.zeros(d), size * np.eye(d)])
-            r = minimize(negative, np.zeros(d), method="Nelder-Mead",
-                         options={"initial_simplex": simplex, "xatol": 1e-10, "fatol": 1e-15 * abs(res.value[k]),
-                                  "maxiter": 40 * d, "maxfev": 40 * d})
-            x_best = r.x
-        value, qq = seen.get(tuple(np.round(x_best, 15)), (np.inf, None))
-        if qq is not None and -value * sense[k] > sense[k] * res.value[k]:
-            res.gain[k] = -value - sense[k] * res.value[k]
-            res.q[k], res.value[k] = qq, -value * sense[k]
+    simplices = [np.vstack([np.zeros(t.shape[1]), size * np.eye(t.shape[1])]) for _, _, t, _ in paths]
+    flat = evaluate([(j, x) for j, sx in enumerate(simplices) for x in sx])
+    values, pos = [], 0
+    for sx in simplices:
+        values.append(flat[pos:pos + len(sx)])
+        pos += len(sx)
+    live = list(range(len(paths)))
+    for _ in range(iterations):
+        live = [j for j in live if np.ptp(values[j]) > 1e-15 * max(abs(values[j].min()), 1e-300)
+                and np.max(np.linalg.norm(simplices[j][1:] - simplices[j][0], axis=1)) > 1e-10]
+        if not live:
+            break
+        for j in live:
+            order = np.argsort(values[j])
+            simplices[j], values[j] = simplices[j][order], values[j][order]
+        cents = {j: simplices[j][:-1].mean(axis=0) for j in live}
+        refl = {j: 2 * cents[j] - simplices[j][-1] for j in live}
+        f_r = dict(zip(live, evaluate([(j, refl[j]) for j in live])))
+        second, shrink = [], []
+        for j in live:
+            f, x = values[j], simplices[j]
+            if f_r[j] < f[0]:
+                second.append((j, "expand", cents[j] + 2 * (refl[j] - cents[j])))
+            elif f_r[j] < f[-2]:
+                x[-1], f[-1] = refl[j], f_r[j]
+            elif f_r[j] < f[-1]:
+                second.append((j, "outside", cents[j] + 0.5 * (refl[j] - cents[j])))
+            else:
+                second.append((j, "inside", cents[j] - 0.5 * (cents[j] - x[-1])))
+        f_s = evaluate([(j, c) for j, _, c in second]) if second else []
+        for (j, kind, c), fc in zip(second, f_s):
+            f, x = values[j], simplices[j]
+            if kind == "expand":
+                x[-1], f[-1] = (c, fc) if fc < f_r[j] else (refl[j], f_r[j])
+            elif fc <= (f_r[j] if kind == "outside" else f[-1]):
+                x[-1], f[-1] = c, fc
+            else:
+                shrink.append(j)
+        if shrink:
+            pts = [(j, simplices[j][0] + 0.5 * (x - simplices[j][0])) for j in shrink for x in simplices[j][1:]]
+            f_h = evaluate(pts)
+            pos = 0
+            for j in shrink:
+                n = len(simplices[j]) - 1
+                simplices[j][1:] = np.array([c for _, c in pts[pos:pos + n]])
+                values[j][1:] = f_h[pos:pos + n]
+                pos += n
+    for k, (value, q) in found.items():
+        gain = -value - sense[k] * res.value[k]  # value minimised is -sense f
+        if q is not None and gain > 0:
+            res.gain[k] = gain
+            res.q[k], res.value[k] = q, -value * sense[k]
 
 
 def _conclude(space: _Space, objective: Objective, name: str, kind: str, sign: float, sampled: float,

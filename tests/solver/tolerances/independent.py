@@ -230,6 +230,33 @@ class OwnModel:
             ok &= res < 1e-8
         return q, ok
 
+    def _probes(self, qs: np.ndarray, directions: list, h: float, h_play: float | None = None):
+        """Central-difference probes at each of ``qs``: the passive joints, the plays (when ``h_play``), the directions.
+
+        Returns (configurations (M, n), defects [{parameter: value}], plays [{(joint, component): value}]),
+        in pairs +step, -step.
+        """
+        probes_q, probes_d, probes_p = [], [], []
+
+        def add(q, defects=None, plays=None):
+            probes_q.append(q)
+            probes_d.append(defects or {})
+            probes_p.append(plays or {})
+
+        for q in qs:
+            for i in self.passive:
+                for sgn in (1, -1):
+                    qq = q.copy()
+                    qq[i] += sgn * h
+                    add(qq)
+            for key in (self.plays if h_play is not None else ()):
+                for sgn in (1, -1):
+                    add(q, plays={(key[0], key[1]): sgn * h_play})
+            for direction in directions:
+                for sgn in (1, -1):
+                    add(q, defects={n: sgn * h * c for n, c in direction.items()})
+        return np.array(probes_q), probes_d, probes_p
+
     def task_jacobian(self, q: np.ndarray, directions: list, h: float = 1e-6) -> np.ndarray:
         """Output position per unit of each direction, the passive joints following (K, 3, n), mm per unit.
 
@@ -237,19 +264,7 @@ class OwnModel:
         ``dp/dxi - dp/dq_p (dr/dq_p)^+ dr/dxi``.
         """
         k, n_p = len(q), len(self.passive)
-        probes, defects = [], []
-        for qq in q:
-            for i in self.passive:
-                for sgn in (1, -1):
-                    x = qq.copy()
-                    x[i] += sgn * h
-                    probes.append(x)
-                    defects.append({})
-            for d in directions:
-                for sgn in (1, -1):
-                    probes.append(qq)
-                    defects.append({name: sgn * h * c for name, c in d.items()})
-        probes = np.array(probes)
+        probes, defects, _ = self._probes(q, directions, h)
         r = self.residual(probes, defects)
         p = self.output(probes, defects)[:, :3, 3]
         n_c = n_p + len(directions)
@@ -269,26 +284,9 @@ class OwnModel:
         """
         h, h_play = 1e-6, 1e-3
         qs = np.atleast_2d(qs)
-        probes_q, probes_d, probes_p = [], [], []
-        for q in qs:
-            for i in self.passive:
-                for sgn in (1, -1):
-                    qq = q.copy()
-                    qq[i] += sgn * h
-                    probes_q.append(qq)
-                    probes_d.append({})
-                    probes_p.append({})
-            for key in self.plays:  # a play of 1e-3 of the clearance: nanometres, far above the round-off
-                for sgn in (1, -1):
-                    probes_q.append(q)
-                    probes_d.append({})
-                    probes_p.append({(key[0], key[1]): sgn * h_play})
-            for direction in directions:
-                for sgn in (1, -1):
-                    probes_q.append(q)
-                    probes_d.append({n: sgn * h * c for n, c in direction.items()})
-                    probes_p.append({})
-        r = self.residual(np.array(probes_q), probes_d, probes_p)
+        # a play of 1e-3 of the clearance: nanometres, far above the round-off
+        probes_q, probes_d, probes_p = self._probes(qs, directions, h, h_play)
+        r = self.residual(probes_q, probes_d, probes_p)
         n_p, n_y, n_d = len(self.passive), len(self.plays), len(directions)
         steps = np.r_[np.full(n_p, h), np.full(n_y, h_play), np.full(n_d, h)]
         jac = ((r[0::2] - r[1::2]).reshape(len(qs), n_p + n_y + n_d, -1) / (2 * steps[None, :, None])).transpose(0, 2, 1)

@@ -18,33 +18,20 @@ import warnings
 import numpy as np
 import pytest
 
-from hyperstat.cad_plugin.templates import build_template
-from hyperstat.solver.analysis.stationarity import analyze
 from hyperstat.solver.calibration.identify import MeasurementModel, _column_scale, base_parameters, identify
 from hyperstat.solver.calibration.measurements import MeasurementSet, NoiseModel
-from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.frames import so3_log
 from hyperstat.solver.tolerances.accuracy import output_twist_maps, sample_workspace
-from hyperstat.solver.tolerances.classification import classify
 from hyperstat.solver.tolerances.declaration import task_rows
-from hyperstat.solver.tolerances.values import assign_values
 
-from tests.conftest import TEMPLATES
+from tests.solver.tolerances.common import classified
 
 LIMITS = ("second-order residual", "identification noise", "actuator stroke", "workspace loss")
 
 
 @pytest.fixture(scope="module")
 def tripteor():
-    mech = build_template(TEMPLATES / "tripteor_x7.py").mechanism()
-    kin = Kinematics(mech)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = analyze(mech, kinematics=kin)
-        cl = classify(mech, result, kin)
-        q = sample_workspace(mech, 200, seed=0, kinematics=kin)
-        assign_values(cl, mech, kin, q, assembly=False)
-    return mech, kin, result, cl
+    return classified("tripteor_x7", values=True, assembly=False)
 
 
 def test_every_compensable_tolerance_has_a_calibrated_value_and_its_binding_limit(tripteor):

@@ -24,6 +24,7 @@ from hyperstat.solver.tolerances.clearance import (POLYGON_SIDES, assembly_toler
 from hyperstat.solver.tolerances.declaration import declaration_of, parse_declaration
 
 from tests.conftest import TEMPLATES
+from tests.solver.tolerances.common import classified
 
 
 @pytest.fixture(scope="module")
@@ -180,12 +181,7 @@ def test_the_supports_polygons_are_inscribed_in_the_discs_of_play(slider):
 
 def test_tripteor_relation_and_shift_confirmed_nonlinearly():
     """The out-of-plane relation (with db53) and the forced dc13 of the Tripteor, declared machine-tool bearings."""
-    mech = build_template(TEMPLATES / "tripteor_x7.py").mechanism()
-    kin = Kinematics(mech)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = analyze(mech, kinematics=kin)
-    cl = classify(mech, result, kin)
+    mech, kin, result, cl = classified("tripteor_x7")
     items = [t for t in cl.by_class("assembly") if t.statement == "dc13 = 0" or "db53" in t.terms]
     assert len(items) == 2
     model = clearance_model(mech, cl.declaration)

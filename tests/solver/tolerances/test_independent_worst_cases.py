@@ -16,20 +16,12 @@ from __future__ import annotations
 
 import itertools
 import math
-import warnings
 
 import numpy as np
-import pytest
 
-from hyperstat.cad_plugin.templates import build_template
-from hyperstat.solver.analysis.stationarity import analyze
-from hyperstat.solver.kinematics.closure import Kinematics
-from hyperstat.solver.tolerances.accuracy import sample_workspace
-from hyperstat.solver.tolerances.classification import classify
-from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values
 from hyperstat.solver.tolerances.workspace import workspace_of
 
-from tests.conftest import TEMPLATES
+from tests.solver.tolerances.common import classified
 from tests.solver.tolerances.independent import OwnModel
 
 NOISE = 1e-6  # relative round-off of the independent central differences
@@ -37,14 +29,7 @@ NOISE = 1e-6  # relative round-off of the independent central differences
 
 def _stated(name: str):
     """The tolerances with their values, as the report computes them."""
-    mech = build_template(TEMPLATES / f"{name}.py").mechanism()
-    kin = Kinematics(mech)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = analyze(mech, kinematics=kin)
-        cl = classify(mech, result, kin)
-        q = sample_workspace(mech, 200, seed=0, kinematics=kin)
-        assign_values(cl, mech, kin, q, assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
+    mech, kin, result, cl = classified(name, values=True)
     own = OwnModel(mech, {j.name: cl.declaration.clearance(j.name, j.type) for j in mech.joints})
     names = [p.name for p in mech.parameters]
     directions = {t.id: {names[i]: float(t.direction[i]) for i in np.nonzero(t.direction)[0]}

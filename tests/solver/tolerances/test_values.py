@@ -25,6 +25,7 @@ from hyperstat.solver.tolerances.clearance import AssemblyConditions, _solve, _c
 from hyperstat.solver.tolerances.values import assign_values
 
 from tests.conftest import TEMPLATES
+from tests.solver.tolerances.common import classified
 
 
 def _setup(name: str, n: int = 200):
@@ -122,12 +123,7 @@ def test_tripteor_workspace_assembly_values_are_confirmed_nonlinearly_at_their_w
     from hyperstat.solver.tolerances.classification import workspace_checkpoints
     from hyperstat.solver.tolerances.clearance import confirm_nonlinear
 
-    mech = build_template(TEMPLATES / "tripteor_x7.py").mechanism()
-    kin = Kinematics(mech)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = analyze(mech, kinematics=kin)
-    cl = classify(mech, result, kin)
+    mech, kin, result, cl = classified("tripteor_x7")
     sample, corners = workspace_checkpoints(mech, kin)
     qa = np.vstack([result.configurations[:8], sample, corners])
     model = clearance_model(mech, cl.declaration)

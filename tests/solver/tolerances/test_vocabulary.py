@@ -10,17 +10,13 @@ say "gauge".
 from __future__ import annotations
 
 import json
-import warnings
 
 import pytest
 
-from hyperstat.cad_plugin.templates import build_template
-from hyperstat.solver.analysis.stationarity import analyze
 from hyperstat.solver.export.report_content import report_document
-from hyperstat.solver.kinematics.closure import Kinematics
-from hyperstat.solver.tolerances.classification import CLASSES, classify
+from hyperstat.solver.tolerances.classification import CLASSES
 
-from tests.conftest import TEMPLATES
+from tests.solver.tolerances.common import classified
 
 PARAMETER_CLASSES = set(CLASSES) | {"redundant", "normalisation"}
 NEVER = {"gauge", "forced", "coupled", "free", "none"}
@@ -29,12 +25,7 @@ NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_
 
 @pytest.mark.parametrize("name", NAMES)
 def test_every_parameter_has_one_class_from_the_vocabulary_everywhere(name):
-    mech = build_template(TEMPLATES / f"{name}.py").mechanism()
-    kin = Kinematics(mech)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = analyze(mech, kinematics=kin)
-        cl = classify(mech, result, kin)
+    mech, kin, result, cl = classified(name)
     doc = json.loads(json.dumps(report_document(mech, {"source": name}, result, tolerances=cl), default=str))
     analysis = json.loads(json.dumps(result.to_dict(), default=str))
     assert "gauge" not in json.dumps(doc) and "gauge" not in json.dumps(analysis)
