@@ -56,6 +56,11 @@ VALIDITY = 1e-2
 CALIBRATION_POSES = 36
 #: configurations the compensated task error is measured at (evenly taken from the workspace sample)
 TASK_POSES = 40
+#: singular values of the nominal measurement design below this share of the largest are directions the
+#: measurements do not see (round-off: the hexapod's gap is 1e-16 against 1e-2)
+IDENTIFIABLE = 1e-8
+#: compensation steps with the nominal machine's actuator map before the fitted model's own (Newton)
+CHORD_STEPS = 6
 #: the largest share of the task configurations a compensated machine may miss (its reachable set moved: the
 #: workspace's edge); more, and the defects are refused
 MISSED = 0.05
@@ -65,14 +70,22 @@ def _targets(decl) -> np.ndarray:
     return np.asarray(decl.targets_mm, dtype=float)
 
 
-def _measure(kin: Kinematics, q: np.ndarray, xi: np.ndarray, decl) -> np.ndarray:
-    """Measured rows (K, 3 n_t [+ 3]): every target's position (mm), plus the orientation for ``poses``."""
+def _measure(kin: Kinematics, q: np.ndarray, xi: np.ndarray, decl) -> tuple[np.ndarray, np.ndarray | None]:
+    """Measured positions (K, 3 n_t) of every target (mm), and the output rotations (K, 3, 3) for ``poses``."""
     pose = kin.evaluate(q, xi, jacobians=False).output_pose
-    out = [pose[:, :3, :3] @ t + pose[:, :3, 3] for t in _targets(decl)]
-    if decl.measurement_kind == "poses":
-        from hyperstat.solver.kinematics.frames import so3_log
+    points = np.concatenate([pose[:, :3, :3] @ t + pose[:, :3, 3] for t in _targets(decl)], axis=1)
+    return points, (pose[:, :3, :3] if decl.measurement_kind == "poses" else None)
 
-        out.append(so3_log(pose[:, :3, :3]))
+
+def _misfit(measured: tuple, predicted: tuple, ls: float) -> np.ndarray:
+    """Measured minus predicted rows (K, 3 n_t [+ 3]), dimensionless: positions per length scale, and for ``poses``
+    the rotation taking the predicted orientation to the measured one (rad, in the base frame: the rows of the
+    measurement maps)."""
+    from hyperstat.solver.kinematics.frames import so3_log
+
+    out = [(measured[0] - predicted[0]) / ls]
+    if measured[1] is not None:
+        out.append(so3_log(measured[1] @ np.swapaxes(predicted[1], 1, 2)))
     return np.concatenate(out, axis=1)
 
 
@@ -102,7 +115,7 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     pscale = kin.parameter_scale
     basis = analysis.admissible_basis  # dimensionless
     n_s = basis.shape[1]
-    act = m.actuated
+    act = np.asarray(m.actuated)
 
     def assembled(q0: np.ndarray, xi: np.ndarray) -> np.ndarray:
         return kin.assemble(q0, xi).q
@@ -110,58 +123,89 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     # the true machines' measurements
     qc = np.tile(q_cal, (n_m, 1))
     xc = np.repeat(xi_true, k_c, axis=0)
-    y = _measure(kin, assembled(qc, xc), xc, decl).reshape(n_m, -1)
+    qe = assembled(qc, xc)
+    y = _measure(kin, qe, xc, decl)
     # Gauss-Newton over (admissible coordinates, nuisances); the nuisances enter linearly (tracker frame as a
-    # small rigid motion, offsets in the output frame), so their columns are those of the analysis' design
-    est = np.zeros((n_m, n_s))
-    nuis = None  # the nuisances' estimate (tracker frame, target offsets): their effect is linear in them
-    for _ in range(iterations):
-        xi_est = (basis @ est.T).T * pscale[None, :]
+    # small rigid motion, offsets in the output frame), so their columns are those of the analysis' design.  The
+    # fit runs over the combinations the measurements see on the nominal machine (the identifiable subspace, as
+    # identify fits them); a direction they do not see stays at zero.  Orientation rows compare rotations (the
+    # rotation from the predicted to the measured one), as the measurement maps' rows do.  The first step starts
+    # from the nominal machine, whose configurations and maps are known (one design for every machine)
+    st0 = kin.evaluate(q_cal, None, jacobians=True)
+    meas0, nuis0, _ = _measurement_maps(decl, st0, output_twist_maps(kin, st0)[0], ls, pscale)
+    design = np.concatenate([(meas0 @ basis).reshape(-1, n_s), nuis0.reshape(k_c * nuis0.shape[1], -1)], axis=1)
+    _, sv, vt = np.linalg.svd(design, full_matrices=False)
+    seen = vt[sv > IDENTIFIABLE * sv[0]].T if sv.size and sv[0] > 0 else np.zeros((design.shape[1], 0))
+    at_nominal = _measure(kin, q_cal, None, decl)
+    at_nominal = (np.tile(at_nominal[0], (n_m, 1)),
+                  None if at_nominal[1] is None else np.tile(at_nominal[1], (n_m, 1, 1)))
+    first = _misfit(y, at_nominal, ls).reshape(n_m, -1)
+    coef = np.linalg.lstsq(design @ seen, first.T, rcond=None)[0].T  # coordinates in the identifiable subspace
+    for _ in range(iterations - 1):  # then Gauss-Newton at the estimate, warm-started at the true machines
+        x = coef @ seen.T
+        xi_est = (basis @ x[:, :n_s].T).T * pscale[None, :]
         xe = np.repeat(xi_est, k_c, axis=0)
-        qe = assembled(qc, xe)
+        qe = assembled(qe, xe)
         st = kin.evaluate(qe, xe, jacobians=True)
         k_xi, _ = output_twist_maps(kin, st)
         meas_xi, nuisance, _ = _measurement_maps(decl, st, k_xi, ls, pscale)
-        pred = _measure(kin, qe, xe, decl).reshape(n_m, -1)
         jac = (meas_xi @ basis).reshape(n_m, k_c, -1, n_s).reshape(n_m, -1, n_s)
         nj = nuisance.reshape(n_m, k_c * nuisance.shape[1], -1)
-        scale_rows = _row_scale(decl, ls)
-        resid = (y - pred) * np.tile(scale_rows, k_c)[None, :]
-        if nuis is None:
-            nuis = np.zeros((n_m, nj.shape[2]))
-        resid -= np.einsum("krn,kn->kr", nj, nuis)
-        for i in range(n_m):
-            full = np.concatenate([jac[i], nj[i]], axis=1)
-            step = np.linalg.lstsq(full, resid[i], rcond=1e-10)[0]
-            est[i] += step[:n_s]
-            nuis[i] += step[n_s:]
-    xi_est = (basis @ est.T).T * pscale[None, :]
-    # compensation: actuators solved in the fitted model for the nominal task poses (Newton, steps capped)
+        resid = _misfit(y, _measure(kin, qe, xe, decl), ls).reshape(n_m, -1) - np.einsum("krn,kn->kr", nj, x[:, n_s:])
+        full = np.concatenate([jac, nj], axis=2) @ seen
+        coef += batched_lstsq(full, resid[..., None], damping=1e-14)[..., 0]
+    xi_est = (basis @ (coef @ seen.T)[:, :n_s].T).T * pscale[None, :]
+    # compensation: actuators solved in the fitted model for the nominal task poses, steps capped: chord steps with
+    # the nominal machine's actuator map (the same for every machine: no Jacobian per machine), then Newton steps
+    # with the fitted model's own map where the chord has not converged
     n_rot = n_rotation_rows(decl.task)
-    nominal = kin.evaluate(q_task, None, jacobians=False).output_pose
+    st_n = kin.evaluate(q_task, None, jacobians=True)
+    sel_n = task_rows(decl.task, st_n.output_pose)
+    rows_n = sel_n @ output_twist_maps(kin, st_n)[1]  # (K_t, r, n_a)
+    chord = np.tile(_damped_inverse(rows_n), (n_m, 1, 1))
+    goal = np.tile(st_n.output_pose, (n_m, 1, 1))
     qt = np.tile(q_task, (n_m, 1))
     xt = np.repeat(xi_est, k_t, axis=0)
-    goal = np.tile(nominal, (n_m, 1, 1))
     cap = 0.05 * kin.joint_scale[act]
-    for _ in range(iterations + 1):
-        qt = assembled(qt, xt)
-        st = kin.evaluate(qt, xt, jacobians=True)
-        _, k_a = output_twist_maps(kin, st)
-        sel = task_rows(decl.task, st.output_pose)
-        rows = sel @ k_a
-        rhs = -np.einsum("krs,ks->kr", sel, _pose_error(st.output_pose, goal))
-        da = batched_lstsq(rows, rhs[..., None], damping=1e-14)[..., 0]
-        qt[:, act] += da / np.maximum(np.max(np.abs(da) / cap, axis=1, keepdims=True), 1.0)
+    tscale = _task_scale(decl, ls)
+    todo = np.arange(len(qt))
+    for it in range(CHORD_STEPS + iterations):
+        qt[todo] = assembled(qt[todo], xt[todo])
+        if it < CHORD_STEPS:
+            pose = kin.evaluate(qt[todo], xt[todo], jacobians=False).output_pose
+            rhs = -np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal[todo]))
+            done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
+            da = np.einsum("kar,kr->ka", chord[todo], rhs)
+        else:  # Newton with the fitted model's map
+            st = kin.evaluate(qt[todo], xt[todo], jacobians=True)
+            sel = task_rows(decl.task, st.output_pose)
+            rhs = -np.einsum("krs,ks->kr", sel, _pose_error(st.output_pose, goal[todo]))
+            done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
+            da = batched_lstsq(sel @ output_twist_maps(kin, st)[1], rhs[..., None], damping=1e-14)[..., 0]
+        da = da / np.maximum(np.max(np.abs(da) / cap, axis=1, keepdims=True), 1.0)
+        qt[todo[~done][:, None], act[None, :]] += da[~done]
+        todo = todo[~done]
+        if not len(todo):
+            break
     qt = assembled(qt, xt)
-    reached = np.einsum("krs,ks->kr", task_rows(decl.task, kin.evaluate(qt, xt, False).output_pose),
-                        _pose_error(kin.evaluate(qt, xt, False).output_pose, goal))
-    reached = np.linalg.norm(reached * _task_scale(decl, kin.length_scale)[None, :], axis=1) <= 1e-9
+    pose = kin.evaluate(qt, xt, False).output_pose
+    reached = np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal))
+    reached = np.linalg.norm(reached * tscale[None, :], axis=1) <= 1e-9
     qt = assembled(qt, np.repeat(xi_true, k_t, axis=0))
     true_pose = kin.evaluate(qt, np.repeat(xi_true, k_t, axis=0), jacobians=False).output_pose
     err = np.einsum("krs,ks->kr", task_rows(decl.task, true_pose), _pose_error(true_pose, goal))
     pos = np.linalg.norm(err[:, n_rot:], axis=1).reshape(n_m, k_t)
     rot = np.linalg.norm(err[:, :n_rot], axis=1).reshape(n_m, k_t)
     return pos, rot, reached.reshape(n_m, k_t)
+
+
+def _damped_inverse(rows: np.ndarray, damping: float = 1e-14) -> np.ndarray:
+    """``(A^T A + lambda)^-1 A^T`` of each (r, n) matrix of a stack (K, r, n): the least-squares step's map (K, n, r)."""
+    at = np.swapaxes(rows, 1, 2)
+    ata = at @ rows
+    idx = np.arange(ata.shape[1])
+    ata[:, idx, idx] += damping * np.maximum(np.einsum("kii->ki", ata).max(axis=1), 1e-300)[:, None]
+    return np.linalg.solve(ata, at)
 
 
 def _task_scale(decl, ls: float) -> np.ndarray:
@@ -190,12 +234,6 @@ def regular_task(kin: Kinematics, decl, q: np.ndarray, floor: float = 1e-2, refe
     workspace loss."""
     smallest = _actuation(kin, decl, q)[4]
     return smallest >= floor * (float(np.median(smallest)) if reference is None else reference)
-
-
-def _row_scale(decl, ls: float) -> np.ndarray:
-    """Measurement rows in the design's units: positions per length scale, rotations in rad."""
-    n = 3 * len(decl.targets_mm)
-    return np.r_[np.full(n, 1.0 / ls), np.ones(3 if decl.measurement_kind == "poses" else 0)]
 
 
 def _pose_error(pose: np.ndarray, goal: np.ndarray) -> np.ndarray:
