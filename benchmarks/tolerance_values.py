@@ -1,10 +1,11 @@
 """CPU time of the tolerance stage of ``hyperstat report`` (units: seconds of process CPU time).
 
-Times, in one process after the imports, what the report's "tolerances and accuracy" stage adds
-for issue 19's workspace checks: the classification over the analysis configurations plus the
-workspace checkpoints, the allocation on refined worst cases (batched ascent), the same without
-refinement (sampled maxima), and the assemblability programme over the checkpoints.  CPU time
-(``time.process_time``), because the machine is shared.
+Times, in one process after the imports, each part of the report's "tolerances and accuracy" stage:
+the classification over the analysis configurations plus the workspace checkpoints; the allocation
+on the searched worst cases with the linear worst cases (bounds) of its allocations; the assembly
+conditions' values searched over the workspace; the compensable tolerances' values with calibration
+(simulated).  CPU time (``time.process_time``), because the machine is shared: quote the load average
+beside it.
 
 Usage::
 
@@ -28,6 +29,7 @@ def main(path: str) -> None:
     from hyperstat.solver.kinematics.closure import Kinematics
     from hyperstat.solver.tolerances.accuracy import sample_workspace
     from hyperstat.solver.tolerances.classification import classify
+    from hyperstat.solver.tolerances.calibrated import calibrated_values
     from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values
 
     warnings.simplefilter("ignore")
@@ -41,14 +43,16 @@ def main(path: str) -> None:
     cl = classify(mech, result, kin)
     rows.append(("classify (analysis + workspace checkpoints)", clock() - t))
     t = clock()
-    assign_values(cl, mech, kin, ws, assembly=False, refine=False)
-    rows.append(("allocation on sampled maxima", clock() - t))
+    assign_values(cl, mech, kin, ws, assembly=False, calibrate=False)
+    allocation = clock() - t
+    rows.append(("allocation on searched worst cases, bounds (+ re-check of the classes)", allocation))
     t = clock()
-    assign_values(cl, mech, kin, ws, assembly=False, refine=True)
-    rows.append(("allocation on refined worst cases (+ re-check of the classes)", clock() - t))
+    assign_values(cl, mech, kin, ws, calibrate=False, assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
+    rows.append(("assembly conditions searched over the workspace", clock() - t - allocation))
     t = clock()
-    assign_values(cl, mech, kin, ws, refine=False, assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
-    rows.append(("assemblability over the checkpoints (+ sampled allocation)", clock() - t))
+    calibrated_values(cl, mech, kin, ws, cl.declaration.position_mm, cl.declaration.orientation_rad,
+                      share=cl.allocation.get("second_order_share"))
+    rows.append(("values with calibration (simulated)", clock() - t))
     print(f"{mech.name}: {cl.checked['configurations']} configurations classified, "
           f"{cl.allocation.get('assembly_configurations')}")
     for name, s in rows:

@@ -29,14 +29,15 @@ TOLERANCING = {
     "task": ["position", "orientation"],
     "measurements": {"kind": "poses", "targets_mm": [[0.0, 0.0, 0.0]], "noise_mm": 0.005, "noise_rad": 1e-5},
     "spec": {"position_mm": 0.05, "orientation_rad": 1e-4},
-    "clearances": {"R": {"radial_mm": 0.005, "axial_mm": 0.005, "tilt_rad": 2e-4, "twist_rad": 0.0,
+    "clearances": {"R": {"radial_mm": 0.005, "axial_mm": 0.005, "span_mm": 50.0, "twist_rad": 0.0, "side": "fixed",
                          "source": "ISO 5753-1 Group 2 (C2) radial internal clearance of a deep groove ball bearing, "
-                                   "bore over 18 to 24 mm: 0 to 10 um, i.e. +-5 um radial play; tilt: two such "
+                                   "bore over 18 to 24 mm: 0 to 10 µm, i.e. +-5 µm radial play; tilt: two such "
                                    "bearings 50 mm apart (span assumed); axial play assumed equal to the radial; a "
                                    "preloaded bearing has none"},
-                   "P": {"radial_mm": 0.002, "axial_mm": 0.0, "tilt_rad": 2e-5, "twist_rad": 2e-5,
+                   "P": {"radial_mm": 0.002, "axial_mm": 0.0, "span_mm": 200.0, "twist_rad": 2e-5, "side": "fixed",
                          "source": "assumed (no public standard gives the play of a preloaded linear guide or ball "
-                                   "screw): 2 um and 20 urad"}},
+                                   "screw): 2 µm on two pads 200 mm apart in a guide at the joint's fixed frame (a leg "
+                                   "sliding through its base joint), so 20 µrad of tilt, and 20 µrad of twist"}},
 }
 
 @dataclass

@@ -41,7 +41,8 @@ from hyperstat.solver.errors import AnalysisError
 from hyperstat.solver.kinematics.model import Joint, Mechanism
 from hyperstat.solver.kinematics.sampling import sample_configurations
 
-__all__ = ["ParameterVerdict", "Relation", "StationarityResult", "analyze", "compare_samples", "gauge_parameters"]
+__all__ = ["ParameterVerdict", "Relation", "StationarityResult", "analyze", "compare_samples", "gauge_parameters",
+           "format_relation", "relations_span"]
 
 _ZERO = 1e-7  # threshold on dimensionless projections (they are 0 or O(1))
 
@@ -87,10 +88,15 @@ class ParameterVerdict:
 
 @dataclass
 class Relation:
-    """A linear relation ``sum terms[name] * name = 0`` that admissible defects satisfy."""
+    """A linear relation ``sum terms[name] * name = 0`` that admissible defects satisfy.
+
+    ``digits``: the significant digits ``text`` prints, as few as keep the printed relations on the
+    analysis' subspace to 1e-6 (:func:`relations_span`).
+    """
 
     terms: dict
     text: str
+    digits: int = 6
 
 
 @dataclass
@@ -187,8 +193,8 @@ class StationarityResult:
         return {
             "mechanism": self.mechanism,
             "units": {"length": "mm", "angle": "rad"},
-            "counts": self.counts(),
-            "parameters": [asdict(p) for p in self.parameters],
+            "counts": _public_counts(self.counts(), self.parameters),
+            "parameters": [_public_verdict(asdict(p)) for p in self.parameters],
             "relations": [{"terms": r.terms, "text": r.text} for r in self.relations],
             "rank": self.rank,
             "n_constraint_rows": self.n_constraint_rows,
@@ -205,6 +211,22 @@ class StationarityResult:
             "warnings": list(self.warnings),
             "stability": self.stability,
         }
+
+
+def _public_verdict(entry: dict) -> dict:
+    """One parameter of the JSON: a gauge is named for what it is, ``normalisation`` (an axis component along the
+    nominal axis) or ``redundant`` (a shift along a revolute's own axis, equal to the next element's)."""
+    if entry["verdict"] == "gauge":
+        entry["verdict"] = "normalisation" if entry["component"] in "IJK" else "redundant"
+    return entry
+
+
+def _public_counts(counts: dict, parameters: list) -> dict:
+    """The counts of the JSON, the gauges split into normalisation components and redundant shifts."""
+    out = {k: v for k, v in counts.items() if k != "gauge"}
+    out["normalisation"] = sum(p.verdict == "gauge" and p.component in "IJK" for p in parameters)
+    out["redundant"] = sum(p.verdict == "gauge" and p.component not in "IJK" for p in parameters)
+    return out
 
 
 def gauge_parameters(mechanism: Mechanism) -> dict[str, str]:
@@ -271,47 +293,119 @@ def _clean_coefficient(c: float) -> float:
     return float(f"{c:.10g}")
 
 
+#: a column becomes a relation's pivot only if its entry is at least this share of the largest entry left
+PIVOT_SHARE = 0.1
+
+
 def _relations(basis: np.ndarray, names: list[str], scale: np.ndarray) -> list[Relation]:
     """Readable relations from a basis of the constraint row space (dimensionless columns).
 
-    The basis is brought to reduced row-echelon form (pivots in parameter order), turned
-    into physical units (coefficients per rad or per mm) and cleaned of round-off.
+    Pivoted elimination (reduced row-echelon form) that prefers the parameters in their order
+    (the paper's way of writing them: ``dK21 - dK23 = 0``) but takes a column as a pivot only where
+    its entry is at least :data:`PIVOT_SHARE` of the largest entry left: a tiny pivot (a column the
+    rows reach only by round-off) would divide round-off into coefficients of 1e12 and print the same
+    relation several times.  The rows left without such a pivot in order take the largest entry left
+    (complete pivoting).  The rows are turned into physical units (coefficients per rad or per mm)
+    and cleaned of round-off; :func:`relations_span` checks that they span the basis at their
+    printed digits.
     """
     if basis.size == 0:
         return []
     mat = basis.copy()
     rows, cols = mat.shape
+    pivots: list[int] = []
+
+    def eliminate(r: int, col: int) -> None:
+        mat[r] /= mat[r, col]
+        for other in range(rows):
+            if other != r:
+                mat[other] -= mat[other, col] * mat[r]
+
     pivot_row = 0
     for col in range(cols):
         if pivot_row >= rows:
             break
-        p = pivot_row + int(np.argmax(np.abs(mat[pivot_row:, col])))
-        if abs(mat[p, col]) < 1e-9:
+        rest = np.abs(mat[pivot_row:])
+        top = float(rest.max()) if rest.size else 0.0
+        p = pivot_row + int(np.argmax(rest[:, col]))
+        if abs(mat[p, col]) < max(PIVOT_SHARE * top, 1e-9):
             continue
         mat[[pivot_row, p]] = mat[[p, pivot_row]]
-        mat[pivot_row] /= mat[pivot_row, col]
-        for r in range(rows):
-            if r != pivot_row:
-                mat[r] -= mat[r, col] * mat[pivot_row]
+        eliminate(pivot_row, col)
+        pivots.append(col)
+        pivot_row += 1
+    while pivot_row < rows:  # what parameter order left: complete pivoting on the rest
+        rest = np.abs(mat[pivot_row:])
+        rest[:, pivots] = 0.0
+        if rest.max() < 1e-9:
+            break
+        r, col = np.unravel_index(int(np.argmax(rest)), rest.shape)
+        mat[[pivot_row, pivot_row + r]] = mat[[pivot_row + r, pivot_row]]
+        eliminate(pivot_row, int(col))
+        pivots.append(int(col))
         pivot_row += 1
     out = []
     for row in mat[:pivot_row]:
+        # entries at the round-off of the analysis (below 1e-7 of the row's largest) are not terms: led by one, a
+        # relation would carry the inverse of round-off as its other coefficients
+        kept = np.nonzero(np.abs(row) > 1e-7 * float(np.max(np.abs(row))))[0]
         phys = row / scale  # coefficient per physical unit
-        lead = phys[np.nonzero(np.abs(row) > 1e-9)[0][0]]
-        phys = phys / lead
+        phys = phys / phys[kept[0]]
         terms = {}
-        for j in np.nonzero(np.abs(row) > 1e-9)[0]:
+        for j in kept:
             c = _clean_coefficient(float(phys[j]))
             if c != 0.0:
                 terms[names[j]] = c
-        parts = []
-        for i, (n, c) in enumerate(terms.items()):
-            sign = "-" if c < 0 else "+"
-            mag = abs(c)
-            coef = "" if mag == 1.0 else f"{mag:.6g}*"
-            parts.append((f"-{coef}{n}" if sign == "-" else f"{coef}{n}") if i == 0 else f" {sign} {coef}{n}")
-        out.append(Relation(terms, "".join(parts) + " = 0"))
+        out.append(Relation(terms, format_relation(terms)))
     return out
+
+
+def _printed(c: float, digits: int) -> tuple[str, float]:
+    """A coefficient as printed (a fraction of denominator up to 1000 when it is one, else ``digits`` significant
+    digits) and the value that text stands for."""
+    frac = Fraction(c).limit_denominator(1000)
+    if frac.denominator > 1 and abs(float(frac) - c) <= 1e-12 * max(1.0, abs(c)):
+        return f"{abs(frac.numerator)}/{frac.denominator}", float(frac)
+    text = f"{abs(c):.{digits}g}"
+    return text, float(text) if c >= 0 else -float(text)
+
+
+def format_relation(terms: dict, digits: int = 6) -> str:
+    """``{"dK21": 1, "dK23": -1}`` -> ``dK21 - dK23 = 0`` (coefficients with ``digits`` significant digits, or as
+    fractions when they are)."""
+    parts = []
+    for i, (n, c) in enumerate(terms.items()):
+        sign = "-" if c < 0 else "+"
+        mag = abs(c)
+        coef = "" if mag == 1.0 else f"{_printed(c, digits)[0]}*"
+        parts.append((f"-{coef}{n}" if sign == "-" else f"{coef}{n}") if i == 0 else f" {sign} {coef}{n}")
+    return "".join(parts) + " = 0"
+
+
+def relations_span(relations: list, basis: np.ndarray, names: list[str], scale: np.ndarray, digits: int = 6) -> dict:
+    """How well the relations *as printed* (``digits`` significant digits) span the analysis' relation subspace.
+
+    Returns the sine of the largest principal angle between the two row spaces (dimensionless
+    coefficients), the rank of the printed rows against their number (distinct relations), and the
+    largest coefficient.
+    """
+    if not relations or basis.size == 0:
+        return {"angle": 0.0, "rank": 0, "relations": 0, "largest_coefficient": 0.0}
+    index = {n: i for i, n in enumerate(names)}
+    printed = np.zeros((len(relations), len(names)))
+    for k, rel in enumerate(relations):
+        for n, c in rel.terms.items():
+            printed[k, index[n]] = _printed(c, digits)[1] * scale[index[n]]  # per dimensionless defect
+    q_b = np.linalg.svd(basis, full_matrices=False)[2]
+    u, s, vt = np.linalg.svd(printed, full_matrices=False)
+    rank = int(np.sum(s > 1e-9 * s[0])) if s.size and s[0] > 0 else 0
+    q_p = vt[:rank]
+    outside = q_b - (q_b @ q_p.T) @ q_p  # the analysis' relations the printed ones miss
+    angle = float(np.linalg.norm(outside, 2)) if outside.size else 0.0
+    back = q_p - (q_p @ q_b.T) @ q_b  # printed relations outside the analysis' subspace
+    angle = max(angle, float(np.linalg.norm(back, 2)) if back.size else 0.0)
+    return {"angle": min(angle, 1.0), "rank": rank, "relations": len(relations), "digits": digits,
+            "largest_coefficient": float(max(abs(c) for rel in relations for c in rel.terms.values()))}
 
 
 def analyze(
@@ -526,9 +620,19 @@ def _analyze_once(
         r2 = int(np.sum(s2 > 1e-6)) if s2.size else 0
         rel_basis = vt2[:r2]
     rel_weight = np.linalg.norm(rel_basis, axis=0) if rel_basis.size else np.zeros(len(nonforced_local))
-    relations = _relations(
-        rel_basis, [names[active[i]] for i in nonforced_local], pscale[[active[i] for i in nonforced_local]]
-    )
+    rel_names = [names[active[i]] for i in nonforced_local]
+    rel_scale = pscale[[active[i] for i in nonforced_local]]
+    relations = _relations(rel_basis, rel_names, rel_scale)
+    for digits in (6, 8, 10):  # as few digits as keep the printed relations on the analysis' subspace to 1e-6
+        span = relations_span(relations, rel_basis, rel_names, rel_scale, digits)
+        if span["angle"] <= 1e-6:
+            for rel in relations:
+                rel.text, rel.digits = format_relation(rel.terms, digits), digits
+            break
+    if relations and (span["angle"] > 1e-6 or span["rank"] < span["relations"]):
+        warns.append(f"the {len(relations)} printed relations span the analysis' relations only to "
+                     f"{span['angle']:.1e} rad at their printed digits (rank {span['rank']} of "
+                     f"{span['relations']}): read the coefficients of the JSON ('terms'), not the text.")
 
     # Influence on the output frame with the passive joints following (K = O_xi - O_p B^+ A).
     o_xi = kin.dimensionless(st.output_xi, pscale)

@@ -59,6 +59,10 @@ class ExactCheck:
         Exact rank of the stacked constraint rows (non-gauge parameters).
     forced : list of str
         Parameters the exact rows force to zero.
+    relations : list of dict
+        The relations between the other parameters, exact: ``{"terms": {name: "p/q"}, "text"}``, from
+        the reduced row-echelon form of the exact rows (pivots in parameter order; exact arithmetic has no
+        conditioning to keep).
     configurations : list of list of str
         The exact configurations used (joint values as ``tan(q/2)`` or ``pi`` for
         revolutes, lengths for prismatics).
@@ -69,11 +73,12 @@ class ExactCheck:
     rank: int = 0
     forced: list = field(default_factory=list)
     configurations: list = field(default_factory=list)
+    relations: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        """JSON-ready dictionary."""
+        """JSON-ready dictionary (exact relations' coefficients as rational strings)."""
         return {"available": self.available, "reason": self.reason, "rank": self.rank, "forced": self.forced,
-                "configurations": self.configurations}
+                "configurations": self.configurations, "relations": [dict(r) for r in self.relations]}
 
 
 def _rat(x: float, max_den: int = 10**6, tol: float = 1e-12) -> sp.Rational | None:
@@ -280,7 +285,18 @@ def exact_check(mechanism: Mechanism, configurations: list | None = None, kin: K
     rank = g.rank()
     null = g.nullspace()
     forced = [p.name for i, p in enumerate(params) if all(v[i] == 0 for v in null)]
+    free = [i for i, p in enumerate(params) if p.name not in forced]
+    relations = []
+    if free and g.shape[0]:
+        reduced, pivots = g[:, free].rref()
+        for row in range(len(pivots)):
+            terms = {params[free[j]].name: reduced[row, j] for j in range(len(free)) if reduced[row, j] != 0}
+            if len(terms) > 1:
+                text = " ".join((("" if k == 0 and c > 0 else "-" if k == 0 else "+ " if c > 0 else "- ")
+                                 + ("" if abs(c) == 1 else f"{abs(c)}*") + n)
+                                for k, (n, c) in enumerate(terms.items())) + " = 0"
+                relations.append({"terms": {n: str(c) for n, c in terms.items()}, "text": text})
     shown = [[("pi" if (len(x) == 2 and x == (-1, 0)) else str(x[0]) if len(x) == 1 else str(sp.nsimplify(x[1] / (1 + x[0]))))
               for x in cfg] for cfg in configs]
     return ExactCheck(True, f"exact rank {rank} over the rationals at {len(configs)} configuration(s)", int(rank),
-                      forced, shown)
+                      forced, shown, relations)

@@ -113,8 +113,11 @@ class Check:
     uncorrected: float | None = None
 
     def to_dict(self) -> dict:
-        """JSON-ready dictionary."""
-        return asdict(self)
+        """JSON-ready dictionary (a gauge's check is named for what it confirms: ``equivalent``)."""
+        out = asdict(self)
+        if out["kind"] == "gauge":
+            out["kind"] = "equivalent"
+        return out
 
 
 def _pose_change(kin: Kinematics, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:

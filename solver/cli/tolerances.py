@@ -81,7 +81,8 @@ def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True, c
     cl = _classes(args, mech, kin)[0] if cl is None else cl
     assign_values(cl, mech, kin, q, args.position_accuracy, args.orientation_accuracy, assembly=assembly,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE],
-                  workspace=args.workspace_used if args.range else None, task_maps_at=task_maps_at)
+                  workspace=args.workspace_used if args.range else None, calibrate=assembly,
+                  task_maps_at=task_maps_at)
     return cl
 
 
@@ -283,10 +284,14 @@ def format_montecarlo(doc: dict) -> str:
     w = doc["worst_over_bound"]
     lines.append(f"  worst sample / its linear bound (paper 2, eq. 18): position {w['position']:.3f}, orientation "
                  f"{w['orientation']:.3f}")
-    lw = doc.get("linear_worst_case")
-    if lw:
-        lines.append("  linear worst case, every tolerance at its extreme: " + ", ".join(
-            f"{k.split('_')[0]} {v:.4g} {k.split('_')[1]}" for k, v in lw.items() if v is not None))
+    for key, words in (("attainable_linear_worst_case", "attainable linear worst case (the worst sign pattern of the "
+                                                         "tolerances at their values)"),
+                       ("linear_worst_case", "triangle bound (every tolerance at its extreme, every effect adding "
+                                             "up: no machine need reach it)")):
+        lw = doc.get(key)
+        if lw:
+            lines.append(f"  {words}: " + ", ".join(f"{k.split('_')[0]} {v:.4g} {k.split('_')[1]}"
+                                                   for k, v in lw.items() if k != "meaning" and v is not None))
     contributors = doc.get("contributors", [])
     for share, label in (("position_share", "position"), ("orientation_share", "orientation")):
         ranked = sorted(contributors, key=lambda c: -c[share])[:5]

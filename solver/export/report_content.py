@@ -119,11 +119,10 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
         rows = []
         for p in params:
             entry = tol["parameters"][p.name]
-            verdict = p.verdict
-            if verdict == "gauge":
-                verdict = "normalisation" if p.component in "IJK" else "redundant"
-            row = {"name": p.name, "component": p.component, "unit": p.unit, "verdict": verdict,
+            # one class per parameter (tolerances.parameters'), shown as its verdict too: never the analysis' words
+            row = {"name": p.name, "component": p.component, "unit": p.unit, "verdict": entry["class"],
                    "influential": p.influential, "class": entry["class"], "tolerance_id": entry["tolerance_id"],
+                   "tolerance_ids": list(entry.get("tolerance_ids") or []),
                    "equivalent": entry.get("equivalent"), "reason": p.reason}
             if p.name in checks_by:
                 c = checks_by[p.name]
@@ -140,7 +139,9 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
                              "value_source": it["value_source"], "feature": it["feature"],
                              "limiting": it["evidence"].get("assemblability", {}).get("limiting", []),
                              "analysis_only_value": it["evidence"].get("assemblability", {}).get("reference_value"),
-                             "worst_in": it["evidence"].get("assemblability", {}).get("worst_in")})
+                             "worst_in": it["evidence"].get("assemblability", {}).get("worst_in"),
+                             "where": it["evidence"].get("assemblability", {}).get("where"),
+                             "drawing_value": it.get("drawing_value"), "drawing": list(it.get("drawing") or [])})
     alloc = tol.get("allocation") or {}
     worst_cases = [{"allocation": key, "coefficient": name, "max": w["max"], "sampled_max": w["sampled_max"],
                     "optimiser_tolerance": w["optimiser_tolerance"], "location": w["location"], "where": w["where"],
@@ -165,7 +166,7 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
             "overconstraint": analysis.overconstraint,
             "rank": analysis.rank,
             "singular_value_gap": analysis.gap,
-            "verdicts": analysis.counts(),
+            "verdicts": analysis.to_dict()["counts"],
             "tolerance_classes": counts,
             "tolerances": len(tol["items"]),
             "normalisation_components": len(tol["appendix"]["normalisation"]),

@@ -11,11 +11,14 @@ def _fmt_gap(gap: float) -> str:
     return "none (full rank)" if gap == float("inf") else f"{gap:.3g}"
 
 
-def _value(t: dict) -> str:
-    v = t.get("value")
+def _value(t: dict, key: str = "value") -> str:
+    """``+-value unit``, rounded towards the safe side (down) to three significant digits."""
+    from hyperstat.solver.tolerances.drawing import safe_round
+
+    v = t.get(key)
     if v is None:
         return "-"
-    return f"+-{v:.3g} {t['unit']}"
+    return f"+-{safe_round(v):.3g} {t['unit']}"
 
 
 def format_tolerances(tolerances: dict, limit: int | None = None) -> str:
@@ -43,11 +46,33 @@ def format_tolerances(tolerances: dict, limit: int | None = None) -> str:
     items = tolerances["items"]
     width = max([len(t["statement"]) for t in items] + [9])
     width = min(width, 60)
-    lines.append(f"{'id':<5}{'class':<19}{'statement':<{width + 2}}{'value':<17}why")
+    calibrated = any(t.get("value_with_calibration") is not None for t in items)
+    lines.append(f"{'id':<5}{'class':<19}{'statement':<{width + 2}}{'value':<17}"
+                 + (f"{'with calibration':<18}" if calibrated else "") + "why")
     for t in items[:limit] if limit else items:
-        lines.append(f"{t['id']:<5}{t['class']:<19}{t['statement']:<{width + 2}}{_value(t):<17}{t['why']}")
+        lines.append(f"{t['id']:<5}{t['class']:<19}{t['statement']:<{width + 2}}{_value(t):<17}"
+                     + (f"{_value(t, 'value_with_calibration'):<18}" if calibrated else "") + t["why"])
     if limit and len(items) > limit:
         lines.append(f"... {len(items) - limit} more (see the JSON or the report)")
+    if calibrated:
+        lines.append("values rounded towards the safe side (down); 'with calibration': the largest defect a calibration "
+                     "from the declared measurements plus the controller's compensation still keeps within the spec "
+                     "(its limit in the JSON, value_with_calibration_limit)")
+    shown = [t for t in (items[:limit] if limit else items) if t.get("drawing")]
+    if shown:
+        lines.append("drawing (ISO 1101 feature control frames, zones rounded down):")
+        for t in shown:
+            for c in t["drawing"]:
+                lines.append(f"  {t['id']:<5}{c['frame']:<16}{c['text']}")
+    bounds = {}
+    for t in items:
+        if t.get("bounds"):
+            bounds.setdefault(t["class"], t["bounds"])
+    for cls, b in bounds.items():
+        lines.append(f"linear worst case of the {cls} tolerances at their values: attainable "
+                     f"{b['attainable_linear_worst_case']:.4g} {b['unit']} (the worst sign pattern at the worst "
+                     f"configuration found), triangle bound {b['triangle_bound']:.4g} {b['unit']} (every effect "
+                     "adding up: no machine need reach it)")
     red = tolerances.get("redundant", {})
     if red:
         lines.append("redundant shifts, merged with their equivalent (the same physical shift): "
@@ -83,9 +108,8 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
         if ch.kind in ("parameter", "gauge"):
             by_name[ch.subject] = ch
     params = (tolerances or {}).get("parameters", {})
-    header = f"{'element':<10}{'parameter':<11}{'unit':<5}{'verdict':<9}{'effect on output':<18}"
-    if params:
-        header += f"{'tolerance':<24}"
+    header = f"{'element':<10}{'parameter':<11}{'unit':<5}"
+    header += f"{'class':<19}{'tolerance':<16}" if params else f"{'verdict':<15}{'effect on output':<18}"
     if checks:
         header += "nonlinear check"
     lines.append(header)
@@ -94,17 +118,17 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
     for p in result.parameters:
         el = p.element if p.element != previous else ""
         previous = p.element
-        effect = "-" if p.influential is None else ("influential" if p.influential else "non-influent")
-        verdict = p.verdict
-        if verdict == "gauge":  # one vocabulary: a gauge is a normalisation component or a redundant shift
-            verdict = "normal." if p.component in "IJK" else "redund."
-        row = f"{el:<10}{p.name:<11}{p.unit:<5}{verdict:<9}{effect:<18}"
-        if params:
+        row = f"{el:<10}{p.name:<11}{p.unit:<5}"
+        if params:  # one class per parameter, the tolerances' (one vocabulary)
             e = params.get(p.name, {})
-            tol = f"{e.get('tolerance_id') or '-'} {e.get('class', '')}"
+            tol = ", ".join(e.get("tolerance_ids") or []) or "-"
             if e.get("equivalent"):
                 tol += f" (≡ {e['equivalent']})"
-            row += f"{tol:<24}"
+            row += f"{e.get('class', '-'):<19}{tol:<16}"
+        else:  # the stationarity analysis alone (no tolerance classes): its verdict, a gauge named for what it is
+            verdict = p.verdict if p.verdict != "gauge" else ("normalisation" if p.component in "IJK" else "redundant")
+            effect = "-" if p.influential is None else ("influential" if p.influential else "non-influent")
+            row += f"{verdict:<15}{effect:<18}"
         if p.name in by_name and by_name[p.name].kind == "gauge":
             ch = by_name[p.name]
             mark = "confirmed" if ch.confirmed else "NOT CONFIRMED"
@@ -143,6 +167,8 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
                 f"exact check (sympy, rationals): {exact.reason}; forced {', '.join(exact.forced) or 'none'}; "
                 + ("agrees with the numerical analysis" if agree else "DIFFERS from the numerical analysis")
             )
+            for rel in getattr(exact, "relations", []) if agree else []:
+                lines.append(f"  exact relation: {rel['text']}")
         else:
             lines.append(f"exact check unavailable: {exact.reason}")
     for w in result.warnings:

@@ -178,15 +178,23 @@ class Tolerance:
     direction: np.ndarray | None = None
     contribution: float | None = None
     summary: str = ""
+    value_with_calibration: float | None = None
+    value_with_calibration_limit: str | None = None
+    drawing_value: float | None = None
+    bounds: dict | None = None
+    drawing: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        """JSON-ready form (``class`` for ``cls``; the direction is left out)."""
+        """JSON-ready form (``class`` for ``cls``; the direction is left out; keys of docs/tolerances.md)."""
         return {"id": self.id, "class": self.cls, "kind": self.kind, "statement": self.statement,
                 "terms": dict(self.terms), "parameters": list(self.parameters), "value": self.value,
                 "unit": self.unit, "feature": self.feature, "words": self.words, "why": self.why,
                 "value_source": self.value_source, "assembly_ids": list(self.assembly_ids),
                 "contribution_percent": self.contribution, "summary": self.summary or self.why,
-                "evidence": dict(self.evidence)}
+                "evidence": dict(self.evidence), "value_with_calibration": self.value_with_calibration,
+                "value_with_calibration_limit": self.value_with_calibration_limit,
+                "drawing_value": self.drawing_value, "bounds": None if self.bounds is None else dict(self.bounds),
+                "drawing": [dict(c) for c in self.drawing]}
 
 
 @dataclass
@@ -263,12 +271,14 @@ def _clean(c: float) -> float:
     return float(f"{c:.10g}")
 
 
-def format_terms(terms: dict, rhs: str | None = "0") -> str:
-    """``{"dc2": 1, "dc3": 1}`` -> ``dc2 + dc3 = 0`` (coefficients per mm or per rad)."""
+def format_terms(terms: dict, rhs: str | None = "0", digits: int = 6) -> str:
+    """``{"dc2": 1, "dc3": 1}`` -> ``dc2 + dc3 = 0`` (coefficients per mm or per rad, ``digits`` significant digits)."""
+    from hyperstat.solver.analysis.stationarity import _printed
+
     parts = []
     for i, (n, c) in enumerate(terms.items()):
         mag = abs(c)
-        coef = "" if mag == 1.0 else f"{mag:.6g}*"
+        coef = "" if mag == 1.0 else f"{_printed(c, digits)[0]}*"
         if i == 0:
             parts.append(f"-{coef}{n}" if c < 0 else f"{coef}{n}")
         else:
@@ -431,7 +441,7 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
         direction = np.zeros(len(names))
         direction[index[pivot]] = 1.0 / r.terms[pivot]
         units = {unit[n] for n in terms}
-        items.append(Tolerance("", "assembly", "relation", format_terms(terms), terms, list(terms),
+        items.append(Tolerance("", "assembly", "relation", format_terms(terms, digits=r.digits), terms, list(terms),
                                unit[pivot] if len(units) == 1 else unit[pivot], feature_of(list(terms)),
                                "relation between the defects of " + ", ".join(dict.fromkeys(where[n][0] for n in terms)),
                                "coupled defects: admissible only in this combination; breaking it loads the structure",
@@ -464,12 +474,16 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
     jscale = kin.joint_scale[act]
     task_a = (sel @ k_a) * row_scale[None, :, None] * jscale[None, None, :]
     basis = analysis.admissible_basis if analysis.admissible_basis is not None else np.zeros((len(names), 0))
-    meas_xi, nuisance = _measurement_maps(decl, st, k_xi, ls, pscale)
+    meas_xi, nuisance, nuisance_labels = _measurement_maps(decl, st, k_xi, ls, pscale)
     rows_m = meas_xi.shape[0] * meas_xi.shape[1]
     j_m = np.concatenate([(meas_xi @ basis).reshape(rows_m, basis.shape[1]),
                           nuisance.reshape(rows_m, nuisance.shape[2])], axis=1)
     j_pinv = np.linalg.pinv(j_m, rcond=1e-10) if j_m.size else np.zeros((j_m.shape[1], j_m.shape[0]))
-    sv = np.linalg.svd(j_m, compute_uv=False) if j_m.size else np.zeros(0)
+    if j_m.size:
+        _, sv, vt_m = np.linalg.svd(j_m, full_matrices=True)
+        blind = vt_m[int(np.sum(sv > 1e-10 * sv[0])):].T if sv.size and sv[0] > 0 else np.eye(j_m.shape[1])
+    else:
+        sv, blind = np.zeros(0), np.zeros((j_m.shape[1], 0))  # blind: what the measurements cannot see
     ka_pinv = np.linalg.pinv(task_a, rcond=1e-8)  # (K, n_a, r)
     # task-singular configurations (a dead centre: the actuators lose a task direction there, so nothing is
     # cancellable to first order) are left out of the residual test: their rank is below the generic one
@@ -526,6 +540,22 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
             r_unc = float(np.max(np.linalg.norm(uncancelled[regular], axis=1))) / ref
             r_total = float(np.max(np.linalg.norm(total[regular], axis=1))) / ref
             ev.update({"not_identified_share": r_unseen, "not_cancelled_share": r_unc, "residual_share": r_total})
+            # confounded: the part of (u_d, no nuisance) the measurements cannot see moves the task; the pseudo-inverse
+            # would split it between the defect and what it is confounded with by the smallest norm (an artefact),
+            # so the direction is called not identifiable, and what it cannot be told from is named
+            hidden = blind @ (blind.T @ np.r_[u_d, np.zeros(j_m.shape[1] - n_s)])
+            hidden_task = float(np.max(np.linalg.norm(task_of(basis @ hidden[:n_s])[regular], axis=1))) / ref \
+                if hidden.size else 0.0
+            confounded = []
+            if hidden_task >= _REL:
+                weights = np.abs(hidden[n_s:])
+                confounded = list(dict.fromkeys(nuisance_labels[i] for i in np.argsort(-weights)
+                                                if weights[i] > 1e-3 * max(float(weights.max()), 1e-300)))
+                moved = basis @ hidden[:n_s]
+                others = [names[i] for i in np.argsort(-np.abs(moved)) if abs(moved[i]) > 1e-3 * np.abs(moved).max()
+                          and names[i] != p.name][:3]
+                confounded += others
+            ev.update({"identifiable": hidden_task < _REL, "confounded_with": confounded})
             if r_total < _REL:
                 cls = "compensable"
                 why = (f"a calibration from {decl.measurement_kind} identifies it (or the combination that absorbs "
@@ -534,7 +564,10 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
             else:
                 cls = "accuracy-critical"
                 reasons = []
-                if r_unseen >= _REL:
+                if not ev["identifiable"]:
+                    reasons.append(f"not identifiable: a calibration from {decl.measurement_kind} cannot tell it from "
+                                   + (", ".join(ev["confounded_with"]) or "other defects"))
+                elif r_unseen >= _REL:
                     reasons.append(f"{100 * r_unseen:.0f} % of its task effect is invisible to a calibration from "
                                    f"{decl.measurement_kind}")
                 if r_unc >= _REL:
@@ -550,8 +583,18 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
             why += f"; weak evidence: {infl / top:.1e} of the largest task motion, close to the threshold 1e-9"
             warns.append(f"{p.name}: non-influent by a task motion of {infl / top:.1e} of the largest, close to the "
                          "threshold 1e-9.")
+        direction = d * pscale / pscale[index[p.name]]  # per unit of the parameter
+        if p.verdict == "coupled":
+            # the admissible motion of a coupled parameter moves others with it: the statement says so, so that the
+            # direction is never read as the parameter alone (whose class is its relation's, assembly)
+            followers = [(names[k], _clean(float(direction[k]))) for k in np.argsort(-np.abs(d))
+                         if names[k] not in params and abs(direction[k]) > 1e-9]
+            shown = [f"{n} = {'' if c == 1 else '-' if c == -1 else f'{c:.4g}*'}{p.name}" for n, c in followers[:3]
+                     if c != 0.0]
+            if shown:
+                statement += " with " + ", ".join(shown) + (", ..." if len(followers) > 3 else "")
         t = Tolerance("", cls, "direction", statement, {p.name: 1.0}, params, unit[p.name], feature_of(params), words,
-                      why, evidence=ev, direction=d * pscale / pscale[index[p.name]])  # per unit of the parameter
+                      why, evidence=ev, direction=direction)
         if p.verdict == "coupled":
             t.assembly_ids = [i for i in relation_of.get(p.name, [])]
         items.append(t)
@@ -570,7 +613,10 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
             t.summary = f"calibrated and cancelled (residual {ev['residual_share']:.0e})"
         else:
             parts = []
-            if ev["not_identified_share"] >= _REL:
+            if not ev.get("identifiable", True):
+                parts.append("not identifiable (confounded with " + (", ".join(ev["confounded_with"][:2]) or
+                                                                       "other defects") + ")")
+            elif ev["not_identified_share"] >= _REL:
                 parts.append(f"{100 * ev['not_identified_share']:.0f} % unseen by calibration")
             if ev["not_cancelled_share"] >= _REL:
                 parts.append(f"{100 * ev['not_cancelled_share']:.0f} % not cancellable")
@@ -598,14 +644,13 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
     for n in names:
         if n in normal:
             params[n] = {"class": "normalisation", "tolerance_id": None, "tolerance_ids": []}
-        elif n not in params:  # a redundant shift whose equivalent is not a tolerance of its own
-            eq = redundant.get(n, {}).get("equivalent")
-            src = params.get(eq)
-            params[n] = dict(src) if src else {"class": "non-influent", "tolerance_id": None, "tolerance_ids": []}
+        elif n in redundant:  # merged with its equivalent: the same tolerance, one class of its own
+            eq = redundant[n]["equivalent"]
+            src = params.get(n) or params.get(eq) or {"tolerance_id": None, "tolerance_ids": []}
+            params[n] = {"class": "redundant", "tolerance_id": src["tolerance_id"],
+                         "tolerance_ids": list(src["tolerance_ids"])}
         if n in redundant:
             params[n]["equivalent"] = redundant[n]["equivalent"]
-        if n in verdict:
-            params[n]["verdict"] = verdict[n].verdict
     params = {n: params[n] for n in names}
     appendix = [{"name": n, "element": where[n][0], "why": why} for n, why in normal.items()]
     red = {g: {"equivalent": r["equivalent"], "coefficients": r["coefficients"], "why": r["why"]}
@@ -673,8 +718,9 @@ def _measurement_maps(decl: Declaration, st, k_xi: np.ndarray, ls: float, pscale
         keep[:6] = False
     if decl.offsets == "known":  # the targets sit at known offsets
         keep[6:] = False
+    labels = ["the tracker frame"] * 6 + [f"the offset of target {i + 1}" for i in range(n_t) for _ in range(3)]
     nuis = nuis[:, :, keep]
-    return np.concatenate(rows, axis=1), nuis
+    return np.concatenate(rows, axis=1), nuis, [lab for lab, k in zip(labels, keep) if k]
 
 
 def _calibration_residual(decl: Declaration, j_m: np.ndarray, task_u: np.ndarray, n_s: int, n_rot: int, ls: float,

@@ -1,4 +1,4 @@
-"""Assembly tolerances from joint clearances: worst-case assemblability over the workspace.
+"""Assembly tolerances from joint clearances: worst-case assemblability over the workspace, searched.
 
 Units: clearances and violations in mm and rad.
 
@@ -12,125 +12,231 @@ statistical tolerance analysis based on quantified constraint satisfaction probl
 and Monte Carlo simulation*, Computer-Aided Design 41(1), 2009, 1-12; Ballu, Plantec
 & Mathieu, *Geometrical reliability of overconstrained mechanisms with gaps*, CIRP
 Annals 57(1), 2008, 159-162), the tolerance of a condition is the largest violation
-``t`` such that at every sampled configuration
+``t`` that is absorbed at every configuration of the workspace.
 
-    U0^T (A d t + C g) = 0,   |g_i| <= c_i,
+**The play of a joint** (:func:`clearance_model`, the declaration of
+:mod:`hyperstat.solver.tolerances.declaration`).  A joint is held by two supports ``span``
+apart along its axis, centred ``centre`` along the axis from the joint's frame on its
+``side``: a revolute's two bearings (or a pin's engagement length), a prismatic joint's
+carriage between its two pads.  The play is a small rigid displacement of the moving part
+about that centre, a shift ``(v1, v2, v3)`` and a rotation ``(w1, w2, w3)`` in the support's
+axes ``(u1, u2, n)``, such that
 
-has a solution: ``A d`` is the closure motion (paper 1, eq. 3) of one unit of violation,
-``U0`` spans the left null space of the passive joints' closure Jacobian ``B_p`` (their
-motion is free), ``C`` holds the closure motions of the clearance displacements (radial
-shifts and tilts of each joint's frame, its axial shift, a prismatic joint's twist) and
-``c`` the clearances.  At one configuration, ``t(q) = 1 / s*`` with ``s*`` the linear
-programme ``min s`` subject to ``U0^T C diag(c) y = -U0^T A d`` and ``|y| <= s`` (HiGHS,
-through :func:`scipy.optimize.linprog`); the tolerance is the smallest ``t(q)`` over the
-configurations, found as one block-diagonal programme with a common ``t`` and one
-displacement vector per configuration (:func:`_min_violation`), so a workspace sample of
-a few hundred configurations costs about one programme per condition.  Each condition
-is taken alone (the others held).
+* each support moves radially by at most ``radial`` in every direction: at ``z = +-span/2``
+  along the axis the radial displacement ``(v1 + z w2, v2 - z w1)`` lies in a disc of radius
+  ``radial`` (so the tilt is at most ``2 radial / span``, and only when the shift is zero);
+  the disc is replaced by the inscribed regular polygon of :data:`POLYGON_SIDES` sides, on the
+  safe side (at most ``1 - cos(pi / 8)`` = 7.6 % less play in the worst direction);
+* the axial play ``|v3| <= axial``, and a prismatic joint's twist ``|w3| <= twist``.
 
-:func:`confirm_nonlinear` checks a value with the full nonlinear model: the
-clearances become bounded extra variables of each joint's frame (small prismatic and
-revolute joints), and the loops are re-assembled by bounded least squares at the
-worst configuration just below and just above the tolerance.
+A carriage on the *moving* side (a slider on a rail) tilts about itself wherever it is; a
+guide on the *fixed* side (a leg sliding through its base joint) about the guide.  The
+displacement enters the model as defects of the joint's own frame (fixed side) or of a
+frame added right after the joint (moving side).
+
+**At one configuration**, with ``U0`` a basis of the left null space of the passive
+joints' closure Jacobian (their motion is free), the largest violation ``t(q)`` is the
+linear programme ``max t`` subject to ``U0^T A (d t + C y) = 0``, ``y`` within the play
+(``A``: closure motion per defect, paper 1 eq. 3; ``d``: one unit of violation; ``C``: the
+play columns), solved by HiGHS through :func:`scipy.optimize.linprog`; many configurations
+and conditions are one block-diagonal programme with one ``t`` per block.
+
+**Over the workspace** the value is ``min_q t(q)``, found by the one worst-case engine
+(:func:`hyperstat.solver.tolerances.worst_case.search_extremes`): the given configurations,
+the corners, edges, faces and dead centres of the actuated box, then a local search on the
+configuration manifold; the value stated is that minimum less the search's stated
+tolerance.  Each condition is taken alone (the others held).
+
+:func:`confirm_nonlinear` checks a value with the full nonlinear model: the plays become
+bounded extra variables of each joint (small prismatic and revolute joints), and the loops
+are re-assembled just below the tolerance and the largest violation found by sequential
+linear programming.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
 from hyperstat.solver.kinematics.closure import Kinematics
-from hyperstat.solver.kinematics.model import Defect, FixedTransform, Joint, Mechanism
+from hyperstat.solver.kinematics.model import Defect, FixedTransform, Joint, Mechanism, Placement
 from hyperstat.solver.tolerances.declaration import Declaration
+from hyperstat.solver.tolerances.worst_case import Objective
 
-__all__ = ["ClearanceModel", "clearance_model", "assembly_tolerances", "confirm_nonlinear"]
+__all__ = ["ClearanceModel", "clearance_model", "AssemblyConditions", "assembly_tolerances", "confirm_nonlinear",
+           "POLYGON_SIDES"]
+
+#: sides of the regular polygon inscribed in a support's disc of radial play (safe side)
+POLYGON_SIDES = 8
+#: a violation the clearances absorb beyond this (mm or rad) is "not limited to first order"
+_UNBOUNDED = 1e3
 
 
 @dataclasses.dataclass
 class ClearanceModel:
-    """The mechanism with a full set of frame displacements per joint, and the clearance directions.
+    """The mechanism with the plays of every joint as extra defects, and the set of admissible plays.
 
     Attributes
     ----------
     mechanism : Mechanism
-        Every joint carries ``I J K a b c`` (and ``G`` for a prismatic joint); the original
-        defects keep their names, the added components are named ``g<component><joint>``.
+        The original defects keep their names; a joint whose play sits on its fixed side carries
+        ``I J K a b c`` (and ``G`` when prismatic), the added components named ``g<component><joint>``;
+        a joint whose play sits on its moving side is followed by a fixed frame ``play<joint>`` with
+        defects ``gI, gJ, ga, gb, gc, gG`` + joint.
     columns : ndarray, (n_xi_aug, n_g)
-        Defect vector (rad / mm) of one clearance displacement of size 1 in each direction.
-    bounds : ndarray, (n_g,)
-        Clearance of each direction (mm or rad).
+        Defect vector (rad / mm) of one unit of each play variable ``y`` (a unit is the variable's
+        largest value alone: the radial play, the tilt ``2 radial / span``, the axial play, the twist).
+    polygon : ndarray, (n_c, n_g)
+        Rows ``P`` of the supports' polygons: the plays are admissible when ``|P y| <= limit`` and
+        ``|y| <= 1``.
+    limit : float
+        ``cos(pi / POLYGON_SIDES)``.
     labels : list of str
-        ``"joint 21 radial x"`` and so on.
+        ``"joint 21 shift u1"``, ``"joint 21 tilt about u2"`` ...
+    joint_of : list of str
+        The joint of each play variable.
+    groups : list of tuple
+        ``(kind, columns)`` of the separable pieces of the play set: ``"pads"`` (``v1, v2, w1, w2``:
+        two supports, each in the polygon), ``"pad"`` (``v1, v2``: one support), ``"disc"``
+        (``w1, w2``: a tilt alone), ``"segment"`` (one variable in ``[-1, 1]``).
     index_of : dict
         Original parameter name -> index in the augmented mechanism.
     sources : dict
-        Joint -> clearance entry used (with its source).
+        Joint -> its resolved clearance (with the source).
     """
 
     mechanism: Mechanism
     columns: np.ndarray
-    bounds: np.ndarray
+    polygon: np.ndarray
+    limit: float
     labels: list
+    joint_of: list
+    groups: list
     index_of: dict
     sources: dict
 
+    def use(self, y: np.ndarray) -> dict:
+        """Joint -> largest share of its play used by the plays ``y`` (1 = at the clearance)."""
+        out: dict = {}
+        rows = np.abs(self.polygon @ y) / self.limit if len(self.polygon) else np.zeros(0)
+        for j, joint in enumerate(self.joint_of):
+            out[joint] = max(out.get(joint, 0.0), float(abs(y[j])))
+        for r, row in enumerate(self.polygon):
+            joint = self.joint_of[int(np.nonzero(row)[0][0])]
+            out[joint] = max(out[joint], float(rows[r]))
+        return out
+
 
 def clearance_model(mechanism: Mechanism, declaration: Declaration) -> ClearanceModel:
-    """Augment every joint with frame displacements and list the clearance directions."""
-    chains = []
+    """Add the plays of every joint to the mechanism (see the module docstring)."""
+    chains, where = [], {}  # where: joint -> (element carrying the play, its axes in that element's parent frame)
     for ch in mechanism.chains:
         els = []
         for el in ch.elements:
-            if isinstance(el, Joint):
+            if not isinstance(el, Joint):
+                els.append(el)
+                continue
+            c = declaration.clearance(el.name, el.type)
+            if c["side"] == "moving":
+                els.append(el)
+                comps = "IJabc" + ("G" if el.type == "P" else "")
+                play = FixedTransform(f"play{el.name}", Placement((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0)),
+                                      tuple(Defect(k, f"g{k}{el.name}") for k in comps))
+                els.append(play)
+                where[el.name] = (play, np.eye(3)[:, 2], np.eye(3)[:, 0])
+            else:
                 have = {d.component: d for d in el.defects}
                 comps = "IJKabc" + ("G" if el.type == "P" else "")
-                defects = tuple(have.get(c, Defect(c, f"g{c}{el.name}")) for c in comps)
-                defects += tuple(d for c, d in have.items() if c not in comps)
-                els.append(dataclasses.replace(el, defects=defects))
-            else:
-                els.append(el)
+                defects = tuple(have.get(k, Defect(k, f"g{k}{el.name}")) for k in comps)
+                defects += tuple(d for k, d in have.items() if k not in comps)
+                new = dataclasses.replace(el, defects=defects)
+                els.append(new)
+                where[el.name] = (new, np.asarray(el.placement.z_axis, float), np.asarray(el.placement.x_axis, float))
         chains.append(dataclasses.replace(ch, elements=tuple(els)))
     aug = dataclasses.replace(mechanism, chains=tuple(chains))
     index = aug.parameter_index
-    cols, bounds, labels, sources = [], [], [], {}
     n = len(aug.parameters)
-    for ch in aug.chains:
-        for el in ch.elements:
-            if not isinstance(el, Joint):
-                continue
-            c = declaration.clearance(el.name, el.type)
-            sources[el.name] = c
-            names = {d.component: d.name for d in el.defects}
-            n0 = np.asarray(el.placement.z_axis, float)
-            u1 = np.asarray(el.placement.x_axis, float)
-            u2 = np.cross(n0, u1)
+    cols, labels, joints, poly_rows, sources, groups = [], [], [], [], {}, []
+    sides = POLYGON_SIDES
+    angles = 2 * np.pi * np.arange(sides // 2) / sides
+    for joint in mechanism.joints:
+        c = declaration.clearance(joint.name, joint.type)
+        sources[joint.name] = c
+        el, n0, u1 = where[joint.name]
+        u2 = np.cross(n0, u1)
+        names = {d.component: d.name for d in el.defects}
+        e = c["centre_mm"]
+        radial = c["radial_mm"]
+        tilt = c["tilt_rad"] if math.isfinite(c["tilt_rad"]) and (radial == 0 or math.isfinite(c["span_mm"])) else 0.0
+        first = len(cols)
 
-            def add(letters: str, vec: np.ndarray, bound: float, label: str) -> None:
-                if bound <= 0:
-                    return
-                col = np.zeros(n)
-                for k, letter in enumerate(letters):
-                    col[index[names[letter]]] = vec[k]
-                cols.append(col)
-                bounds.append(bound)
-                labels.append(f"joint {el.name} {label}")
+        def column(dn: np.ndarray, dp: np.ndarray, g: float = 0.0) -> np.ndarray:
+            col = np.zeros(n)
+            for k, letter in enumerate("IJK"):
+                if abs(dn[k]) > 0:
+                    col[index[names[letter]]] = dn[k]
+            for k, letter in enumerate("abc"):
+                if abs(dp[k]) > 0:
+                    col[index[names[letter]]] = dp[k]
+            if g:
+                col[index[names["G"]]] = g
+            return col
 
-            add("abc", u1, c["radial_mm"], "radial (x)")
-            add("abc", u2, c["radial_mm"], "radial (y)")
-            add("abc", n0, c["axial_mm"], "axial")
-            add("IJK", u1, c["tilt_rad"], "tilt (x)")
-            add("IJK", u2, c["tilt_rad"], "tilt (y)")
-            if el.type == "P":
-                col_g = np.zeros(n)
-                if c["twist_rad"] > 0:
-                    col_g[index[names["G"]]] = 1.0
-                    cols.append(col_g)
-                    bounds.append(c["twist_rad"])
-                    labels.append(f"joint {el.name} twist")
+        def add(col: np.ndarray, size: float, label: str) -> None:
+            cols.append(col * size)
+            labels.append(f"joint {joint.name} {label}")
+            joints.append(joint.name)
+
+        slot = {}
+        if radial > 0:
+            slot["v1"] = len(cols)
+            add(column(np.zeros(3), u1), radial, "support shift along u1")
+            slot["v2"] = len(cols)
+            add(column(np.zeros(3), u2), radial, "support shift along u2")
+        if tilt > 0:
+            # a rotation w about u1 (or u2) through the centre c = o + e n0: the axis turns by w x n0, the
+            # frame's origin moves by w x (o - c) = -e (w x n0)
+            slot["w1"] = len(cols)
+            add(column(-u2, e * u2), tilt, "tilt about u1")
+            slot["w2"] = len(cols)
+            add(column(u1, -e * u1), tilt, "tilt about u2")
+        if c["axial_mm"] > 0:
+            groups.append(("segment", [len(cols)]))
+            add(column(np.zeros(3), n0), c["axial_mm"], "axial shift")
+        if joint.type == "P" and c["twist_rad"] > 0:
+            groups.append(("segment", [len(cols)]))
+            add(column(np.zeros(3), np.zeros(3), 1.0), c["twist_rad"], "twist about its axis")
+        if radial > 0 and tilt > 0:
+            groups.append(("pads", [slot["v1"], slot["v2"], slot["w1"], slot["w2"]]))
+        elif radial > 0:
+            groups.append(("pad", [slot["v1"], slot["v2"]]))
+        elif tilt > 0:
+            groups.append(("disc", [slot["w1"], slot["w2"]]))
+        if radial > 0:  # the supports' radial plays: (v1 + s w2, v2 - s w1) in the polygon, s = +-1 (units above)
+            pads = (-1.0, 1.0) if tilt > 0 else (0.0,)
+            for s in pads:
+                for phi in angles:
+                    row = np.zeros(len(cols) - first)
+                    row[slot["v1"] - first] += math.cos(phi)
+                    row[slot["v2"] - first] += math.sin(phi)
+                    if s:
+                        row[slot["w2"] - first] += s * math.cos(phi)
+                        row[slot["w1"] - first] -= s * math.sin(phi)
+                    poly_rows.append((first, row))
+        elif tilt > 0:  # no radial play given but a tilt: the tilt alone in its disc
+            for phi in angles:
+                row = np.zeros(len(cols) - first)
+                row[slot["w1"] - first], row[slot["w2"] - first] = math.cos(phi), math.sin(phi)
+                poly_rows.append((first, row))
+    n_g = len(cols)
+    polygon = np.zeros((len(poly_rows), n_g))
+    for r, (first, row) in enumerate(poly_rows):
+        polygon[r, first:first + len(row)] = row
     index_of = {p.name: index[p.name] for p in mechanism.parameters}
     columns = np.array(cols).T if cols else np.zeros((n, 0))
-    return ClearanceModel(aug, columns, np.asarray(bounds, float), labels, index_of, sources)
+    return ClearanceModel(aug, columns, polygon, math.cos(math.pi / sides), labels, joints, groups, index_of, sources)
 
 
 def _lift(model: ClearanceModel, direction: np.ndarray) -> np.ndarray:
@@ -140,7 +246,7 @@ def _lift(model: ClearanceModel, direction: np.ndarray) -> np.ndarray:
 
 
 def _constraint_blocks(model: ClearanceModel, q: np.ndarray, kin: Kinematics | None = None):
-    """Per configuration: ``U0^T C diag(c)`` and ``U0^T A`` (scaled rows: rotations times the length scale)."""
+    """Per configuration: ``U0^T A C`` and ``U0^T A`` (scaled rows: rotations times the length scale)."""
     kin = kin or Kinematics(model.mechanism)
     st = kin.evaluate(q, None, jacobians=True)
     a = kin.scaled_rows(st.closure_xi)  # (K, m, n_aug)
@@ -153,97 +259,220 @@ def _constraint_blocks(model: ClearanceModel, q: np.ndarray, kin: Kinematics | N
         else:
             u, r = np.eye(a.shape[1]), 0
         u0 = u[:, r:]
-        out.append((u0.T @ a[k] @ model.columns * model.bounds[None, :], u0.T @ a[k]))
+        ua = u0.T @ a[k]
+        out.append((ua @ model.columns, ua))
     return out
 
 
-def _max_violation(cg: np.ndarray, av: np.ndarray) -> tuple[float, np.ndarray | None]:
-    """Largest ``t`` with ``cg y = -t av``, ``|y| <= 1`` (linear programme); returns ``t`` and ``y``."""
-    from scipy.optimize import linprog
+def _solve(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
+    """Largest violation ``t`` of each ``(U0^T A C, U0^T A d)`` pair: one block-diagonal linear programme.
 
-    scale = max(float(np.max(np.abs(cg))) if cg.size else 0.0, float(np.max(np.abs(av))), 1e-300)
-    if float(np.linalg.norm(av)) <= 1e-12 * scale:
-        return float("inf"), None  # the condition is not felt here (absorbed without play)
-    mat = np.concatenate([cg, av[:, None]], axis=1)
-    u, s, vt = np.linalg.svd(mat, full_matrices=False)
-    r = int(np.sum(s > 1e-10 * s[0]))
-    eq = (s[:r, None] * vt[:r]) / scale
-    m = cg.shape[1]
-    # variables (y, t): maximise t subject to eq @ (y, t) = 0, -1 <= y <= 1
-    res = linprog(np.r_[np.zeros(m), -1.0], A_eq=eq, b_eq=np.zeros(r),
-                  bounds=[(-1.0, 1.0)] * m + [(0.0, None)], method="highs")
-    if res.status == 3:  # unbounded: the play absorbs any violation to first order
-        return float("inf"), None
-    if not res.success:
-        return 0.0, None
-    return float(res.x[-1]), res.x[:m]
-
-
-def _min_violation(blocks: list, d: np.ndarray) -> tuple:
-    """Smallest ``t(q)`` over the configurations, in one linear programme.
-
-    ``t(q)`` is the largest violation absorbed at ``q``; the violations absorbed at ``q`` form
-    the interval ``[0, t(q)]`` (the feasible set is convex and holds ``t = 0, y = 0``), so the
-    largest ``t`` absorbed at every configuration at once, each with its own displacements
-    ``y_q`` (``|y_q| <= 1``), is ``min_q t(q)``: one block-diagonal programme (HiGHS, sparse)
-    instead of one per configuration.  The worst configuration is the block whose
-    constraints carry the largest dual values; its own programme is then solved for the
-    displacements and checked against the common value.
-
-    Returns
-    -------
-    tuple
-        ``(t, worst index or None, y at the worst or None, extra)``; ``extra``:
-        ``own_programme_value``, ``t(q)`` of the worst configuration's own programme (equal
-        to ``t`` up to the solver's tolerance).
+    Each block has its own plays ``y`` and its own ``t`` (the objective is their sum, so each is its own
+    block's maximum); ``t`` is capped at :data:`_UNBOUNDED` (reported as infinite: the plays absorb any
+    small violation to first order).  Returns ``t`` (K,) and the plays of each block (None where unsolved).
     """
     from scipy.optimize import linprog
-    from scipy.sparse import coo_matrix
+    from scipy.sparse import block_diag, csr_matrix
 
-    rows, cols, vals, felt = [], [], [], []
-    n_rows, n_var = 0, 0
-    m = blocks[0][0].shape[1] if blocks else 0
-    for k, (cg, a) in enumerate(blocks):
-        av = a @ d
-        scale = max(float(np.max(np.abs(cg))) if cg.size else 0.0, float(np.max(np.abs(av))), 1e-300)
-        if float(np.linalg.norm(av)) <= 1e-12 * scale:
+    k_all = len(pairs)
+    t = np.full(k_all, np.inf)
+    ys: list = [None] * k_all
+    n_g = model.columns.shape[1]
+    eq_blocks, felt = [], []
+    for k, (cg, av) in enumerate(pairs):
+        scale = max(float(np.max(np.abs(cg))) if cg.size else 0.0, float(np.max(np.abs(av))) if av.size else 0.0,
+                    1e-300)
+        if av.size == 0 or float(np.linalg.norm(av)) <= 1e-12 * scale:
             continue  # not felt at this configuration
-        mat = np.concatenate([cg, av[:, None]], axis=1)
+        mat = np.concatenate([cg, av[:, None]], axis=1) / scale
         _, s, vt = np.linalg.svd(mat, full_matrices=False)
         r = int(np.sum(s > 1e-10 * s[0]))
-        eq = (s[:r, None] * vt[:r]) / scale
-        rr, cc = np.nonzero(np.abs(eq) > 0)
-        rows.append(rr + n_rows)
-        cols.append(np.where(cc < m, cc + n_var, -1))
-        vals.append(eq[rr, cc])
-        felt.append((k, n_rows, r))
-        n_rows += r
-        n_var += m
+        eq_blocks.append(vt[:r])  # orthonormal rows: the solver's feasibility tolerance is absolute per row
+        felt.append(k)
     if not felt:
-        return float("inf"), None, None, {}
-    cols = np.concatenate(cols)
-    cols[cols < 0] = n_var  # the common violation t is the last variable
-    a_eq = coo_matrix((np.concatenate(vals), (np.concatenate(rows), cols)), shape=(n_rows, n_var + 1)).tocsr()
-    res = linprog(np.r_[np.zeros(n_var), -1.0], A_eq=a_eq, b_eq=np.zeros(n_rows),
-                  bounds=[(-1.0, 1.0)] * n_var + [(0.0, None)], method="highs")
-    if res.status == 3:
-        return float("inf"), None, None, {}
+        return t, ys
+    nb = len(felt)
+    # variables: (y_1, t_1, y_2, t_2, ...); rows: each block's equalities, then its polygon rows (both signs)
+    a_eq = block_diag([csr_matrix(b) for b in eq_blocks], format="csr")
+    poly = np.concatenate([model.polygon, np.zeros((len(model.polygon), 1))], axis=1)
+    a_ub = block_diag([csr_matrix(np.vstack([poly, -poly]))] * nb, format="csr") if len(poly) else None
+    cost = np.zeros(nb * (n_g + 1))
+    cost[n_g::n_g + 1] = -1.0
+    bounds = ([(-1.0, 1.0)] * n_g + [(0.0, _UNBOUNDED)]) * nb
+    res = linprog(cost, A_eq=a_eq, b_eq=np.zeros(a_eq.shape[0]),
+                  A_ub=a_ub, b_ub=None if a_ub is None else np.full(a_ub.shape[0], model.limit),
+                  bounds=bounds, method="highs-ds",
+                  options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10})
     if not res.success:
-        return 0.0, None, None, {}
-    t = float(res.x[-1])
-    duals = np.asarray(res.eqlin.marginals) if res.eqlin is not None else np.zeros(n_rows)
-    weight = np.array([float(np.linalg.norm(duals[r0:r0 + r])) for _, r0, r in felt])
-    for j in np.argsort(-weight)[:4]:  # the binding blocks first
-        k = felt[j][0]
-        cg, a = blocks[k]
-        tk, yk = _max_violation(cg, a @ d)
-        if tk <= t * (1 + 1e-6) + 1e-300:
-            return t, k, yk, {"own_programme_value": tk}
-    return t, None, None, {}  # no block reproduced the common value: the value without a location
+        # a block that cannot close even without violation would make the whole programme infeasible: solve
+        # the blocks one by one (rare: only at a configuration where the linearisation fails)
+        if nb > 1:
+            for j, k in enumerate(felt):
+                tk, yk = _solve(model, [pairs[k]])
+                t[k], ys[k] = tk[0], yk[0]
+            return t, ys
+        t[felt[0]] = 0.0
+        return t, ys
+    x = res.x.reshape(nb, n_g + 1)
+    for j, k in enumerate(felt):
+        t[k] = x[j, -1] if x[j, -1] < 0.5 * _UNBOUNDED else np.inf
+        ys[k] = x[j, :n_g]
+    return t, ys
+
+
+def _dual_pieces(model: ClearanceModel, c: np.ndarray) -> np.ndarray:
+    """The support function of the play set as pieces: ``h_Y(c) = sum_terms max_k pieces[..., term, k]``.
+
+    ``c`` (..., n_g) -> (..., n_terms, POLYGON_SIDES): per support (a polygon), the products with its
+    vertices; per segment, ``+c`` and ``-c`` (padded).  Linear in ``c``.
+    """
+    sides = POLYGON_SIDES
+    theta = (2 * np.arange(sides) + 1) * np.pi / sides  # the vertices of the inscribed polygon (radius 1)
+    vert = np.stack([np.cos(theta), np.sin(theta)])  # (2, N)
+    terms = []
+    for kind, cols in model.groups:
+        cc = c[..., cols]
+        if kind == "pads":  # y = (v1, v2, w1, w2); support A: (v1 - w2, v2 + w1), B: (v1 + w2, v2 - w1)
+            ca = np.stack([(cc[..., 0] - cc[..., 3]) / 2, (cc[..., 1] + cc[..., 2]) / 2], axis=-1)
+            cb = np.stack([(cc[..., 0] + cc[..., 3]) / 2, (cc[..., 1] - cc[..., 2]) / 2], axis=-1)
+            terms += [ca @ vert, cb @ vert]
+        elif kind in ("pad", "disc"):
+            terms.append(cc @ vert)
+        else:
+            x = cc[..., 0:1]
+            terms.append(np.concatenate([np.repeat(x, sides // 2, axis=-1), np.repeat(-x, sides // 2, axis=-1)],
+                                        axis=-1))
+    return np.stack(terms, axis=-2) if terms else np.zeros(c.shape[:-1] + (0, sides))
+
+
+def _violation_dual(model: ClearanceModel, cg: np.ndarray, av: np.ndarray) -> np.ndarray:
+    """Largest violation at configurations with one or two closure constraints left, without a programme.
+
+    By linear-programming duality ``t = min_{u . e = 1} h_Y(E^T u)`` (``E = U0^T A C``, ``e = U0^T A d``,
+    ``h_Y`` the support function of the play set, a sum of maxima of linear pieces).  With one row
+    ``u = 1 / e``; with two, ``u = e / |e|^2 + s n`` (``n`` orthogonal to ``e``) and the convex
+    piecewise-linear function of ``s`` is minimised by bisection on the sign of its right derivative
+    (to round-off).  ``cg`` (K, r, n_g), ``av`` (K, r) with ``r`` 1 or 2; returns ``t`` (K,).
+    """
+    k, r, _ = cg.shape
+    norm2 = np.sum(av * av, axis=1)
+    u0 = av / norm2[:, None]
+    a = _dual_pieces(model, np.einsum("krg,kr->kg", cg, u0))  # (K, T, N)
+    if r == 1:
+        return np.sum(np.max(a, axis=-1), axis=-1)
+    n = np.stack([-av[:, 1], av[:, 0]], axis=1) / np.sqrt(norm2)[:, None]
+    b = _dual_pieces(model, np.einsum("krg,kr->kg", cg, n))
+    scale = np.maximum(np.max(np.abs(a), axis=(1, 2)), np.max(np.abs(b), axis=(1, 2))) + 1e-300
+
+    def value_slopes_at(idx: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """f, its left and its right derivative at ``s`` for the rows ``idx``."""
+        bb = b[idx]
+        v = a[idx] + s[:, None, None] * bb
+        top = np.max(v, axis=-1, keepdims=True)
+        act = v >= top - 1e-13 * scale[idx, None, None]
+        right = np.sum(np.max(np.where(act, bb, -np.inf), axis=-1), axis=-1)
+        left = np.sum(np.min(np.where(act, bb, np.inf), axis=-1), axis=-1)
+        return np.sum(top[..., 0], axis=-1), left, right
+
+    def value_slopes(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return value_slopes_at(np.arange(k), s)
+
+    # bracket the minimiser: the right derivative is negative at lo, the left one positive at hi
+    width = np.full(k, 1.0) / np.sqrt(norm2)
+    lo, hi = -width.copy(), width.copy()
+    for _ in range(80):
+        f_lo, _, g_lo = value_slopes(lo)
+        f_hi, g_hi, _ = value_slopes(hi)
+        bad_lo, bad_hi = g_lo >= 0, g_hi <= 0
+        if not (bad_lo.any() or bad_hi.any()):
+            break
+        lo = np.where(bad_lo, 2 * lo, lo)
+        hi = np.where(bad_hi, 2 * hi, hi)
+    # cutting planes: the supporting lines at lo and hi meet at s, a lower bound of the minimum there; the
+    # function is piecewise linear, so this ends on the minimiser after a few cuts
+    best = np.minimum(f_lo, f_hi)
+    open_ = np.ones(k, dtype=bool)
+    for _ in range(200):
+        idx = np.nonzero(open_)[0]
+        if not len(idx):
+            break
+        denom = g_lo[idx] - g_hi[idx]
+        s_new = (f_hi[idx] - f_lo[idx] + g_lo[idx] * lo[idx] - g_hi[idx] * hi[idx]) / denom
+        s_new = np.clip(s_new, lo[idx], hi[idx])
+        bound = f_lo[idx] + g_lo[idx] * (s_new - lo[idx])
+        f_new, left, right = value_slopes_at(idx, s_new)
+        best[idx] = np.minimum(best[idx], f_new)
+        done = (best[idx] - bound <= 1e-13 * np.abs(best[idx])) | ((left <= 0) & (right >= 0))
+        go_right = right < 0
+        lo[idx] = np.where(go_right, s_new, lo[idx])
+        f_lo[idx], g_lo[idx] = np.where(go_right, f_new, f_lo[idx]), np.where(go_right, right, g_lo[idx])
+        hi[idx] = np.where(go_right, hi[idx], s_new)
+        f_hi[idx], g_hi[idx] = np.where(go_right, f_hi[idx], f_new), np.where(go_right, g_hi[idx], left)
+        open_[idx[done]] = False
+    return best
+
+
+class AssemblyConditions(Objective):
+    """The largest violation the clearances absorb, per assembly condition, as functions of configurations.
+
+    Where one or two closure constraints are left (``U0`` of one or two columns: the Tripteor) the
+    value comes from the dual of the programme (:func:`_violation_dual`, no solver call); otherwise
+    from the programme itself (:func:`_solve`).
+
+    Parameters
+    ----------
+    model : ClearanceModel
+    items : list of Tolerance
+        Assembly conditions (``direction``: one unit of violation, rad / mm).
+    """
+
+    loop_only = True
+
+    def __init__(self, model: ClearanceModel, items: list, kinematics: Kinematics | None = None) -> None:
+        self.model = model
+        self.kin = kinematics or Kinematics(model.mechanism)
+        self.names = tuple(it.id for it in items)
+        self.d = {it.id: _lift(model, it.direction) for it in items}
+
+    def plays(self, q: np.ndarray, which: list, exact: bool = False) -> tuple[np.ndarray, list]:
+        """``t`` of condition ``which[k]`` at ``q[k]``, and the plays there (with ``exact``: from the programme)."""
+        q = np.atleast_2d(q)
+        uniq, inverse = np.unique(q, axis=0, return_inverse=True)
+        blocks = _constraint_blocks(self.model, uniq, self.kin)
+        pairs = [(blocks[i][0], blocks[i][1] @ self.d[w]) for i, w in zip(np.ravel(inverse), which)]
+        t = np.full(len(pairs), np.inf)
+        ys: list = [None] * len(pairs)
+        rows = np.array([len(av) for _, av in pairs])
+        felt = np.array([len(av) > 0 and float(np.linalg.norm(av)) > 1e-12 * max(
+            float(np.max(np.abs(cg))) if cg.size else 0.0, float(np.max(np.abs(av))), 1e-300) for cg, av in pairs],
+            dtype=bool)
+        lp = [k for k in range(len(pairs)) if felt[k] and (exact or rows[k] > 2)]
+        for r in (1, 2):
+            idx = [k for k in range(len(pairs)) if felt[k] and not exact and rows[k] == r]
+            if idx:
+                t[idx] = _violation_dual(self.model, np.stack([pairs[k][0] for k in idx]),
+                                         np.stack([pairs[k][1] for k in idx]))
+        if lp:
+            tk, yk = _solve(self.model, [pairs[k] for k in lp])
+            t[lp] = tk
+            for k, y in zip(lp, yk):
+                ys[k] = y
+        t[t >= 0.5 * _UNBOUNDED] = np.inf
+        return t, ys
+
+    def pick(self, q: np.ndarray, which: list) -> np.ndarray:
+        return self.plays(q, which)[0]
+
+    def values(self, q: np.ndarray) -> dict:
+        q = np.atleast_2d(q)
+        k = len(q)
+        t = self.pick(np.repeat(q, len(self.names), axis=0), [n for _ in range(k) for n in self.names])
+        return {n: t[i::len(self.names)] for i, n in enumerate(self.names)}
 
 
 def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declaration, configurations: np.ndarray,
-                        model: ClearanceModel | None = None, reference: int | None = None) -> dict:
+                        model: ClearanceModel | None = None, reference: int | None = None, workspace=None,
+                        search: bool = True) -> dict:
     """Tolerance of every assembly condition from the clearances (see the module docstring).
 
     Parameters
@@ -251,67 +480,105 @@ def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declarat
     items : list of Tolerance
         Assembly conditions (``direction``: one unit of violation, rad / mm).
     configurations : ndarray, (K, n_q)
-        Assembled configurations of the workspace.
+        Assembled configurations of the workspace (the search starts from them).
     reference : int, optional
         The first ``reference`` configurations form a reference set (e.g. the analysis'
         configurations) whose own worst case is reported beside the value
-        (``reference_value``), to show what the rest of the sample changed.
+        (``reference_value``), to show what the search changed.
+    workspace : Workspace, optional
+        Bounds of the search (default: the mechanism's declared workspace).
+    search : bool
+        Search the workspace (:func:`hyperstat.solver.tolerances.worst_case.search_extremes`);
+        ``False``: the smallest value over ``configurations`` only.
 
     Returns
     -------
     dict
-        Tolerance id -> {"value", "worst_configuration", "limiting" (the four clearances at their
-        bound with the largest effect at the worst configuration), "at_bound" (how many are at
-        their bound), "configurations", "reference_value" (with ``reference``)}.
+        Tolerance id -> {"value" (the smallest violation absorbed over the workspace less the search's
+        tolerance; None when the plays absorb any small violation), "searched" (the minimum found),
+        "sampled_value" (over ``configurations``), "reference_value", "worst_q", "where", "start",
+        "location", "limiting" (joints whose play is used up there), "configurations", "evidence"}.
     """
+    from hyperstat.solver.tolerances.worst_case import search_extremes
+    from hyperstat.solver.tolerances.workspace import workspace_of
+
     model = model or clearance_model(mechanism, declaration)
     kin = Kinematics(model.mechanism)
-    blocks = _constraint_blocks(model, np.atleast_2d(configurations), kin)
+    objective = AssemblyConditions(model, items, kin)
+    q = np.atleast_2d(configurations)
+    sampled = objective.values(q)
+    ws = workspace or workspace_of(model.mechanism)
+    found = search_extremes(kin, objective, q, ws, kinds=("min",), starts=2, sampled=sampled) if search else {}
     out = {}
     for it in items:
-        d = _lift(model, it.direction)
-        best, worst, y_worst, margins = _min_violation(blocks, d)
+        v = sampled[it.id]
+        e = found.get((it.id, "min"))
+        best = int(np.argmin(v)) if len(v) else 0
+        entry = {"configurations": int(len(q)), "sampled_value": float(v[best]) if len(v) and np.isfinite(v[best])
+                 else None}
         if reference:
-            ref = _min_violation(blocks[:reference], d)[0]
-            margins["reference_value"] = None if not np.isfinite(ref) else ref
-            margins["reference_configurations"] = min(reference, len(blocks))
-        limiting, at_bound = [], 0
-        if y_worst is not None:
-            cg = blocks[worst][0]
-            weight = np.linalg.norm(cg, axis=0) * (np.abs(y_worst) > 0.999)  # plays at their bound, by effect
-            at_bound = int(np.sum(np.abs(y_worst) > 0.999))
-            limiting = [model.labels[j] for j in np.argsort(-weight)[:4] if weight[j] > 0]
-        out[it.id] = {"value": None if not np.isfinite(best) else best, "worst_configuration": worst,
-                      "limiting": limiting, "at_bound": at_bound, "configurations": len(blocks), **margins}
+            ref = float(np.min(v[:reference]))
+            entry["reference_value"] = ref if np.isfinite(ref) else None
+            entry["reference_configurations"] = min(reference, len(q))
+        if e is not None and np.isfinite(e.value):
+            tol = e.tolerance if math.isfinite(e.tolerance) else 0.0
+            worst_q = e.q
+            entry.update(value=max(e.value - tol, 0.0), searched=e.value, search_tolerance=e.tolerance,
+                         where=e.where(), start=e.start, location=e.location, evidence=e.evidence,
+                         candidates=e.starts)
+        elif len(v) and np.isfinite(v[best]):
+            worst_q = q[best]
+            entry.update(value=float(v[best]), searched=None, where="at a given configuration", start="sample",
+                         location="sample", evidence="not searched")
+        else:
+            worst_q = None
+            entry.update(value=None, searched=None, where=None, start=None, location=None,
+                         evidence="the clearances absorb any small violation at every configuration")
+        entry["worst_q"] = None if worst_q is None else np.asarray(worst_q, float)
+        entry["limiting"], entry["at_bound"] = [], 0
+        if worst_q is not None:
+            t_w, y_w = objective.plays(worst_q[None], [it.id], exact=True)
+            if y_w[0] is not None:
+                use = model.use(y_w[0])
+                full = [j for j, u in sorted(use.items(), key=lambda kv: -kv[1]) if u > 0.999]
+                entry["limiting"] = [f"joint {j} ({_play_words(model.sources[j])})" for j in full[:4]]
+                entry["at_bound"] = len(full)
+        out[it.id] = entry
     return out
 
 
+def _play_words(c: dict) -> str:
+    kind = "carriage" if c["side"] == "moving" else "supports"
+    return (f"{kind} {c['span_mm']:g} mm apart, radial play {1000 * c['radial_mm']:g} um"
+            if math.isfinite(c["span_mm"]) else f"radial play {1000 * c['radial_mm']:g} um")
+
+
 def _closure(kin: Kinematics, model: ClearanceModel, qq: np.ndarray, d: np.ndarray, t: float, y: np.ndarray):
-    """Scaled residual and Jacobians (passive joints, clearance displacements, violation) at one configuration."""
-    xi = t * d + model.columns @ (y * model.bounds)
+    """Scaled residual and Jacobians (passive joints, plays, violation) at one configuration."""
+    xi = t * d + model.columns @ y
     st = kin.evaluate(qq, xi, jacobians=True)
     ja = kin.scaled_rows(st.closure_xi)[0]
     return (kin.scaled(st.residual)[0], kin.scaled_rows(st.closure_q)[0][:, model.mechanism.passive],
-            ja @ model.columns * model.bounds[None, :], ja @ d)
+            ja @ model.columns, ja @ d)
 
 
 def confirm_nonlinear(mechanism: Mechanism, direction: np.ndarray, value: float, q: np.ndarray,
                       declaration: Declaration, model: ClearanceModel | None = None, margin: float = 0.01,
                       iterations: int = 40) -> dict:
-    """Check a linear assembly tolerance with the full nonlinear model, clearances as extra small joints.
+    """Check a linear assembly tolerance with the full nonlinear model, the plays as bounded extra joints.
 
-    The clearances become bounded extra variables of each joint's frame (small prismatic
-    and revolute joints: radial and axial shifts, tilts, a slide's twist), ``|y_i| <= 1`` in
-    units of the clearance.  Two checks at the configuration ``q``:
+    The plays become extra variables of each joint (small prismatic and revolute joints:
+    support shifts and tilts, axial shifts, a slide's twist), within the supports' polygons.
+    Two checks at the configuration ``q``:
 
     * **below**: at ``(1 - margin) value`` the loops are closed by Newton steps on the
-      passive joints and the clearance displacements (minimum-norm corrections), starting
-      from the linear programme's displacements; the residual must fall to round-off with
-      every displacement within its clearance;
+      passive joints and the plays (minimum-norm corrections), starting from the linear
+      programme's plays; the residual must fall to round-off with every play within its
+      clearance;
     * **maximum**: the largest violation for which the loops close is found by sequential
-      linear programming (the closure linearised at the current point, ``max t`` with
-      ``|y| <= 1`` and a shrinking trust region on ``y``), then the loops are re-assembled
-      there with the passive joints alone.
+      linear programming (the closure linearised at the current point, ``max t`` with the
+      plays admissible and a shrinking trust region on them), then the loops are
+      re-assembled there with the passive joints alone.
 
     Returns
     -------
@@ -328,6 +595,10 @@ def confirm_nonlinear(mechanism: Mechanism, direction: np.ndarray, value: float,
     d = _lift(model, direction)
     q0 = np.array(q, dtype=float)[None]
     n_g = model.columns.shape[1]
+    poly = model.polygon
+
+    def use(y: np.ndarray) -> float:
+        return max(model.use(y).values(), default=0.0)
 
     def step_lp(qq, t, y, radius):
         r, jq, jy, jt = _closure(kin, model, qq, d, t, y)
@@ -338,14 +609,16 @@ def confirm_nonlinear(mechanism: Mechanism, direction: np.ndarray, value: float,
         b_eq = -(u0.T @ (r - jy @ y - jt * t))
         scale = max(float(np.max(np.abs(a_eq))), 1e-300)
         bounds = [(max(-1.0, yi - radius), min(1.0, yi + radius)) for yi in y] + [(0.0, None)]
-        res = linprog(np.r_[np.zeros(n_g), -1.0], A_eq=a_eq / scale, b_eq=b_eq / scale, bounds=bounds, method="highs")
+        a_ub = np.concatenate([np.vstack([poly, -poly]), np.zeros((2 * len(poly), 1))], axis=1) if len(poly) else None
+        res = linprog(np.r_[np.zeros(n_g), -1.0], A_eq=a_eq / scale, b_eq=b_eq / scale, bounds=bounds,
+                      A_ub=a_ub, b_ub=None if a_ub is None else np.full(len(a_ub), model.limit), method="highs")
         if not res.success:
             return None
         y_new, t_new = res.x[:n_g], float(res.x[-1])
         dq = -np.linalg.lstsq(jq, r + jy @ (y_new - y) + jt * (t_new - t), rcond=1e-12)[0]
         return dq, y_new, t_new
 
-    # below: linear displacements at (1 - margin) value, then Newton (minimum-norm corrections)
+    # below: linear plays at (1 - margin) value, then Newton (minimum-norm corrections)
     qq = q0.copy()
     first = step_lp(qq, 0.0, np.zeros(n_g), 1.0)
     below = {"violation": (1 - margin) * value, "closure_residual_mm": None, "largest_clearance_use": None}
@@ -361,7 +634,7 @@ def confirm_nonlinear(mechanism: Mechanism, direction: np.ndarray, value: float,
             qq[0, passive] += step[: len(passive)]
             y = y + step[len(passive):]
         r = _closure(kin, model, qq, d, t, y)[0]
-        below.update(closure_residual_mm=float(np.linalg.norm(r)), largest_clearance_use=float(np.max(np.abs(y))))
+        below.update(closure_residual_mm=float(np.linalg.norm(r)), largest_clearance_use=use(y))
 
     # maximum: sequential linear programming with a shrinking trust region
     qq = q0.copy()
@@ -377,9 +650,9 @@ def confirm_nonlinear(mechanism: Mechanism, direction: np.ndarray, value: float,
         radius = max(radius * 0.6, 1e-9) if steps > 1 else 0.2
         if change <= 1e-9 * max(abs(t), 1e-300) and steps > 3:
             break
-    xi = t * d + model.columns @ (y * model.bounds)
+    xi = t * d + model.columns @ y
     closed = kin.assemble(qq, xi, tol=1e-13)
     return {"linear": float(value), "below": below, "value": t,
             "relative_difference": abs(t - value) / max(abs(value), 1e-300),
-            "closure_residual_mm": float(closed.residual[0]), "largest_clearance_use": float(np.max(np.abs(y))) if n_g else 0.0,
+            "closure_residual_mm": float(closed.residual[0]), "largest_clearance_use": use(y) if n_g else 0.0,
             "iterations": steps}

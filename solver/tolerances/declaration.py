@@ -23,13 +23,23 @@ A template (``TOLERANCING`` at module level, passed through by
   ``--orientation-accuracy`` override it);
 * ``clearances``: per joint kind (``"R"``, ``"P"``) and optionally per joint name
   (``"joints": {"21": {...}}``), ``{"radial_mm", "axial_mm", "tilt_rad", "twist_rad",
-  "source"}``.
+  "span_mm", "side", "centre_mm", "source"}``: the physical model of
+  :mod:`hyperstat.solver.tolerances.clearance`.  A joint is held by two supports
+  ``span_mm`` apart along its axis (a revolute's two bearings, or a pin's engagement length;
+  a prismatic joint's carriage, between its two pads), each with a radial play of at most
+  ``radial_mm`` in every direction, centred ``centre_mm`` along the axis from the joint's
+  frame on its ``side``: ``"fixed"`` (the frame before the joint's motion: a bearing, a leg
+  guided at its base joint) or ``"moving"`` (after it: a carriage riding on a fixed rail,
+  tilting about itself wherever it is).  The largest tilt is ``tilt_rad = 2 radial_mm /
+  span_mm`` (give one of them; a declared one wins over an inherited one); ``axial_mm`` is the
+  axial play, ``twist_rad`` a prismatic joint's play about its own axis.
 
 Defaults (:data:`DEFAULT_CLEARANCES`) are plain-bearing fits: ISO 286-2 H7/g6 on a
-20 mm diameter (hole 0/+21 um, shaft -7/-20 um: diametral clearance 7 to 41 um, so a
-radial play of at most 20.5 um) and an engagement length of 20 mm (revolute) or 40 mm
-(prismatic guide) for the tilt the play allows (diametral clearance / length).
-Revolutes are taken as axially located by shoulders (no axial play) unless declared.
+20 mm diameter (hole 0/+21 µm, shaft -7/-20 µm: diametral clearance 7 to 41 µm, so a
+radial play of at most 20.5 µm) and an engagement length of 20 mm (revolute) or 40 mm
+(prismatic guide: a carriage on the moving side) for the tilt the play allows (diametral
+clearance / length).  Revolutes are taken as axially located by shoulders (no axial play)
+unless declared.
 
 >>> from hyperstat.solver.tolerances.declaration import parse_declaration
 >>> parse_declaration({"task": ["position"]}, "demo").task
@@ -58,35 +68,41 @@ TASK_COMPONENTS = {
     "rz": "rotation about the base z axis",
 }
 
-_ISO286 = ("ISO 286-2 fit H7/g6 on a 20 mm diameter: diametral clearance 7 to 41 um, radial play up to "
-           "20.5 um; tilt = 41 um / engagement length")
+_ISO286 = ("ISO 286-2 fit H7/g6 on a 20 mm diameter: diametral clearance 7 to 41 µm, radial play up to "
+           "20.5 µm; tilt = 41 µm / engagement length")
 DEFAULT_CLEARANCES = {
-    "R": {"radial_mm": 0.0205, "axial_mm": 0.0, "tilt_rad": 0.041 / 20.0, "twist_rad": 0.0,
-          "source": _ISO286 + " (20 mm); axially located by shoulders (no axial play)"},
+    "R": {"radial_mm": 0.0205, "axial_mm": 0.0, "tilt_rad": 0.041 / 20.0, "twist_rad": 0.0, "side": "fixed",
+          "centre_mm": 0.0,
+          "source": _ISO286 + " (20 mm engagement, centred on the joint); axially located by shoulders (no axial "
+                              "play, assumed)"},
     "P": {"radial_mm": 0.0205, "axial_mm": 0.0, "tilt_rad": 0.041 / 40.0, "twist_rad": 0.041 / 40.0,
-          "source": _ISO286 + " (40 mm guide); the twist about the guide as its tilt"},
+          "side": "moving", "centre_mm": 0.0,
+          "source": _ISO286 + " (a 40 mm carriage riding on the guide, centred on the moving frame, tilting about "
+                              "itself); the twist about the guide as its tilt (assumed)"},
 }
 #: joints of a machine tool or precision positioner on rolling elements (the ``clearances`` the Tripteor, hexapod
 #: and SCARA templates declare, written out in each template so that a template stays readable on its own;
 #: tests/solver/tolerances/test_values.py checks that they agree with this).
 #: Revolute: ISO 5753-1:2009 radial internal clearance, Group 2 (C2), of a deep groove ball bearing with a bore
-#: over 18 up to 24 mm is 0 to 10 um (the same group and bore give 5 to 20 um in Group N): the inner ring moves
-#: +-5 um about the outer one; the tilt is two such bearings +-5 um each, 50 mm apart (the span is assumed), and
+#: over 18 up to 24 mm is 0 to 10 µm (the same group and bore give 5 to 20 µm in Group N): the inner ring moves
+#: +-5 µm about the outer one; the tilt is two such bearings +-5 µm each, 50 mm apart (the span is assumed), and
 #: the axial play is assumed equal to the radial one.  A preloaded bearing has no play (negative clearance): the
 #: assembly tolerance then comes from the structure's compliance, which this model does not contain.
 #: Prismatic: no public standard gives the play of a preloaded linear guide or ball screw (ISO 3408-3 classes
 #: the travel deviation of ball screws, not their play), so the values are assumed.
 MACHINE_TOOL_CLEARANCES = {
-    "R": {"radial_mm": 0.005, "axial_mm": 0.005, "tilt_rad": 0.010 / 50.0, "twist_rad": 0.0,
+    "R": {"radial_mm": 0.005, "axial_mm": 0.005, "span_mm": 50.0, "twist_rad": 0.0, "side": "fixed",
           "source": "ISO 5753-1 Group 2 (C2) radial internal clearance of a deep groove ball bearing, bore over 18 "
-                    "to 24 mm: 0 to 10 um, i.e. +-5 um radial play; tilt: two such bearings 50 mm apart (span "
+                    "to 24 mm: 0 to 10 µm, i.e. +-5 µm radial play; tilt: two such bearings 50 mm apart (span "
                     "assumed); axial play assumed equal to the radial; a preloaded bearing has none"},
-    "P": {"radial_mm": 0.002, "axial_mm": 0.0, "tilt_rad": 2e-5, "twist_rad": 2e-5,
+    "P": {"radial_mm": 0.002, "axial_mm": 0.0, "span_mm": 200.0, "twist_rad": 2e-5, "side": "fixed",
           "source": "assumed (no public standard gives the play of a preloaded linear guide or ball screw): "
-                    "2 um and 20 urad"},
+                    "2 µm on two pads 200 mm apart in a guide at the joint's fixed frame (a leg sliding through its "
+                    "base joint), so 20 µrad of tilt, and 20 µrad of twist"},
 }
 DEFAULT_SPEC = {"position_mm": 0.05, "orientation_rad": 5e-4}
-_CLEARANCE_KEYS = ("radial_mm", "axial_mm", "tilt_rad", "twist_rad")
+_CLEARANCE_KEYS = ("radial_mm", "axial_mm", "tilt_rad", "twist_rad", "span_mm", "centre_mm")
+_CLEARANCE_WORDS = ("side",)  # "fixed" or "moving"
 
 
 @dataclass(frozen=True)
@@ -107,20 +123,38 @@ class Declaration:
     declared: tuple = ()
 
     def clearance(self, joint_name: str, joint_type: str) -> dict:
-        """Clearance of one joint: its own entry, else its kind's, else the default (with the source)."""
-        own = self.clearances.get("joints", {}).get(joint_name)
-        if own is not None:
-            base = dict(self.clearances.get(joint_type, DEFAULT_CLEARANCES[joint_type]))
-            base.update(own)
-            base.setdefault("source", f"declared for joint {joint_name}")
-            return base
-        if joint_type in self.clearances:
-            out = dict(DEFAULT_CLEARANCES[joint_type])
-            out.update(self.clearances[joint_type])
-            if "source" not in self.clearances[joint_type]:
-                out["source"] = f"declared by the template for {joint_type} joints"
-            return out
-        return dict(DEFAULT_CLEARANCES[joint_type])
+        """Clearance of one joint, resolved: the default, then its kind's entry, then its own (with the source).
+
+        Every key is present: ``radial_mm``, ``axial_mm``, ``tilt_rad``, ``span_mm`` (``inf`` when
+        the tilt is zero), ``twist_rad``, ``side``, ``centre_mm``, ``source``.  Of ``tilt_rad`` and
+        ``span_mm`` the one declared last wins and gives the other (``tilt = 2 radial / span``).
+
+        >>> c = Declaration().clearance("2", "P")
+        >>> round(c["span_mm"], 9), c["side"]
+        (40.0, 'moving')
+        """
+        out: dict = {}
+        levels = [DEFAULT_CLEARANCES[joint_type], self.clearances.get(joint_type),
+                  self.clearances.get("joints", {}).get(joint_name)]
+        for level, entry in enumerate(levels):
+            if not entry:
+                continue
+            if "span_mm" in entry:
+                out.pop("tilt_rad", None)
+            if "tilt_rad" in entry:
+                out.pop("span_mm", None)
+            out.update(entry)
+            if level and "source" not in entry:
+                out["source"] = (f"declared for joint {joint_name}" if level == 2 else
+                                 f"declared by the template for {joint_type} joints")
+        radial = out["radial_mm"]
+        if "span_mm" in out:
+            out["tilt_rad"] = 2.0 * radial / out["span_mm"] if out["span_mm"] > 0 else float("inf")
+        else:
+            out["span_mm"] = 2.0 * radial / out["tilt_rad"] if out["tilt_rad"] > 0 else float("inf")
+        out.setdefault("side", "fixed" if joint_type == "R" else "moving")
+        out.setdefault("centre_mm", 0.0)
+        return out
 
     def to_dict(self) -> dict:
         """JSON-ready form (the model file's ``tolerancing`` field)."""
@@ -129,8 +163,7 @@ class Declaration:
                                  "noise_mm": self.noise_mm, "noise_rad": self.noise_rad, "frame": self.frame,
                                  "offsets": self.offsets, "poses": self.poses},
                 "spec": {"position_mm": self.position_mm, "orientation_rad": self.orientation_rad},
-                "clearances": {"R": self.clearance("", "R") if "R" in self.clearances else DEFAULT_CLEARANCES["R"],
-                               "P": self.clearance("", "P") if "P" in self.clearances else DEFAULT_CLEARANCES["P"],
+                "clearances": {"R": _declared_form(self.clearance("", "R")), "P": _declared_form(self.clearance("", "P")),
                                "joints": dict(self.clearances.get("joints", {}))},
                 "declared": list(self.declared)}
 
@@ -216,17 +249,39 @@ def parse_declaration(doc: dict | None, source: str = "model") -> Declaration:
 
 
 def _clearance_entry(entry, where: str) -> dict:
+    keys = ", ".join(_CLEARANCE_KEYS + _CLEARANCE_WORDS)
     if not isinstance(entry, dict):
-        raise ModelError(f"{where} must be an object with {', '.join(_CLEARANCE_KEYS)} and source.")
+        raise ModelError(f"{where} must be an object with {keys} and source.")
     out = {}
     for k, v in entry.items():
         if k == "source":
             out[k] = str(v)
+        elif k == "side":
+            if v not in ("fixed", "moving"):
+                raise ModelError(f"{where}.side must be 'fixed' or 'moving', got {v!r}.")
+            out[k] = v
+        elif k == "centre_mm":
+            try:
+                out[k] = float(v)
+            except (TypeError, ValueError):
+                raise ModelError(f"{where}.centre_mm must be a number, got {v!r}.") from None
+            if not np.isfinite(out[k]):
+                raise ModelError(f"{where}.centre_mm must be a finite number, got {v!r}.")
         elif k in _CLEARANCE_KEYS:
-            out[k] = _number(v, f"{where}.{k}")
+            out[k] = _number(v, f"{where}.{k}", positive=k == "span_mm")
         else:
-            raise ModelError(f"{where}: key '{k}' is unknown; use {', '.join(_CLEARANCE_KEYS)} and source.")
+            raise ModelError(f"{where}: key '{k}' is unknown; use {keys} and source.")
+    if "tilt_rad" in out and "span_mm" in out and "radial_mm" in out:
+        implied = 2.0 * out["radial_mm"] / out["span_mm"]
+        if abs(implied - out["tilt_rad"]) > 1e-9 * max(implied, out["tilt_rad"], 1e-300):
+            raise ModelError(f"{where}: tilt_rad {out['tilt_rad']:g} disagrees with 2 radial_mm / span_mm = "
+                             f"{implied:g}; give one of tilt_rad and span_mm.")
     return out
+
+
+def _declared_form(c: dict) -> dict:
+    """A resolved clearance as the model file writes it (JSON has no infinity: an infinite span is left out)."""
+    return {k: v for k, v in c.items() if not (k == "span_mm" and not np.isfinite(v))}
 
 
 def declaration_of(mechanism) -> Declaration:

@@ -8,11 +8,11 @@ Units: mm and rad.
   task rows (``epsilon`` for position, ``delta`` for orientation, eq. 18), and the budget
   is the spec less what calibration noise leaves (:attr:`Classification.calibration`).
   The allocation divides by the *worst case* of each coefficient over the declared
-  workspace: the sample's maximum refined by a batched ascent over the actuated variables
-  (:func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`; ``refine="slsqp"``
-  runs issue 24's :func:`hyperstat.solver.tolerances.worst_case.refine_extremes` on the
-  task rows instead, :func:`task_extremes`), plus the stated tolerance; a sampled maximum
-  is low by construction and would make the values loose (the unsafe direction);
+  workspace, searched by the one worst-case engine
+  (:func:`hyperstat.solver.tolerances.worst_case.search_extremes`: sample, corners, edges,
+  faces and dead centres, then a projected-gradient search on the configuration manifold),
+  plus its stated tolerance; a sampled maximum is low by construction and would make the
+  values loose (the unsafe direction);
 * **compensable**: the same allocation over every influential direction (accuracy-critical
   and compensable) without calibration: the value that keeps the spec on an
   uncalibrated machine; calibration lets it open;
@@ -28,7 +28,6 @@ task has position components, else the orientation error.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -38,11 +37,10 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, in_chunks, output_twist_maps
 from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
-from hyperstat.solver.tolerances.task_worst import TASK_COEFFICIENTS, TaskCoefficients, task_worst_cases
+from hyperstat.solver.tolerances.worst_case import TASK_COEFFICIENTS, TaskCoefficients, search_extremes
 from hyperstat.solver.threads import limited_blas
 
-__all__ = ["assign_values", "task_maps", "task_extremes", "monte_carlo_at_values", "ASSEMBLY_SAMPLE",
-           "TASK_COEFFICIENTS"]
+__all__ = ["assign_values", "task_maps", "monte_carlo_at_values", "ASSEMBLY_SAMPLE", "TASK_COEFFICIENTS"]
 
 #: configurations of the stationarity sample on which the assemblability programme runs (report, accuracy)
 ASSEMBLY_SAMPLE = 8
@@ -88,76 +86,6 @@ def _coefficients(rot: np.ndarray, pos: np.ndarray, is_len: np.ndarray, names: l
     return AccuracyMaps(coeffs, {}, groups, np.atleast_2d(q), np.zeros((rot.shape[0], 3)))
 
 
-class _TaskColumns:
-    """The tolerance directions as the geometric coordinates of :func:`refine_extremes` (its ``analysis``)."""
-
-    def __init__(self, names: list, matrix: np.ndarray) -> None:
-        self.names, self.matrix = list(names), matrix
-
-    def parameterization(self, mechanism: Mechanism, influential_only: bool = True) -> tuple[list, np.ndarray]:
-        return list(self.names), self.matrix
-
-
-class _TaskKinematics:
-    """Kinematics whose output twists keep only the task components (the other rows projected out).
-
-    The task rows of :func:`task_rows` are orthonormal within the rotation block and within
-    the position block, so the largest singular value of the projected 3-row block equals
-    that of the task rows: the coefficients of :func:`refine_extremes` become the
-    task-restricted ones.  Everything else is the wrapped :class:`Kinematics`.
-    """
-
-    def __init__(self, kin: Kinematics, task: tuple) -> None:
-        self._kin, self._task = kin, tuple(task)
-
-    def __getattr__(self, name: str):
-        return getattr(self._kin, name)
-
-    def evaluate(self, q, xi=None, jacobians=True):
-        st = self._kin.evaluate(q, xi, jacobians)
-        if st.output_xi is None:
-            return st
-        sel = task_rows(self._task, st.output_pose)
-        proj = np.swapaxes(sel, 1, 2) @ sel  # (K, 6, 6), block diagonal
-        return dataclasses.replace(st, output_xi=proj @ st.output_xi,
-                                   output_q=None if st.output_q is None else proj @ st.output_q)
-
-
-def task_extremes(mechanism: Mechanism, kin: Kinematics, maps: AccuracyMaps, task: tuple, names: list,
-                  directions: np.ndarray, workspace=None, starts: int = 2) -> dict:
-    """Refined maxima of the task-restricted coefficients over the workspace.
-
-    :func:`hyperstat.solver.tolerances.worst_case.refine_extremes` (bounded SLSQP from the
-    best separate samples, closures as constraints, branch checked) run on the task rows
-    (:class:`_TaskKinematics`) and the tolerance directions (:class:`_TaskColumns`).
-
-    Parameters
-    ----------
-    maps : AccuracyMaps
-        The sampled task-restricted coefficients (their ``q``: the workspace sample).
-    names : list of str
-        The parameter each direction belongs to (its unit picks the class ``gP`` / ``gR``).
-    directions : ndarray, (n_xi, n)
-        Defect vector per unit of each tolerance (rad / mm).
-    workspace : Workspace, optional
-        Bounds (default: the mechanism's declared workspace).
-
-    Returns
-    -------
-    dict
-        Coefficient name -> :class:`hyperstat.solver.tolerances.worst_case.Extreme` (maxima only).
-    """
-    from hyperstat.solver.tolerances.worst_case import refine_extremes
-
-    present = tuple(n for n in TASK_COEFFICIENTS if len(maps.coefficients.get(n, ())) and
-                    float(np.max(maps.coefficients[n])) > 0)
-    if not present or len(maps.q) == 0:
-        return {}
-    ext = refine_extremes(mechanism, maps, _TaskColumns(names, directions), kinematics=_TaskKinematics(kin, task),
-                          workspace=workspace, kinds=("max",), starts=starts, names=present)
-    return {name: e for (name, kind), e in ext.items()}
-
-
 def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | None,
               extremes: dict | None = None) -> dict:
     """Equal allocation (paper 2, eqs. 30-31) through :func:`hyperstat.solver.tolerances.accuracy.allocate`.
@@ -184,7 +112,7 @@ def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | N
 def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
                   position_accuracy: float | None = None, orientation_accuracy: float | None = None,
                   assembly: bool = True, assembly_configurations: np.ndarray | None = None, refine: bool = True,
-                  workspace=None, task_maps_at: tuple | None = None) -> Classification:
+                  workspace=None, task_maps_at: tuple | None = None, calibrate: bool = True) -> Classification:
     """Fill ``value``, ``value_source`` and ``contribution`` of every tolerance of ``cl`` (in place).
 
     Parameters
@@ -201,10 +129,9 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         (:func:`hyperstat.solver.tolerances.classification.workspace_checkpoints`: a sample of
         the declared workspace and the corners of its actuated box): e.g. the analysis'
         configurations, whose own worst case is reported beside the value.
-    refine : bool or "slsqp"
-        Refine the sampled maxima of the task-restricted coefficients: ``True``, the batched
-        ascent of :func:`hyperstat.solver.tolerances.task_worst.task_worst_cases`;
-        ``"slsqp"``, :func:`task_extremes` (issue 24's SLSQP, slower); ``False``, the sampled
+    refine : bool
+        Search the worst cases of the task-restricted coefficients
+        (:func:`hyperstat.solver.tolerances.worst_case.search_extremes`); ``False``: the sampled
         maxima (loose: a sampled maximum is low).
     workspace : Workspace, optional
         Bounds of the refinement (default: the mechanism's declared workspace).
@@ -212,13 +139,17 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         :func:`task_maps` at ``configurations`` for the accuracy-critical and compensable
         tolerances in the order of ``cl.items``, when already computed from the same Jacobians
         (``accuracy_maps(task=..., task_directions=...)``, as ``hyperstat accuracy`` does).
+    calibrate : bool
+        Also the compensable tolerances' values with calibration
+        (:func:`hyperstat.solver.tolerances.calibrated.calibrated_values`, simulated), and the share of the
+        calibrated budget kept for their second-order residual.
     """
     return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                              assembly_configurations, refine, workspace, task_maps_at)
+                          assembly_configurations, refine, workspace, calibrate, task_maps_at)
 
 
 def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                   assembly_configurations, refine, workspace, task_maps_at=None) -> Classification:
+                   assembly_configurations, refine, workspace, calibrate, task_maps_at=None) -> Classification:
     """Body of :func:`assign_values` (BLAS single-threaded by the caller)."""
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
@@ -228,12 +159,10 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
     info = {"spec": {"position_mm": spec_p, "orientation_rad": spec_o}, "configurations": int(len(q)),
             "method": "equal allocation, paper 2 eqs. (19), (30)-(31), on the worst case of each task-restricted "
                       "coefficient over the declared workspace: " + (
-                          f"the maximum over {len(q)} sampled configurations refined by "
-                          + ("bounded local optimisation (SLSQP over all joints, closures as constraints, workspace "
-                             "ranges as bounds)" if refine == "slsqp" else
-                             "a projected-gradient ascent over the actuated variables within the workspace's actuated "
-                             "box, passive joints on the sample's branch")
-                          + ", plus the optimiser's stated tolerance" if refine else
+                          f"searched from {len(q)} sampled configurations and the corners, edges, faces and dead "
+                          "centres of the actuated box by a projected-gradient search on the configuration manifold "
+                          "within the workspace bounds (hyperstat.solver.tolerances.worst_case), plus the search's "
+                          "stated tolerance" if refine else
                           f"the maximum over {len(q)} sampled configurations (not refined: may be low, which makes "
                           "the values loose)")}
     if influential:
@@ -251,17 +180,29 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         if (left_p is not None and left_p <= 0) or (left_o is not None and left_o <= 0):
             cl.warnings.append("the calibration noise alone uses up the spec: no accuracy-critical tolerance fits.")
         crit = np.array([t.cls == "accuracy-critical" for t in influential])
+        comp = np.array([t.cls == "compensable" for t in influential])
+        # the calibrated machine: the compensable defects leave a second-order residual after calibration, which
+        # shares the budget equally with the accuracy-critical classes (paper 2, eq. 30: one share per class)
+        reserve = {}
+        if calibrate and comp.any():
+            for key, left, rows_of in (("position_mm", left_p, pos), ("orientation_rad", left_o, rot)):
+                if left is None or left <= 0 or not rows_of.shape[1]:
+                    continue
+                classes = sum(1 for kind in (True, False) if np.any(crit & (is_len == kind)) and
+                              np.any(np.abs(rows_of[:, :, crit & (is_len == kind)]) > 0))
+                reserve[key] = left / (classes + 1)
+            if crit.any():
+                left_p = None if left_p is None else left_p - reserve.get("position_mm", 0.0)
+                left_o = None if left_o is None else left_o - reserve.get("orientation_rad", 0.0)
+            info["second_order_share"] = dict(reserve)
 
         def allocation(cols: np.ndarray, p_budget, o_budget) -> dict:
             maps = _coefficients(rot[:, :, cols], pos[:, :, cols], is_len[cols], [n for n, c in zip(names, cols) if c], q)
-            sub = [n for n, c in zip(names, cols) if c]
-            if refine == "slsqp":
-                ext = task_extremes(mechanism, kin, maps, decl.task, sub, dirs[:, cols], workspace)
-            elif refine:
-                ext = task_worst_cases(mechanism, kin, q, TaskCoefficients(kin, decl.task, dirs[:, cols], is_len[cols]),
-                                       workspace, sampled=maps.coefficients)
-            else:
-                ext = {}
+            ext = {}
+            if refine:
+                objective = TaskCoefficients(kin, decl.task, dirs[:, cols], is_len[cols])
+                ext = {n: e for (n, _), e in search_extremes(kin, objective, q, workspace, starts=2,
+                                                             sampled=maps.coefficients).items()}
             return _allocate(maps, p_budget if has_p else None, o_budget if has_r else None, ext)
 
         calibrated = allocation(crit, left_p if left_p is None or left_p > 0 else 0.0,
@@ -334,40 +275,106 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
 
         items = cl.by_class("assembly")
         if items:
-            # the same configurations whatever the command: the given ones (the reference set), a fixed
-            # sample of the declared workspace and the corners of its actuated box that assemble on its branch
+            # the search starts from the same configurations whatever the command: the given ones (the
+            # reference set), a fixed sample of the declared workspace and the corners of its actuated box
             ref = None if assembly_configurations is None else np.atleast_2d(assembly_configurations)
             ws_part, corners = workspace_checkpoints(mechanism, kin, workspace)
             parts = ([ref] if ref is not None else []) + [p for p in (ws_part, corners) if len(p)]
             qa = np.vstack(parts) if parts else q
-            vals = assembly_tolerances(mechanism, items, decl, qa, reference=None if ref is None else len(ref))
+            vals = assembly_tolerances(mechanism, items, decl, qa, reference=None if ref is None else len(ref),
+                                       workspace=workspace)
             n_ref = 0 if ref is None else len(ref)
             info["assembly_configurations"] = {"total": int(len(qa)), "analysis": n_ref, "workspace": int(len(ws_part)),
                                                "box_corners": int(len(corners))}
             for t in items:
                 v = vals[t.id]
                 t.value = v["value"]
-                t.evidence["assemblability"] = {k: v.get(k) for k in ("worst_configuration", "limiting", "at_bound",
-                                                                      "configurations", "reference_value")}
-                wc = v["worst_configuration"]
-                if wc is not None:
+                t.evidence["assemblability"] = {k: v.get(k) for k in (
+                    "limiting", "at_bound", "configurations", "reference_value", "sampled_value", "searched",
+                    "search_tolerance", "where", "start", "location", "evidence")}
+                wq = v.get("worst_q")
+                if wq is not None:
                     t.evidence["assemblability"]["worst_actuated"] = {
-                        mechanism.joints[i].name: float(qa[wc, i]) for i in mechanism.actuated}
-                    t.evidence["assemblability"]["worst_in"] = ("analysis" if wc < n_ref else "workspace sample"
-                                                                if wc < n_ref + len(ws_part) else "actuated box corner")
-                t.value_source = (f"largest violation the joint clearances absorb at every one of {v['configurations']} "
-                                  f"configurations ({n_ref} of the analysis, {len(ws_part)} sampled in the declared "
-                                  f"workspace, {len(corners)} corners of its actuated box; worst-case assemblability, "
-                                  "linear programme)")
-                rv = v.get("reference_value")
-                if v["value"] is not None and rv is not None and n_ref:
-                    t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
-                                       f"({100 * (rv / v['value'] - 1):.0f} % looser)" if rv > v["value"] * (1 + 1e-9)
-                                       else "; the analysis configurations alone give the same value")
+                        mechanism.joints[i].name: float(wq[i]) for i in mechanism.actuated}
+                    t.evidence["assemblability"]["worst_configuration"] = wq.tolist()
+                    t.evidence["assemblability"]["worst_in"] = v.get("start")
                 if v["value"] is None:
                     t.value_source = "the clearances absorb any small violation (no limit to first order)"
+                    continue
+                t.value_source = (f"largest violation the joint clearances absorb at every configuration of the declared "
+                                  f"workspace (worst-case assemblability, linear programme), searched from {len(qa)} "
+                                  f"configurations ({n_ref} of the analysis, {len(ws_part)} sampled, {len(corners)} "
+                                  "corners of the actuated box) and the box's edges, faces and dead centres; worst "
+                                  f"{v.get('location') or 'at a configuration'}, from a {v.get('start')} start")
+                rv, sv = v.get("reference_value"), v.get("sampled_value")
+                if sv is not None and sv > v["value"] * (1 + 1e-9):
+                    t.value_source += f"; the starting configurations alone give {sv:.4g} {t.unit} " \
+                                      f"({100 * (sv / v['value'] - 1):.2f} % looser)"
+                if rv is not None and n_ref and rv > v["value"] * (1 + 1e-9):
+                    t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
+                                       f"({100 * (rv / v['value'] - 1):.0f} % looser)")
+    if influential:
+        _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o)
+    if calibrate and influential:
+        from hyperstat.solver.tolerances.calibrated import calibrated_values
+
+        info["with_calibration"] = calibrated_values(cl, mechanism, kin, q, spec_p, spec_o, workspace, share=reserve)
+    _drawing_values(cl, mechanism)
     cl.allocation = info
     return cl
+
+
+def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o) -> None:
+    """The attainable linear worst case and the triangle bound of each allocation, searched over the workspace."""
+    from hyperstat.solver.tolerances.bounds import LinearWorstCase
+
+    decl = cl.declaration
+    n_rot = n_rotation_rows(decl.task)
+    for key, members in (("uncalibrated", [True] * len(influential)),
+                         ("calibrated", [t.cls == "accuracy-critical" for t in influential])):
+        if not info.get(key):
+            continue
+        # every tolerance of the allocation at that allocation's value (an accuracy-critical one carries its
+        # calibrated value; without calibration it is held to the uncalibrated one)
+        per_kind = {k: c.get("tolerance") for k, c in info[key]["classes"].items()}
+        values = np.array([per_kind.get("gP" if length else "gR") or 0.0 for length in is_len])
+        cols = np.array(members, dtype=bool) & (values > 0)
+        if not cols.any():
+            continue
+        values = values[cols]
+
+        def rows(qq: np.ndarray, cols=cols) -> np.ndarray:
+            rot, pos = task_maps(mechanism, kin, qq, decl.task, dirs[:, cols])
+            return pos if pos.shape[1] else rot
+
+        objective = LinearWorstCase(rows, values)
+        found = search_extremes(kin, objective, q, workspace, starts=1, structured=1)
+        unit = "mm" if task_rows(decl.task, np.eye(4)[None]).shape[1] > n_rot else "rad"
+        spec = spec_p if unit == "mm" else spec_o
+        att, tri = found.get(("attainable", "max")), found.get(("triangle", "max"))
+        bounds = {"attainable_linear_worst_case": None if att is None else att.value,
+                  "triangle_bound": None if tri is None else tri.value, "unit": unit, "spec": spec,
+                  "attainable_where": None if att is None else att.where(),
+                  "meaning": "attainable: the largest first-order task error of a machine with every tolerance "
+                             "within its value (the worst sign pattern at the worst configuration found); triangle: "
+                             "every tolerance at its extreme with every effect adding up (a bound no machine need "
+                             "reach)"}
+        info[key]["bounds"] = bounds
+        for t, c in zip(influential, cols):
+            if c and (key == "calibrated") == (t.cls == "accuracy-critical"):
+                t.bounds = {k: bounds[k] for k in ("attainable_linear_worst_case", "triangle_bound", "unit")}
+
+
+def _drawing_values(cl, mechanism) -> None:
+    """The value a drawing carries (rounded to the safe side) and the ISO 1101 callouts."""
+    from hyperstat.solver.tolerances.drawing import add_drawing, safe_round
+
+    calibrated = "measurements" in cl.declaration.declared
+    for t in cl.items:
+        v = t.value_with_calibration if calibrated and t.cls == "compensable" and \
+            t.value_with_calibration is not None else t.value
+        t.drawing_value = safe_round(v)
+    add_drawing(cl, mechanism)
 
 
 def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
@@ -389,8 +396,9 @@ def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinemat
     -------
     dict
         ``samples``, statistics of the task errors (mm, rad), ``out_of_spec_*_percent`` for both
-        machines, ``linear_worst_case`` (triangle-inequality bound over the sample, every
-        tolerance at its extreme, mm / rad), and ``contributors`` by tolerance id, sorted
+        machines, ``linear_worst_case`` (the triangle bound over the sample, every tolerance at its
+        extreme and every effect adding up, mm / rad), ``attainable_linear_worst_case`` (the worst
+        sign pattern), and ``contributors`` by tolerance id, sorted
         by position share.
     """
     from hyperstat.solver.tolerances.montecarlo import monte_carlo
@@ -412,11 +420,20 @@ def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinemat
     for c in out["contributors"]:
         c["label"] = label.get(c["parameter"], c["parameter"])
     out["contributors"].sort(key=lambda c: -c["position_share"])
+    from hyperstat.solver.tolerances.bounds import attainable, triangle
+
     rot, pos = task_maps(mechanism, kin, configurations, decl.task, matrix)
     vals = np.array([tol[n] for n in names])
+    # named for what they are (over the Monte Carlo's configurations): the triangle bound (every tolerance at
+    # its extreme and every effect adding up, which no machine need reach) and the attainable worst case
     out["linear_worst_case"] = {
-        "position_mm": float(np.max(np.linalg.norm(pos, axis=1) @ vals)) if pos.shape[1] else None,
-        "orientation_rad": float(np.max(np.linalg.norm(rot, axis=1) @ vals)) if rot.shape[1] else None}
+        "position_mm": float(np.max(triangle(pos * vals))) if pos.shape[1] else None,
+        "orientation_rad": float(np.max(triangle(rot * vals))) if rot.shape[1] else None,
+        "meaning": "triangle bound: every tolerance at its extreme with every effect adding up"}
+    out["attainable_linear_worst_case"] = {
+        "position_mm": float(np.max(attainable(pos * vals))) if pos.shape[1] else None,
+        "orientation_rad": float(np.max(attainable(rot * vals))) if rot.shape[1] else None,
+        "meaning": "the worst sign pattern of the tolerances at their values, at the worst configuration sampled"}
     crit = [t for t in drawn if t.cls == "accuracy-critical"]
     calibrated = {}
     if crit:

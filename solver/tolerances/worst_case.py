@@ -1,89 +1,123 @@
-"""Extremes of the accuracy coefficients over the workspace: sampled, then refined by optimisation.
+"""The one worst-case engine: extremes of a function of the configuration over the workspace, searched.
 
-Units: joint values in mm and rad; coefficients in their own units (rad/rad, mm/rad, ...).
+Units: joint values in mm and rad; the functions in their own units (coefficients in rad/rad,
+mm/rad, ...; assembly violations in mm or rad).
 
-The allocation of paper 2 (eqs. 19, 30-31) divides the required accuracy by the largest
-value of each accuracy coefficient (eq. 18) over the workspace.  A sampled maximum is
-low by construction, which makes the tolerances too loose: the unsafe direction.  Here
-the best samples are refined by bounded local optimisation (SLSQP, :mod:`scipy.optimize`)
-over the configuration ``q`` of all joints with
+Every worst case of hyperstat goes through :func:`search_extremes`: the largest accuracy
+coefficients (paper 2, eq. 18, whole or restricted to the task) that the allocation divides by,
+and the smallest violation of an assembly condition that the joint clearances absorb
+(:mod:`hyperstat.solver.tolerances.clearance`).  A sampled extreme is on the unsafe side (a
+sampled maximum is low, a sampled minimum high), so the workspace is *searched*:
 
-* the loop closures as equality constraints (their independent rows, picked by a pivoted
-  QR of the closure Jacobian at the start), so every iterate may leave the closure
-  surface but the solution lies on it: the actuated variables are the free ones, the
-  passive joints follow; the reachable set is the closure surface itself;
-* the workspace's joint ranges as bounds: the actuated box and the passive ranges that
-  pick the assembly branch (:mod:`hyperstat.solver.tolerances.workspace`), the passive
-  ones moved inwards by ``margin`` (1e-4 rad) because the edge of a branch is where the
-  passive Jacobian is singular and the coefficients are not evaluated reliably there.
+1. **Candidates**: the given sample of the workspace; the corners of the actuated box; points
+   along its edges; and every configuration where a joint velocity changes sign along an edge
+   or along a coordinate line of a full-turn actuator (a *dead centre*: the slider-crank at
+   ``theta1 = 0, pi``), found by bracketing the sign change on a grid and solving for it
+   (regula falsi, :func:`workspace_candidates`).  All are assembled on the branch of the
+   workspace by certified continuation from the nearest sample.
+2. **Local search** from the best separate candidates, batched over all functions and starts:
+   a projected-gradient method *on the configuration manifold* (all joints the function depends
+   on are the variables, the closure holds them on the manifold): the gradient is taken by
+   forward differences along a basis of the tangent space (the null space of the closure
+   Jacobian with the joints at an active bound held), the step is projected on the bounds
+   (actuated box, declared passive ranges moved inwards by :data:`MARGIN`), and the new point is
+   brought back onto the closure by minimum-norm Newton corrections.  A step is refused if its
+   correction is not small against it (the branch could change), if it leaves a bound, or if it
+   comes to a configuration whose passive Jacobian is conditioned below :data:`CONDITIONING_FLOOR`
+   times its median over the sample away from any declared passive bound (a singular edge
+   inside the workspace, where a coefficient can grow without bound).  So interiors, faces,
+   edges and corners are all searched: a bound that becomes active is held, and released
+   when the gradient points inwards.
+3. **A singular edge refined once.** When the extreme lies on a declared passive bound where the
+   passive Jacobian is singular (the Triflex-II's PRRU leg stretched), the value is a supremum,
+   approached and not attained.  Instead of optimising again at several margins, the one path
+   found at :data:`MARGIN` is moved towards the edge along the bounded joint only (the other
+   coordinates follow by minimum-norm corrections), the function is evaluated at margins
+   1e-3 ... 1e-6 in one batch, and the remaining gap to the edge is estimated from that
+   sequence (Richardson, its order estimated from the sequence itself): the cost does not grow
+   with the number of margins.
+4. **Checks**: the end point is re-assembled at its actuated values, checked inside the workspace,
+   and checked to be on the branch of its start (a certified continuation back to the start
+   must land on it).  The value reported is never less extreme than the best candidate.
 
-Each refined configuration is re-assembled at its actuated values (Gauss-Newton), checked
-to lie in the workspace, and checked to be on the sample's branch (a continuation back
-to the sample from it must land on the sample).  Where each extreme is reached is
-reported: the configuration, ``interior`` or ``boundary`` (which bound is active), and
-whether the passive Jacobian is singular there; an extreme at a singular edge of the
-branch is a *supremum on the boundary*: the value is approached, not attained, and is
-reported at margins 1e-2, 1e-3, 1e-4 rad from the edge with the remaining gap estimated
-from that sequence.  The refined extreme is never below the sampled one (it is the
-largest of both).  A local optimiser finds the global extreme only if one of its starts
-lies in the right basin: several separate starts are used, and how many of them agree
-is reported.
+A local method finds the global extreme only if one start lies in its basin; the candidates
+make that likely on the shipped templates, and the tests compare every value with an
+independent search (its own kinematics, dense grids and root-finding of the dead centres).
+The stated ``tolerance`` is 0 where no ascent direction is left within the bounds (a stationary
+point, to the accuracy of the forward differences), the first-order gain of the shortest step tried
+where no step down to 1e-8 improved (a kink), the last accepted improvement where the improvements
+fell below 1e-12 of the value (the remaining improvement is smaller when the search converges
+linearly with a ratio below 1/2), or the estimated remaining gap of a supremum; a search stopped at
+its iteration limit says so, with its last improvement.
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from hyperstat.solver.kinematics.continuation import ContinuationOptions, continue_path
 from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.continuation import batched_lstsq
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import (COEFFICIENT_NAMES, AccuracyMaps, geometric_parameters,
                                                   largest_singular_value, output_twist_maps)
 from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
 
-__all__ = ["Extreme", "refine_extremes", "coefficient_at", "branch_conditioning"]
+__all__ = ["Extreme", "Objective", "Coefficients", "TaskCoefficients", "search_extremes", "refine_extremes",
+           "workspace_candidates", "coefficient_at", "branch_conditioning", "TASK_COEFFICIENTS"]
 
 #: passive bounds are moved inwards by this much (rad; times the length scale for mm)
 MARGIN = 1e-4
-#: SLSQP iterations for a maximum (half for a minimum: a largest singular value is not smooth where it is
-#: smallest, two singular values meet there, and the minima do not enter the allocation)
-MAXITER = 80
-#: SLSQP's stopping tolerance on the change of the objective, relative to the coefficient's value at the start
-FTOL = 1e-12
 #: relative smallest singular value of the scaled passive Jacobian below which a configuration is singular
 SINGULAR = 1e-2
+#: a step is refused where the conditioning falls below this fraction of its median over the sample, away from
+#: the declared passive bounds: at a singular edge inside the workspace a coefficient can grow without bound
+CONDITIONING_FLOOR = 1e-2
+#: the task-restricted coefficients the allocation divides by (paper 2, eq. 18, task rows only)
+TASK_COEFFICIENTS = ("delta_gP", "delta_gR", "epsilon_gP", "epsilon_gR")
+#: margins (rad, or times the length scale) at which a supremum at a singular edge is evaluated, in one batch
+EDGE_MARGINS = (1e-3, 1e-4, 1e-5, 1e-6)
 
 
 @dataclass
 class Extreme:
-    """An extreme (largest or smallest value) of one accuracy coefficient over the workspace.
+    """An extreme (largest or smallest value) of one function over the workspace.
 
     Attributes
     ----------
-    coefficient, kind : str
-        Paper name (eq. 18) and ``"max"`` or ``"min"``.
+    coefficient : str
+        The function's name (an accuracy coefficient of paper 2, eq. 18, or a tolerance id).
+    kind : str
+        ``"max"`` or ``"min"``.
     value : float
-        The refined extreme (never less extreme than ``sampled``).
+        The extreme found (never less extreme than ``sampled``).
     sampled : float
-        The extreme over the sampled configurations.
+        The extreme over the candidates (sample, corners, edges, dead centres).
     q : ndarray, (n_q,)
         Where it is reached (all joints, mm / rad).
+    actuated : dict
+        Actuated joint name -> value there.
+    position : list of float
+        Output origin there (mm).
     location : str
-        ``"interior"``, ``"boundary"`` or ``"constant"`` (the coefficient does not vary).
+        ``"interior"``, ``"boundary"`` (a workspace bound is active) or ``"constant"``.
     bounds : list of str
-        Active workspace bounds there, in words.
+        Active workspace bounds there, in words (the actuated ones say face, edge or corner).
     singular : bool
         The passive Jacobian is (nearly) singular there (edge of the assembly branch).
     supremum : bool
         The value is approached at a singular boundary, not attained.
     tolerance : float
-        Estimated distance of ``value`` from the true (local) extreme, in the coefficient's unit.
+        Estimated distance of ``value`` from the true (local) extreme, in the function's unit; NaN
+        when the search stopped at its iteration limit while still improving.
     starts, agreeing : int
-        Local optimisations run, and how many reached ``value`` within the tolerance.
+        Local searches run, and how many reached ``value`` within the tolerance.
+    iterations : int
+        Iterations of the search path that gave ``value``.
+    start : str
+        The candidate the best path started from (``sample``, ``corner``, ``edge``, ``dead centre ...``).
     evidence : str
         What supports the value, in words.
     """
@@ -102,20 +136,24 @@ class Extreme:
     tolerance: float = 0.0
     starts: int = 0
     agreeing: int = 0
+    iterations: int = 0
+    start: str = ""
     evidence: str = ""
 
     def as_dict(self) -> dict:
         """JSON-ready (lengths in mm, angles in rad)."""
-        return {"value": self.value, "sampled": self.sampled, "location": self.location, "bounds": self.bounds,
-                "singular": self.singular, "supremum_on_boundary": self.supremum, "tolerance": self.tolerance,
-                "actuated": self.actuated, "position_mm": self.position, "configuration": self.q.tolist(),
-                "starts": self.starts, "agreeing_starts": self.agreeing, "evidence": self.evidence}
+        return {"kind": self.kind, "value": self.value, "sampled": self.sampled, "tolerance": self.tolerance,
+                "location": self.location, "where": self.where(), "bounds": list(self.bounds),
+                "singular": self.singular, "supremum_on_boundary": self.supremum, "actuated": dict(self.actuated),
+                "position_mm": list(self.position), "configuration": self.q.tolist(), "starts": self.starts,
+                "agreeing_starts": self.agreeing, "iterations": self.iterations, "start": self.start,
+                "evidence": self.evidence}
 
     def where(self) -> str:
         """One line saying where the extreme is reached."""
-        at = ", ".join(f"{k}={v:.6g}" for k, v in self.actuated.items())
         if self.location == "constant":
             return "constant over the workspace"
+        at = ", ".join(f"{k}={v:.6g}" for k, v in self.actuated.items())
         text = f"{self.location} at {at} (O_p = {', '.join(f'{v:.4g}' for v in self.position)} mm)"
         if self.bounds:
             text += "; " + "; ".join(self.bounds)
@@ -124,27 +162,100 @@ class Extreme:
         return text
 
 
-class _Coefficient:
-    """One accuracy coefficient as a function of configurations (the columns of accuracy_maps)."""
+class Objective:
+    """Functions of assembled configurations that :func:`search_extremes` extremises.
 
-    def __init__(self, kin: Kinematics, analysis, name: str) -> None:
+    Subclasses set ``names`` and implement :meth:`values`; ``loop_only`` says that the functions
+    depend only on the joints of the closed loops (an assembly condition), so the serial tail is
+    held still.
+    """
+
+    names: tuple = ()
+    loop_only: bool = False
+
+    def values(self, q: np.ndarray) -> dict:
+        """Name -> (K,) values at configurations ``q`` (K, n_q)."""
+        raise NotImplementedError
+
+    def pick(self, q: np.ndarray, which: list) -> np.ndarray:
+        """Value of function ``which[k]`` at ``q[k]`` (K,)."""
+        v = self.values(q)
+        return np.array([v[n][k] for k, n in enumerate(which)], dtype=float)
+
+
+class Coefficients(Objective):
+    """The accuracy coefficients of paper 2, eq. (18), as functions of configurations.
+
+    Parameters
+    ----------
+    kin : Kinematics
+    analysis : StationarityResult, optional
+        Restricts the geometric errors to the admissible influential coordinates
+        (:func:`hyperstat.solver.tolerances.accuracy.geometric_parameters`).
+    names : tuple of str, optional
+        A subset of :data:`~hyperstat.solver.tolerances.accuracy.COEFFICIENT_NAMES`.
+    """
+
+    def __init__(self, kin: Kinematics, analysis=None, names: tuple | None = None) -> None:
         m = kin.mechanism
         self.kin = kin
-        names, self.matrix = geometric_parameters(m, analysis)
+        self.names = tuple(names or COEFFICIENT_NAMES)
+        gnames, self.matrix = geometric_parameters(m, analysis)
         units = {p.name: p.unit for p in m.parameters}
-        label, kind = name.split("_")[1][0], name.split("_")[1][1]
-        self.rows = slice(0, 3) if name.startswith("delta") else slice(3, 6)
-        if label == "f":
-            self.cols = [a for a, i in enumerate(m.actuated) if (m.joints[i].type == "P") == (kind == "P")]
-        else:
-            self.cols = [j for j, n in enumerate(names) if (units[n] == "mm") == (kind == "P")]
-        self.label = label
+        self.cols = {}
+        for name in self.names:
+            label, kind = name.split("_")[1][0], name.split("_")[1][1]
+            rows = slice(0, 3) if name.startswith("delta") else slice(3, 6)
+            if label == "f":
+                cols = [a for a, i in enumerate(m.actuated) if (m.joints[i].type == "P") == (kind == "P")]
+            else:
+                cols = [j for j, n in enumerate(gnames) if (units[n] == "mm") == (kind == "P")]
+            self.cols[name] = (label, rows, cols)
 
-    def __call__(self, q: np.ndarray) -> np.ndarray:
-        st = self.kin.evaluate(q, None, jacobians=True)
+    def values(self, q: np.ndarray) -> dict:
+        st = self.kin.evaluate(np.atleast_2d(q), None, jacobians=True)
         k_xi, k_a = output_twist_maps(self.kin, st)
-        src = k_a if self.label == "f" else k_xi @ self.matrix
-        return largest_singular_value(src[:, self.rows][:, :, self.cols])
+        k_g = k_xi @ self.matrix
+        return {n: largest_singular_value((k_a if label == "f" else k_g)[:, rows][:, :, cols])
+                for n, (label, rows, cols) in self.cols.items()}
+
+
+class TaskCoefficients(Objective):
+    """The four task-restricted coefficients (eq. 18 on the task rows) of given tolerance directions.
+
+    Parameters
+    ----------
+    kin : Kinematics
+    task : tuple of str
+        Task components (:data:`hyperstat.solver.tolerances.declaration.TASK_COMPONENTS`).
+    directions : ndarray, (n_xi, n)
+        Defect vector per unit of each tolerance (rad / mm).
+    is_length : ndarray of bool, (n,)
+        Which tolerances are lengths (class ``gP``); the others are angles (``gR``).
+    """
+
+    names = TASK_COEFFICIENTS
+
+    def __init__(self, kin: Kinematics, task: tuple, directions: np.ndarray, is_length: np.ndarray) -> None:
+        from hyperstat.solver.tolerances.declaration import n_rotation_rows
+
+        self.kin, self.task, self.directions = kin, tuple(task), directions
+        self.is_length = np.asarray(is_length, dtype=bool)
+        self.n_rot = n_rotation_rows(self.task)
+
+    def values(self, q: np.ndarray) -> dict:
+        from hyperstat.solver.tolerances.declaration import task_rows
+
+        st = self.kin.evaluate(np.atleast_2d(q), None, jacobians=True)
+        k_xi, _ = output_twist_maps(self.kin, st)
+        t = task_rows(self.task, st.output_pose) @ k_xi @ self.directions
+        out = {}
+        for kind, cols in (("P", self.is_length), ("R", ~self.is_length)):
+            for name, rows in (("delta", t[:, :self.n_rot]), ("epsilon", t[:, self.n_rot:])):
+                block = rows[:, :, cols]
+                out[f"{name}_g{kind}"] = (np.zeros(len(t)) if block.shape[1] == 0 or block.shape[2] == 0
+                                          else np.linalg.svd(block, compute_uv=False)[:, 0])
+        return out
 
 
 def coefficient_at(mechanism: Mechanism, q: np.ndarray, name: str, analysis=None,
@@ -152,7 +263,11 @@ def coefficient_at(mechanism: Mechanism, q: np.ndarray, name: str, analysis=None
     """One accuracy coefficient (eq. 18, :data:`COEFFICIENT_NAMES`) at assembled configurations ``q`` (K, n_q)."""
     if name not in COEFFICIENT_NAMES:
         raise ValueError(f"unknown accuracy coefficient '{name}' (one of {', '.join(COEFFICIENT_NAMES)}).")
-    return _Coefficient(kinematics or Kinematics(mechanism), analysis, name)(np.atleast_2d(q))
+    return Coefficients(kinematics or Kinematics(mechanism), analysis, (name,)).values(np.atleast_2d(q))[name]
+
+
+#: configurations per block of :func:`branch_conditioning` (memory: one closure Jacobian each)
+CONDITIONING_BLOCK = 4096
 
 
 def branch_conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
@@ -168,60 +283,793 @@ def branch_conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
     m = kin.mechanism
     if not (len(m.passive) and len(m.closures)):
         return np.ones(len(q))
-    b = kin.scaled_rows(kin.evaluate(q, None, "joints").closure_q)[:, :, m.passive]
-    s = np.linalg.svd(b, compute_uv=False)
-    return s[:, min(b.shape[1:]) - 1] / np.maximum(s[:, 0], 1e-300)
+    out = np.empty(len(q))
+    for start in range(0, len(q), CONDITIONING_BLOCK):  # blocks: the closure Jacobians of a whole sample do not fit
+        b = kin.scaled_rows(kin.evaluate(q[start:start + CONDITIONING_BLOCK], None, "joints").closure_q)[:, :, m.passive]
+        s = np.linalg.svd(b, compute_uv=False)
+        out[start:start + CONDITIONING_BLOCK] = s[:, min(b.shape[1:]) - 1] / np.maximum(s[:, 0], 1e-300)
+    return out
 
 
-def _passive_conditioning(kin: Kinematics, q: np.ndarray) -> float:
-    return float(branch_conditioning(kin, q[None])[0])
+# ---------------------------------------------------------------------------------------------- the manifold
+class _Space:
+    """The search space: joints, their bounds and the closure, in dimensionless joint coordinates z = q / scale."""
+
+    def __init__(self, kin: Kinematics, ws: Workspace, loop_only: bool, margin: float) -> None:
+        m = kin.mechanism
+        self.kin, self.ws, self.m = kin, ws, m
+        self.scale = kin.joint_scale
+        n = kin.n_q
+        self.act = np.zeros(n, dtype=bool)
+        self.act[m.actuated] = True
+        lo, hi = ws.lower.astype(float).copy(), ws.upper.astype(float).copy()
+        rev = np.array([j.type == "R" for j in m.joints])
+        self.turn = rev & (hi - lo >= 2 * math.pi - 1e-9) & self.act  # full-turn actuators: no bound
+        lo[self.turn], hi[self.turn] = -np.inf, np.inf
+        self.exact_lo, self.exact_hi = lo.copy(), hi.copy()
+        pas = ~self.act
+        step = margin * kin.length_scale / self.scale  # margin in rad, or times the length scale (mm)
+        lo[pas] += np.where(np.isfinite(lo[pas]), step[pas] * self.scale[pas], 0.0)
+        hi[pas] -= np.where(np.isfinite(hi[pas]), step[pas] * self.scale[pas], 0.0)
+        self.lo, self.hi = lo, hi
+        self.free = np.ones(n, dtype=bool)
+        if loop_only:  # joints of the serial tail do not enter a closure
+            probe = kin.evaluate(m.home[None], None, "joints").closure_q[0]
+            self.free = np.any(np.abs(probe) > 0, axis=0)
+        self.declared = ws.passive_declared if ws.passive_declared is not None else np.zeros(n, dtype=bool)
+
+    def jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled residual (K, r) and closure Jacobian per unit of z (K, r, n_q)."""
+        st = self.kin.evaluate(q, None, "joints")
+        return self.kin.scaled(st.residual), self.kin.scaled_rows(st.closure_q) * self.scale
+
+    def tangent(self, jac: np.ndarray, held: np.ndarray) -> np.ndarray:
+        """Orthonormal basis of the tangent space with the ``held`` joints fixed, (n_q, d) (d may be 0)."""
+        cols = np.nonzero(~held)[0]
+        basis = np.zeros((len(held), 0))
+        if not len(cols):
+            return basis
+        sub = jac[:, cols]
+        if sub.shape[0] == 0:
+            null = np.eye(len(cols))
+        else:
+            _, s, vt = np.linalg.svd(sub, full_matrices=True)
+            rank = int(np.sum(s > 1e-9 * max(float(s[0]) if s.size else 0.0, 1e-300))) if s.size else 0
+            null = vt[rank:].T
+        out = np.zeros((len(held), null.shape[1]))
+        out[cols] = null
+        return out
+
+    def retract(self, q: np.ndarray, held: np.ndarray, iterations: int = 12) -> tuple[np.ndarray, np.ndarray]:
+        """Bring configurations back onto the closure by minimum-norm corrections of the joints not held.
+
+        Returns the corrected configurations and whether each converged (scaled residual below 1e-9 of the
+        length scale).
+        """
+        q = np.array(q, dtype=float, copy=True)
+        if not len(self.m.closures):
+            return q, np.ones(len(q), dtype=bool)
+        tol = 1e-9 * self.kin.length_scale
+        done = np.zeros(len(q), dtype=bool)
+        for _ in range(iterations):
+            idx = np.nonzero(~done)[0]
+            if not len(idx):
+                break
+            r, jac = self.jacobian(q[idx])
+            small = np.linalg.norm(r, axis=1) <= tol
+            done[idx[small]] = True
+            idx, r, jac = idx[~small], r[~small], jac[~small]
+            if not len(idx):
+                break
+            jac = jac * (~held[idx])[:, None, :]  # held joints do not move
+            dz = -batched_lstsq(jac, r[..., None], damping=1e-14)[..., 0]
+            q[idx] += dz * self.scale
+        r, _ = self.jacobian(q)
+        return q, np.linalg.norm(r, axis=1) <= 10 * tol
+
+    def at_bound(self, q: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+        """Joints at their lower and upper search bounds (K, n_q) each."""
+        z, lo, hi = q / self.scale, self.lo / self.scale, self.hi / self.scale
+        return (z <= lo + tol), (z >= hi - tol)
 
 
-def _optimise(f: _Coefficient, kin: Kinematics, q0: np.ndarray, lb: np.ndarray, ub: np.ndarray, sign: float,
-              h: float = 1e-7, maxiter: int | None = None):
-    """SLSQP over all joints: extremise ``f`` subject to the closure (independent rows) and the bounds."""
-    from scipy.linalg import qr  # here, not at import: the report imports this module for Extreme only
-    from scipy.optimize import minimize
+# ---------------------------------------------------------------------------------------------- candidates
+_CANDIDATES: dict = {}
 
-    n = kin.n_q
-    jac0 = kin.scaled_rows(kin.evaluate(q0[None], None, "joints").closure_q)[0]
-    if jac0.shape[0]:
-        s = np.linalg.svd(jac0, compute_uv=False)
-        rank = int(np.sum(s > s[0] * 1e-9))
-        rows = np.sort(qr(jac0.T, pivoting=True)[2][:rank])
-    else:
-        rows = np.zeros(0, dtype=int)
-    cache: dict = {}
-    eye = np.eye(n)
-    # the objective is divided by its size at the start, so that FTOL is relative: an absolute 1e-13 is
-    # out of reach of a forward-difference gradient and left every run at the iteration limit
-    size = max(abs(float(f(q0[None])[0])), 1e-300)
 
-    def fg(x):
-        key = x.tobytes()
-        if key not in cache:
-            v = f(np.vstack([x, x + h * eye])) / size  # forward differences: the gradient's O(h) error moves
-            cache.clear()                                 # the extreme by O(h), its value by O(h^2)
-            cache[key] = (-sign * v[0], -sign * (v[1:] - v[0]) / h)
-        return cache[key]
+def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarray, points_per_edge: int = 3,
+                         grid: int = 16, max_edges: int = 96, varied: np.ndarray | None = None) -> tuple[np.ndarray, list]:
+    """Structured configurations of the workspace: corners, edges and dead centres of the actuated box.
 
-    constraints = []
-    if len(rows):
-        constraints = [{"type": "eq",
-                        "fun": lambda x: kin.scaled(kin.evaluate(x[None], None, False).residual)[0, rows],
-                        "jac": lambda x: kin.scaled_rows(kin.evaluate(x[None], None, "joints").closure_q)[0][rows]}]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = minimize(lambda x: fg(x)[0], np.clip(q0, lb, ub), jac=lambda x: fg(x)[1], method="SLSQP",
-                       bounds=list(zip(lb, ub)), constraints=constraints,
-                       options={"ftol": FTOL, "maxiter": maxiter or (MAXITER if sign > 0 else MAXITER // 2)})
-    return res
+    * corners: every combination of the bounded actuated joints at their bounds (a full-turn
+      revolute actuator has no bound: it stays at its home value); at most 2^8;
+    * edges: ``points_per_edge`` points inside each edge of the box (at most ``max_edges`` edges,
+      taken evenly when there are more);
+    * faces: the centre of every face of dimension 2 and more (and of the box), up to 6 bounded
+      actuators (3^6 points at most);
+    * dead centres: along every edge, and along the whole turn of a full-turn actuator, the
+      configurations where the velocity of a passive joint per unit of the moving actuator changes
+      sign, bracketed on a grid of ``grid`` points and solved by regula falsi.
+
+    Everything is assembled on the workspace's branch by certified continuation from the nearest
+    configuration of ``sample`` (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`);
+    what does not assemble inside the workspace is left out.  ``varied`` (bool per actuated joint)
+    restricts the box to the actuators a function depends on (the others stay at home).
+
+    Returns
+    -------
+    q : ndarray, (C, n_q)
+    labels : list of str
+        ``corner``, ``edge``, ``face``, ``dead centre of joint 4 along joint 1`` ...
+    """
+    varied = np.ones(len(kin.mechanism.actuated), dtype=bool) if varied is None else np.asarray(varied, dtype=bool)
+    key = (id(kin), id(workspace), len(sample), float(np.sum(sample)) if len(sample) else 0.0, points_per_edge, grid,
+           tuple(varied))
+    if key in _CANDIDATES:
+        return _CANDIDATES[key]
+    from hyperstat.solver.kinematics.continuation import continue_nearest
+
+    m = kin.mechanism
+    lo, hi = workspace.actuated_box(m)
+    home = m.home[m.actuated].astype(float)
+    n_a = len(lo)
+    rev = np.array([m.joints[i].type == "R" for i in m.actuated])
+    turn = rev & (hi - lo >= 2 * math.pi - 1e-9)
+    bounded = np.nonzero(~turn & np.isfinite(lo) & np.isfinite(hi) & varied)[0][:8]
+    targets, labels, lines = [], [], []  # lines: (start actuated values, axis, from, to, periodic, label)
+    if len(bounded):
+        bits = (np.arange(2 ** len(bounded))[:, None] >> np.arange(len(bounded))[None, :]) & 1
+        corners = np.tile(home, (len(bits), 1))
+        corners[:, bounded] = np.where(bits == 1, hi[bounded], lo[bounded])
+        targets += list(corners)
+        labels += ["corner"] * len(corners)
+        edges = [(c, a) for c in corners for a in bounded if c[a] == lo[a]]
+        if len(edges) > max_edges:
+            edges = [edges[i] for i in np.linspace(0, len(edges) - 1, max_edges).round().astype(int)]
+        for c, a in edges:
+            for f in (np.arange(points_per_edge) + 1) / (points_per_edge + 1):
+                t = c.copy()
+                t[a] = lo[a] + f * (hi[a] - lo[a])
+                targets.append(t)
+                labels.append("edge")
+            lines.append((c, a, lo[a], hi[a], False))
+        if len(bounded) <= 6:  # the centres of the faces of dimension 2 and more (and of the box)
+            digits = (np.arange(3 ** len(bounded))[:, None] // 3 ** np.arange(len(bounded))[None, :]) % 3
+            digits = digits[np.sum(digits == 2, axis=1) >= 2]
+            faces = np.tile(home, (len(digits), 1))
+            faces[:, bounded] = np.choose(digits, [lo[bounded], hi[bounded], 0.5 * (lo[bounded] + hi[bounded])])
+            targets += list(faces)
+            labels += ["face"] * len(faces)
+    for a in np.nonzero(turn & varied)[0]:
+        lines.append((home, a, lo[a], lo[a] + 2 * math.pi, True))
+    # grids along the lines, assembled with the other targets
+    grid_rows = []
+    for li, (base, a, s0, s1, periodic) in enumerate(lines):
+        s = s0 + (s1 - s0) * np.arange(grid) / grid if periodic else np.linspace(s0, s1, grid)
+        pts = np.tile(base, (len(s), 1))
+        pts[:, a] = s
+        grid_rows.append((li, s, pts))
+    all_targets = targets + [p for _, _, pts in grid_rows for p in pts]
+    if not all_targets:
+        out = (np.zeros((0, kin.n_q)), [])
+        _remember(key, out)
+        return out
+    q, cert = continue_nearest(kin, np.array(all_targets), None, m.home, pool=sample if len(sample) else None,
+                               inside=workspace.inside)
+    ok = cert.certified
+    n_t = len(targets)
+    out_q = [q[i] for i in range(n_t) if ok[i]]
+    out_l = [labels[i] for i in range(n_t) if ok[i]]
+    # dead centres: sign changes of each passive joint's velocity along the lines
+    pos = n_t
+    brackets = []  # (q_left, q_right, s_left, s_right, v_left, v_right, axis, joint, label)
+    pas = np.asarray(m.passive)
+    for li, s, pts in grid_rows:
+        qq, good = q[pos:pos + len(s)], ok[pos:pos + len(s)]
+        pos += len(s)
+        if good.sum() < 2 or not len(pas):
+            continue
+        a = lines[li][1]
+        vel = _passive_velocity(kin, qq[good], a)
+        ss, qg = s[good], qq[good]
+        periodic = lines[li][4]
+        pairs = [(i, i + 1) for i in range(len(ss) - 1)] + ([(len(ss) - 1, 0)] if periodic and good[0] and good[-1]
+                                                            else [])
+        for i, j in pairs:
+            if periodic and j == 0:
+                s_j = ss[0] + 2 * math.pi
+            else:
+                s_j = ss[j]
+            if s_j - ss[i] > 2.5 * (s[1] - s[0]):  # not neighbours on the grid (a gap of unassembled points)
+                continue
+            for p in np.nonzero(vel[i] * vel[j] < 0)[0]:
+                brackets.append((qg[i], qg[j], ss[i], s_j, vel[i, p], vel[j, p], a, p))
+    if brackets:
+        found = _dead_centres(kin, workspace, brackets)
+        for (qd, a, p) in found:
+            out_q.append(qd)
+            out_l.append(f"dead centre of joint {m.joints[pas[p]].name} along joint {m.joints[m.actuated[a]].name}")
+    out = (np.array(out_q) if out_q else np.zeros((0, kin.n_q)), out_l)
+    _remember(key, out)
+    return out
+
+
+def _remember(key, value) -> None:
+    """Keep the candidates of the last few (kinematics, workspace, sample) in memory (one command uses two or three)."""
+    if len(_CANDIDATES) >= 4:
+        _CANDIDATES.pop(next(iter(_CANDIDATES)))
+    _CANDIDATES[key] = value
+
+
+def _passive_velocity(kin: Kinematics, q: np.ndarray, axis) -> np.ndarray:
+    """Velocity of every passive joint per unit of actuated joint ``axis`` (one per row, or one for all), (K, n_p).
+
+    ``-B_p^+ B_a e_a`` (paper 1, eq. 3).
+    """
+    m = kin.mechanism
+    b = kin.scaled_rows(kin.evaluate(q, None, "joints").closure_q)
+    cols = m.actuated[np.broadcast_to(np.asarray(axis), (len(q),))]
+    return -np.einsum("kpr,kr->kp", np.linalg.pinv(b[:, :, m.passive], rcond=1e-10), b[np.arange(len(q)), :, cols])
+
+
+def _dead_centres(kin: Kinematics, ws: Workspace, brackets: list, iterations: int = 30) -> list:
+    """Solve each bracketed sign change of a passive joint's velocity (Illinois regula falsi, batched)."""
+    m = kin.mechanism
+    act = m.actuated
+    n = len(brackets)
+    ql = np.array([b[0] for b in brackets])
+    qr = np.array([b[1] for b in brackets])
+    sl = np.array([b[2] for b in brackets], dtype=float)
+    sr = np.array([b[3] for b in brackets], dtype=float)
+    vl = np.array([b[4] for b in brackets], dtype=float)
+    vr = np.array([b[5] for b in brackets], dtype=float)
+    axis = np.array([b[6] for b in brackets])
+    joint = np.array([b[7] for b in brackets])
+    q = ql.copy()
+    ok = np.ones(n, dtype=bool)
+    width0 = np.abs(sr - sl)
+    side = np.zeros(n, dtype=int)
+    for _ in range(iterations):
+        s = np.where(vr != vl, sr - vr * (sr - sl) / (vr - vl), 0.5 * (sl + sr))
+        s = np.clip(s, np.minimum(sl, sr), np.maximum(sl, sr))
+        guess = np.where((np.abs(s - sl) <= np.abs(s - sr))[:, None], ql, qr)
+        guess[np.arange(n), act[axis]] = s
+        res = kin.assemble(guess)
+        q = ws.wrapped(res.q)
+        ok = res.converged & ws.inside(q)
+        v = _passive_velocity(kin, q, axis)[np.arange(n), joint]
+        left = v * vl > 0
+        ql = np.where(left[:, None], q, ql)
+        sl, vl = np.where(left, s, sl), np.where(left, v, vl)
+        qr = np.where(left[:, None], qr, q)
+        sr, vr = np.where(left, sr, s), np.where(left, vr, v)
+        # Illinois: halve the stale end's value when the same side moves twice
+        vr = np.where(left & (side == 1), vr / 2, vr)
+        vl = np.where(~left & (side == -1), vl / 2, vl)
+        side = np.where(left, 1, -1)
+        if np.all(np.abs(sr - sl) <= 1e-12 * np.maximum(width0, 1e-300) + 1e-13):
+            break
+    return [(q[k], int(axis[k]), int(joint[k])) for k in range(n) if ok[k]]
+
+
+# ---------------------------------------------------------------------------------------------- the search
+def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, workspace: Workspace | None = None,
+                    kinds: tuple = ("max",), starts: int = 3, iterations: int = 40, names: tuple | None = None,
+                    sampled: dict | None = None, candidates: bool = True, margin: float = MARGIN,
+                    structured: int = 2) -> dict:
+    """Extremes of ``objective`` over the workspace (see the module docstring).
+
+    Parameters
+    ----------
+    kin : Kinematics
+    objective : Objective
+        The functions (:class:`Coefficients`, :class:`TaskCoefficients`, or the assembly
+        conditions of :mod:`hyperstat.solver.tolerances.clearance`).
+    sample : ndarray, (K, n_q)
+        Assembled configurations of the workspace (on its branch).
+    workspace : Workspace, optional
+        Bounds (default: the mechanism's declared workspace).
+    kinds : tuple
+        ``"max"`` and/or ``"min"``.
+    starts : int
+        Local searches per extreme from the best separate configurations of the sample, plus
+        ``structured`` from the best corners, edge points and face centres each and one from the best
+        dead centre.
+    iterations : int
+        Largest number of iterations of a search path.
+    names : tuple, optional
+        The functions to extremise (default: all of ``objective.names``).
+    sampled : dict, optional
+        The functions' values at ``sample`` if already computed.
+    candidates : bool
+        Add the corners, edges and dead centres of :func:`workspace_candidates` to the sample.
+    margin : float
+        Passive bounds are moved inwards by this much (rad, or times the length scale in mm).
+    structured : int
+        Local searches from the best corners, edge points and face centres (each).
+
+    Returns
+    -------
+    dict
+        ``(name, kind)`` -> :class:`Extreme` (functions identically zero are left out).
+    """
+    m = kin.mechanism
+    ws = workspace or workspace_of(m)
+    space = _Space(kin, ws, objective.loop_only, margin)
+    names = tuple(names or objective.names)
+    sample = np.atleast_2d(np.asarray(sample, dtype=float))
+    values = {n: np.asarray(v) for n, v in (sampled or objective.values(sample)).items() if n in names} \
+        if len(sample) else {n: np.zeros(0) for n in names}
+    pool_q, pool_label = sample, ["sample"] * len(sample)
+    if candidates and len(sample):
+        cq, cl = workspace_candidates(kin, ws, sample, varied=space.free[m.actuated])
+        if len(cq):
+            cv = objective.values(cq)
+            pool_q = np.vstack([sample, cq])
+            pool_label = pool_label + list(cl)
+            values = {n: np.r_[values[n], cv[n]] for n in names}
+    out: dict = {}
+    paths, owner, sense, origin = [], [], [], []
+    z_act = pool_q[:, m.actuated] / space.scale[m.actuated] if len(pool_q) else np.zeros((0, len(m.actuated)))
+    spread_box = np.ptp(z_act, axis=0) if len(z_act) else np.zeros(len(m.actuated))
+    spread_box = np.where(spread_box > 0, spread_box, 1.0)
+    for name in names:
+        v = values.get(name)
+        if v is None or len(v) == 0:
+            continue
+        finite = np.isfinite(v)
+        if not finite.any():
+            continue
+        if float(np.max(np.abs(v[finite]))) <= 0:
+            continue
+        for kind in kinds:
+            sign = 1.0 if kind == "max" else -1.0
+            sv = np.where(finite, sign * v, -np.inf)
+            best = int(np.argmax(sv))
+            spread = float(np.max(v[finite]) - np.min(v[finite]))
+            if spread <= 1e-9 * max(1.0, abs(float(v[best]))):
+                out[(name, kind)] = _describe(space, name, kind, float(v[best]), float(v[best]), pool_q[best], 0.0, 0, 0,
+                                              0, f"varies by {spread:.2g} over {int(finite.sum())} configurations",
+                                              pool_label[best], location="constant")
+                continue
+            chosen: list = []
+            order = np.argsort(-sv)
+            for category in ("sample", "corner", "edge", "face", "dead centre"):  # the best separate ones of each kind
+                limit = starts if category == "sample" else (1 if category == "dead centre" else structured)
+                taken = 0
+                for i in order:
+                    if taken == limit or not np.isfinite(sv[i]):
+                        break
+                    if not pool_label[i].startswith(category):
+                        continue
+                    if all(np.linalg.norm((z_act[i] - z_act[j]) / spread_box) > 0.05 for j in chosen):
+                        chosen.append(int(i))
+                        taken += 1
+            for i in chosen:
+                paths.append(pool_q[i].copy())
+                owner.append(name)
+                sense.append(sign)
+                origin.append(pool_label[i])
+    if not paths:
+        return out
+    floor_at = CONDITIONING_FLOOR * float(np.median(branch_conditioning(kin, sample))) if len(sample) else 0.0
+    result = _ascend(space, objective, np.array(paths), owner, np.array(sense), iterations, floor_at)
+    _polish(space, objective, result, owner, np.array(sense))
+    for name in dict.fromkeys(owner):
+        for kind in kinds:
+            sign = 1.0 if kind == "max" else -1.0
+            ks = [k for k, (n, s) in enumerate(zip(owner, sense)) if n == name and s == sign]
+            if not ks:
+                continue
+            v = values[name]
+            sv = np.where(np.isfinite(v), sign * v, -np.inf)
+            best_s = int(np.argmax(sv))
+            out[(name, kind)] = _conclude(space, objective, name, kind, sign, float(v[best_s]), pool_q[best_s],
+                                          pool_label[best_s], result, ks, [origin[k] for k in ks], iterations,
+                                          sample)
+    return out
+
+
+@dataclass
+class _Paths:
+    q: np.ndarray
+    value: np.ndarray
+    gain: np.ndarray
+    done: np.ndarray
+    iterations: np.ndarray
+    floor: np.ndarray
+    start: np.ndarray
+    kink: np.ndarray | None = None
+
+
+def _ascend(space: _Space, objective: Objective, q: np.ndarray, owner: list, sense: np.ndarray,
+            iterations: int, floor_at: float, h: float = 1e-6) -> _Paths:
+    """Batched projected-gradient search on the configuration manifold (see the module docstring).
+
+    Conjugate directions (Polak-Ribiere, restarted when not an ascent direction), the step from a
+    quadratic model along the direction (its slope and the trial value); a refused step is retried
+    shorter along the same direction before a new gradient is taken.  ``floor_at``: the conditioning
+    below which a step is refused away from the declared passive bounds.
+    """
+    kin, m = space.kin, space.m
+    p, n = len(q), kin.n_q
+    start = q.copy()
+    val = sense * objective.pick(q, owner)
+    step = np.full(p, 0.05)
+    cap = np.full(p, np.inf)  # half the last refused step: a trust radius near a kink, where a model overshoots
+    kink = np.zeros(p, dtype=bool)
+    gain = np.full(p, np.nan)
+    active = np.isfinite(val)
+    done = ~active
+    iters = np.zeros(p, dtype=int)
+    floor = np.zeros(p, dtype=bool)
+    scale = space.scale
+    lo, hi = space.lo / scale, space.hi / scale
+    near = 1e-2 * kin.length_scale / scale  # "near a declared passive bound", in z units
+    grad = np.zeros((p, n))
+    direction = np.zeros((p, n))
+    slope = np.zeros(p)
+    held = np.zeros((p, n), dtype=bool)
+    stale = np.ones(p, dtype=bool)  # a new gradient is needed
+    pas = np.asarray(m.passive)
+    loops = bool(len(m.closures) and len(pas))
+    frame = np.zeros((p, 6 * len(m.closures), len(pas)))  # range of B_p at the current point (fold detection)
+    fold = np.ones(p)  # sign of det(U^T B_p) there
+    for _ in range(iterations):
+        idx = np.nonzero(active)[0]
+        if not len(idx):
+            break
+        fresh = idx[stale[idx]]
+        if len(fresh):
+            _, jac = space.jacobian(q[fresh])
+            if loops:
+                u_, _, vt_ = np.linalg.svd(jac[:, :, pas], full_matrices=False)
+                frame[fresh], fold[fresh] = u_, np.sign(np.linalg.det(vt_))
+            low, high = space.at_bound(q[fresh])
+            bases = [space.tangent(jac[i], ~space.free) for i in range(len(fresh))]
+            pert = [q[k] + h * t[:, j] * scale for k, t in zip(fresh, bases) for j in range(t.shape[1])]
+            who = [owner[k] for k, t in zip(fresh, bases) for _j in range(t.shape[1])]
+            fp = objective.pick(np.array(pert), who) if pert else np.zeros(0)
+            pos = 0
+            for i, k in enumerate(fresh):
+                t = bases[i]
+                d = t.shape[1]
+                g_new = t @ ((sense[k] * fp[pos:pos + d] - val[k]) / h) if d else np.zeros(n)
+                pos += d
+                hold = ~space.free.copy()
+                for _rep in range(n):  # hold the joints at a bound the gradient pushes out of
+                    push = ((low[i] & (g_new < 0)) | (high[i] & (g_new > 0))) & ~hold
+                    if not push.any():
+                        break
+                    hold |= push
+                    t = space.tangent(jac[i], hold)
+                    g_new = t @ (t.T @ g_new)
+                old = grad[k]
+                carried = t @ (t.T @ direction[k]) if d else np.zeros(n)
+                beta = max(0.0, float(g_new @ (g_new - old)) / float(old @ old)) if float(old @ old) > 0 else 0.0
+                dirn = g_new + beta * carried
+                if float(dirn @ g_new) <= 0:
+                    dirn = g_new
+                grad[k], direction[k], held[k] = g_new, dirn, hold
+                norm = float(np.linalg.norm(dirn))
+                slope[k] = float(g_new @ dirn) / norm if norm > 0 else 0.0
+                stale[k] = False
+                if not np.isfinite(norm) or norm <= 0 or slope[k] <= 1e-14 * max(abs(val[k]), 1e-300):
+                    active[k], done[k] = False, True
+                    gain[k] = 0.0  # a stationary point within the bounds: no ascent direction left
+        kk = np.nonzero(active)[0]
+        if not len(kk):
+            break
+        unit = direction[kk] / np.linalg.norm(direction[kk], axis=1, keepdims=True)
+        z = q[kk] / scale + step[kk, None] * unit
+        clipped = (z < lo) | (z > hi)
+        pred = np.clip(z, lo, hi) * scale
+        cand, conv = space.retract(pred, held[kk] | clipped)
+        corr = np.linalg.norm((cand - pred) / scale, axis=1)
+        move = np.linalg.norm((pred - q[kk]) / scale, axis=1)
+        zc = cand / scale
+        inside = np.all((zc >= lo - 1e-9) & (zc <= hi + 1e-9), axis=1)
+        ok = conv & inside & (corr <= 0.1 * move + 1e-9)
+        if ok.any() and loops:
+            cond = np.ones(len(kk))
+            cond[ok] = branch_conditioning(kin, cand[ok])
+            # a step must not cross a fold of the actuated projection (a singularity of B_p between its ends,
+            # where the manifold passes to another assembly branch): det(U^T B_p) keeps its sign, U the range
+            # of B_p at the step's start
+            _, jac_new = space.jacobian(cand[ok])
+            u = frame[kk[ok]]
+            turn = np.sign(np.linalg.det(np.swapaxes(u, 1, 2) @ jac_new[:, :, pas])) * fold[kk[ok]]
+            keep = np.ones(len(kk), dtype=bool)
+            keep[np.nonzero(ok)[0]] = turn > 0
+            ok &= keep
+            close = np.any(space.declared[None, :] & ((np.abs(zc - space.exact_lo / scale) <= near)
+                                                      | (np.abs(space.exact_hi / scale - zc) <= near)), axis=1)
+            edge = ok & (cond < floor_at) & ~close
+            floor[kk[edge]] = True
+            ok &= ~edge
+        v_new = np.full(len(kk), -np.inf)
+        if ok.any():
+            v_new[ok] = sense[kk[ok]] * objective.pick(cand[ok], [owner[k] for k in kk[ok]])
+        for i, k in enumerate(kk):
+            iters[k] += 1
+            s = step[k]
+            # quadratic model along the direction: f(s) = f0 + slope s - c s^2 / 2
+            curv = 2.0 * (val[k] + slope[k] * s - v_new[i]) / (s * s) if np.isfinite(v_new[i]) else float("nan")
+            best = slope[k] / curv if np.isfinite(curv) and curv > 0 else float("nan")
+            if ok[i] and v_new[i] > val[k]:
+                gain[k] = v_new[i] - val[k]
+                q[k], val[k] = cand[i], v_new[i]
+                step[k] = min(float(np.clip(best, 0.5 * s, 4.0 * s)) if np.isfinite(best) else 2.0 * s, 0.25, cap[k])
+                cap[k] = min(2.0 * cap[k], np.inf)
+                stale[k] = True
+                if gain[k] <= 1e-12 * abs(val[k]):
+                    active[k], done[k] = False, True
+            else:
+                step[k] = float(np.clip(best, 0.05 * s, 0.5 * s)) if ok[i] and np.isfinite(best) else 0.25 * s
+                if ok[i]:  # a step the function refused (not the bounds or the branch): it bounds the next ones
+                    cap[k] = 0.5 * s
+            if step[k] < 1e-8 and active[k]:  # no step down to 1e-8 improves: what a shorter one could gain
+                active[k], done[k] = False, True
+                kink[k] = slope[k] > 1e-8 * max(abs(val[k]), 1e-300)  # a slope left: a kink or a ridge
+                gain[k] = min(gain[k], slope[k] * step[k]) if np.isfinite(gain[k]) else slope[k] * step[k]
+    return _Paths(q, sense * val, gain, done, iters, floor, start, kink)
+
+
+def _polish(space: _Space, objective: Objective, res: "_Paths", owner: list, sense: np.ndarray,
+            size: float = 1e-3, iterations: int = 60) -> None:
+    """Derivative-free polish of the best path of each function that stopped on a kink or a ridge (in place).
+
+    Where the function is the largest (or smallest) of smooth pieces, the extreme may lie on a ridge
+    where two of them are equal; a gradient method zig-zags across it and stops short.  There the
+    search continues by Nelder-Mead (its simplex adapts to a narrow valley) in the tangent coordinates
+    of the manifold at the path's end (the joints at a bound held), every point brought back onto the
+    closure; the simplices of all the paths advance together, one batched evaluation per phase
+    (reflection; expansion or contraction; shrink).
+    """
+    best: dict = {}
+    for k, (name, sg) in enumerate(zip(owner, sense)):
+        if np.isfinite(res.value[k]) and ((name, sg) not in best or sg * res.value[k] > sg * res.value[best[(name, sg)]]):
+            best[(name, sg)] = k
+    scale = space.scale
+    lo, hi = space.lo / scale, space.hi / scale
+    paths = []  # (k, q0, tangent basis, held)
+    for k in best.values():
+        if res.kink is None or not res.kink[k]:
+            continue
+        q0 = res.q[k].copy()
+        _, jac = space.jacobian(q0[None])
+        low, high = space.at_bound(q0[None])
+        held = ~space.free | low[0] | high[0]
+        t = space.tangent(jac[0], held)
+        if t.shape[1]:
+            paths.append((k, q0, t, held))
+    if not paths:
+        return
+    found = {k: (np.inf, None) for k, *_ in paths}  # the best (value to minimise, configuration) of each path
+
+    def evaluate(points: list) -> np.ndarray:
+        """``-sense * f`` at the tangent coordinates ``points[i] = (path index, c)``; inf outside or unclosed."""
+        out = np.full(len(points), np.inf)
+        zs, helds, which = [], [], []
+        for i, (j, c) in enumerate(points):
+            k, q0, t, held = paths[j]
+            z = q0 / scale + t @ c
+            if np.all(z >= lo - 1e-12) and np.all(z <= hi + 1e-12):
+                zs.append(z * scale)
+                helds.append(held)
+                which.append(i)
+        if not which:
+            return out
+        qq, ok = space.retract(np.array(zs), np.array(helds))
+        zq = qq / scale
+        ok &= np.all((zq >= lo - 1e-9) & (zq <= hi + 1e-9), axis=1)
+        if ok.any():
+            rows = np.nonzero(ok)[0]
+            ks = [paths[points[which[r]][0]][0] for r in rows]
+            vals = -sense[ks] * objective.pick(qq[rows], [owner[k] for k in ks])
+            for r, v in zip(rows, vals):
+                i = which[r]
+                out[i] = v
+                k = paths[points[i][0]][0]
+                if v < found[k][0]:
+                    found[k] = (float(v), qq[r].copy())
+        return out
+
+    simplices = [np.vstack([np.zeros(t.shape[1]), size * np.eye(t.shape[1])]) for _, _, t, _ in paths]
+    flat = evaluate([(j, x) for j, sx in enumerate(simplices) for x in sx])
+    values, pos = [], 0
+    for sx in simplices:
+        values.append(flat[pos:pos + len(sx)])
+        pos += len(sx)
+    live = list(range(len(paths)))
+    for _ in range(iterations):
+        live = [j for j in live if np.ptp(values[j]) > 1e-15 * max(abs(values[j].min()), 1e-300)
+                and np.max(np.linalg.norm(simplices[j][1:] - simplices[j][0], axis=1)) > 1e-10]
+        if not live:
+            break
+        for j in live:
+            order = np.argsort(values[j])
+            simplices[j], values[j] = simplices[j][order], values[j][order]
+        cents = {j: simplices[j][:-1].mean(axis=0) for j in live}
+        refl = {j: 2 * cents[j] - simplices[j][-1] for j in live}
+        f_r = dict(zip(live, evaluate([(j, refl[j]) for j in live])))
+        second, shrink = [], []
+        for j in live:
+            f, x = values[j], simplices[j]
+            if f_r[j] < f[0]:
+                second.append((j, "expand", cents[j] + 2 * (refl[j] - cents[j])))
+            elif f_r[j] < f[-2]:
+                x[-1], f[-1] = refl[j], f_r[j]
+            elif f_r[j] < f[-1]:
+                second.append((j, "outside", cents[j] + 0.5 * (refl[j] - cents[j])))
+            else:
+                second.append((j, "inside", cents[j] - 0.5 * (cents[j] - x[-1])))
+        f_s = evaluate([(j, c) for j, _, c in second]) if second else []
+        for (j, kind, c), fc in zip(second, f_s):
+            f, x = values[j], simplices[j]
+            if kind == "expand":
+                x[-1], f[-1] = (c, fc) if fc < f_r[j] else (refl[j], f_r[j])
+            elif fc <= (f_r[j] if kind == "outside" else f[-1]):
+                x[-1], f[-1] = c, fc
+            else:
+                shrink.append(j)
+        if shrink:
+            pts = [(j, simplices[j][0] + 0.5 * (x - simplices[j][0])) for j in shrink for x in simplices[j][1:]]
+            f_h = evaluate(pts)
+            pos = 0
+            for j in shrink:
+                n = len(simplices[j]) - 1
+                simplices[j][1:] = np.array([c for _, c in pts[pos:pos + n]])
+                values[j][1:] = f_h[pos:pos + n]
+                pos += n
+    for k, (value, q) in found.items():
+        gain = -value - sense[k] * res.value[k]  # value minimised is -sense f
+        if q is not None and gain > 0:
+            res.gain[k] = gain
+            res.q[k], res.value[k] = q, -value * sense[k]
+
+
+def _conclude(space: _Space, objective: Objective, name: str, kind: str, sign: float, sampled: float,
+              q_sampled: np.ndarray, label_sampled: str, res: _Paths, ks: list, origins: list, iterations: int,
+              sample: np.ndarray) -> Extreme:
+    kin, m = space.kin, space.m
+    vals = res.value[ks]
+    ranked = [i for i in np.argsort(-sign * vals) if np.isfinite(vals[i])]
+    # the best path whose end is on the branch of its start (a certified continuation back lands on it)
+    top_local = next((i for i in ranked if _same_branch(space, res.q[ks[i]], res.start[ks[i]])), None)
+    if top_local is None:
+        return _describe(space, name, kind, sampled, sampled, q_sampled, float("nan"), len(ks), 0, 0,
+                         "no search path stayed on the branch of its start: the best candidate is reported",
+                         label_sampled)
+    top = ks[top_local]
+    value, q = float(res.value[top]), res.q[top].copy()
+    if not np.isfinite(value) or sign * value < sign * sampled:  # never less extreme than the candidates
+        return _describe(space, name, kind, sampled, sampled, q_sampled, float("nan"), len(ks), 0, 0,
+                         "the search did not improve on the best candidate", label_sampled)
+    tol = float(res.gain[top]) if np.isfinite(res.gain[top]) else (0.0 if res.done[top] else float("nan"))
+    evidence = [f"searched from {len(ks)} candidates ({', '.join(dict.fromkeys(origins))}): projected gradient on "
+                "the configuration manifold within the workspace bounds"]
+    supremum = False
+    singular = bool(branch_conditioning(kin, q[None])[0] < SINGULAR) if len(m.passive) and len(m.closures) else False
+    low, high = space.at_bound(q[None])
+    pas_active = np.nonzero((low[0] | high[0]) & ~space.act)[0]
+    if len(pas_active) and singular:
+        seq = _edge_sequence(space, objective, name, q, int(pas_active[0]), bool(low[0, pas_active[0]]))
+        if seq is not None:
+            margins, fs, q_last = seq
+            gaps = np.abs(np.diff(fs))
+            finite = np.all(np.isfinite(fs))
+            # order of convergence from the sequence itself (ratio of successive changes, margins a decade apart)
+            ratio = gaps[-1] / max(gaps[-2], 1e-300) if finite and len(gaps) >= 2 else float("nan")
+            if finite and sign * fs[-1] >= sign * value - 1e-12 * abs(value) and ratio < 0.5:
+                # the geometric tail of the sequence, and at least the change since the margin the search stopped
+                # at (the other coordinates were optimised there, not at the edge)
+                remaining = max(gaps[-1] * ratio / (1.0 - ratio), abs(fs[-1] - value))
+                value, q = float(fs[-1]), q_last
+                tol = max(remaining, 1e-15 * abs(value))
+                supremum = True
+                evidence.append(f"a supremum at the singular edge of the branch (joint {m.joints[pas_active[0]].name} "
+                                f"at its declared bound): values {', '.join(f'{v:.10g}' for v in fs)} at "
+                                f"{', '.join(f'{g:g}' for g in margins)} from the edge, one batch from the one search "
+                                f"path; remaining gap estimated at {tol:.2g} (successive changes shrink by "
+                                f"{ratio:.2g} per decade)")
+            else:
+                evidence.append("at the singular edge of the branch; the values approaching it do not converge "
+                                f"({', '.join(f'{v:.6g}' for v in fs)}): the value holds a margin {MARGIN:g} inside")
+    elif len(pas_active):
+        evidence.append("attained on a passive joint's workspace bound (moved in by the margin)")
+    agreeing = int(np.sum(np.abs(vals - value) <= max(tol if math.isfinite(tol) else 0.0, 1e-7 * max(1.0, abs(value)))))
+    if res.floor[top]:
+        evidence.append(f"bounded by a singular edge inside the workspace: steps where the passive Jacobian's relative "
+                        f"conditioning falls below {CONDITIONING_FLOOR:g} of its median were refused (a coefficient "
+                        "can grow without bound there; the value holds on the well-conditioned part)")
+    if not res.done[top]:
+        evidence.append(f"stopped at the iteration limit ({iterations}) with a last accepted gain of {tol:.2g} "
+                        "(the stated tolerance): a value reached, not a certified extreme")
+    evidence.append(f"{agreeing} of {len(ks)} starts agree")
+    return _describe(space, name, kind, value, sampled, q, tol, len(ks), agreeing, int(res.iterations[top]),
+                     "; ".join(evidence), origins[top_local], supremum=supremum, singular=singular)
+
+
+def _edge_sequence(space: _Space, objective: Objective, name: str, q: np.ndarray, joint: int, lower: bool):
+    """The function at margins :data:`EDGE_MARGINS` from a singular passive bound, in one batch."""
+    unit = space.kin.length_scale if space.m.joints[joint].type == "P" else 1.0
+    edge = space.exact_lo[joint] if lower else space.exact_hi[joint]
+    margins = np.array(EDGE_MARGINS)
+    pts = np.repeat(q[None], len(margins), axis=0)
+    pts[:, joint] = edge + (1 if lower else -1) * margins * unit
+    held = ~space.free.copy()
+    held[joint] = True
+    low, high = space.at_bound(q[None])
+    held |= (low[0] | high[0]) & space.act
+    held = np.broadcast_to(held, pts.shape).copy()
+    moved, ok = space.retract(pts, held, iterations=20)
+    if not ok.all():
+        return None
+    return margins, objective.pick(moved, [name] * len(moved)), moved[-1]
+
+
+def _same_branch(space: _Space, q: np.ndarray, q_start: np.ndarray) -> bool:
+    """A certified continuation from ``q`` back to its start's actuated values lands on the start."""
+    from hyperstat.solver.kinematics.continuation import ContinuationOptions, continue_path
+
+    kin, m = space.kin, space.m
+    if not (len(m.passive) and len(m.closures)):
+        return True
+    if np.max(np.abs(q - q_start) / space.scale) <= 1e-12:
+        return True
+    opt = ContinuationOptions(initial_steps=4, cond_tol=1e-12)
+    back, cert = continue_path(kin, q[None], q_start[None, m.actuated], None, opt)
+    if not cert.certified[0]:
+        qq = back.copy()
+        qq[:, m.actuated] = q_start[m.actuated]
+        back = kin.assemble(qq).q
+    diff = space.ws.wrapped(back[0]) - space.ws.wrapped(q_start)
+    rev = np.array([j.type == "R" for j in m.joints])
+    diff[rev] = (diff[rev] + math.pi) % (2 * math.pi) - math.pi
+    return bool(np.max(np.abs(diff) / space.scale) <= 1e-6)
+
+
+def _describe(space: _Space, name: str, kind: str, value: float, sampled: float, q: np.ndarray, tol: float,
+              starts: int, agreeing: int, iterations: int, evidence: str, start: str, location: str | None = None,
+              supremum: bool = False, singular: bool | None = None) -> Extreme:
+    kin, m = space.kin, space.m
+    bounds = []
+    low, high = space.at_bound(q[None], tol=1e-7)
+    n_act = 0
+    for i, j in enumerate(m.joints):
+        if not space.free[i]:
+            continue
+        unit = "rad" if j.type == "R" else "mm"
+        for side, hit, edge in (("lower", low[0, i], space.exact_lo[i]), ("upper", high[0, i], space.exact_hi[i])):
+            if hit and np.isfinite(edge):
+                what = "actuated" if space.act[i] else "passive"
+                n_act += space.act[i]
+                bounds.append(f"{what} joint {j.name} at its {side} workspace bound ({edge:.6g} {unit})")
+    n_box = int(np.sum(np.isfinite(space.exact_lo) & space.act & space.free))
+    if n_act:
+        shape = "corner" if n_act == n_box else ("edge" if n_act == n_box - 1 else "face")
+        bounds.insert(0, f"on a{'n' if shape == 'edge' else ''} {shape} of the actuated box")
+    if singular is None:
+        singular = bool(branch_conditioning(kin, q[None])[0] < SINGULAR) if len(m.passive) and len(m.closures) \
+            else False
+    if location is None:
+        location = "boundary" if bounds else "interior"
+    if start.startswith("dead centre") and "dead centre" not in evidence:
+        evidence += f"; started from a {start}"
+    st = kin.evaluate(q[None], None, False)
+    return Extreme(name, kind, float(value), float(sampled), np.asarray(q, float),
+                   {m.joints[i].name: float(q[i]) for i in m.actuated},
+                   [float(v) for v in st.output_pose[0, :3, 3]], location, bounds, bool(singular), bool(supremum),
+                   float(tol), int(starts), int(agreeing), int(iterations), start, evidence)
 
 
 def refine_extremes(mechanism: Mechanism, maps: AccuracyMaps, analysis=None, kinematics: Kinematics | None = None,
                     workspace: Workspace | None = None, kinds: tuple = ("max", "min"), starts: int = 3,
                     margin: float = MARGIN, names: tuple | None = None) -> dict:
-    """Refine the sampled extremes of the accuracy coefficients (see the module docstring).
+    """The extremes of the accuracy coefficients over the workspace, searched from their maps.
+
+    :func:`search_extremes` on :class:`Coefficients`, started from the maps' configurations.
 
     Parameters
     ----------
@@ -234,9 +1082,7 @@ def refine_extremes(mechanism: Mechanism, maps: AccuracyMaps, analysis=None, kin
     kinds : tuple
         ``"max"`` and/or ``"min"``.
     starts : int
-        Local optimisations per extreme, from the best separate samples.
-    margin : float
-        Passive bounds are moved inwards by this much (rad, or times the length scale in mm).
+        Local searches per extreme, from the best separate candidates.
 
     Returns
     -------
@@ -244,169 +1090,7 @@ def refine_extremes(mechanism: Mechanism, maps: AccuracyMaps, analysis=None, kin
         ``(coefficient, kind)`` -> :class:`Extreme`.
     """
     kin = kinematics or Kinematics(mechanism)
-    ws = workspace or workspace_of(mechanism)
-    m = mechanism
-    act, pas = np.asarray(m.actuated), np.asarray(m.passive)
-    joint_names = [j.name for j in m.joints]
-    lb0, ub0 = ws.lower.copy(), ws.upper.copy()
-    scale = kin.joint_scale
-    q_all = maps.q
-    box = (ub0 - lb0)[act] / scale[act]
-    out = {}
-    for name in names or COEFFICIENT_NAMES:
-        values = maps.coefficients[name]
-        if len(values) == 0:
-            continue
-        spread = float(values.max() - values.min())
-        f = None
-        for kind in kinds:
-            sign = 1.0 if kind == "max" else -1.0
-            best = int(np.argmax(sign * values))
-            sampled = float(values[best])
-            if spread <= 1e-7 * max(1.0, abs(sampled)):
-                out[(name, kind)] = _describe(m, kin, q_all[best], name, kind, sampled, sampled, ws, lb0, ub0,
-                                              location="constant", tolerance=spread, starts=0, agreeing=0, singular=False,
-                                              evidence=f"varies by {spread:.2g} over {len(values)} samples")
-                continue
-            f = f or _Coefficient(kin, analysis, name)
-            order = np.argsort(-sign * values)
-            chosen: list[int] = []
-            n_starts = starts
-            for i in order:  # the best samples, at least 5 % of the box apart in actuated values
-                if all(np.linalg.norm((q_all[i, act] - q_all[j, act]) / scale[act] / box) > 0.05 for j in chosen):
-                    chosen.append(int(i))
-                if len(chosen) == n_starts:
-                    break
-            results = [r for r in _refine_many(f, kin, ws, q_all[chosen], lb0, ub0, sign, margin) if r is not None]
-            out[(name, kind)] = _conclude(m, kin, f, ws, lb0, ub0, name, kind, sampled, q_all[best], results,
-                                          len(chosen), sign, margin)
-    return out
-
-
-def _refine_one(f, kin, ws, q_start, lb0, ub0, sign, margin):
-    """One local optimisation from a sample: (value, q, lb, ub, converged) or None if it left the branch."""
-    return _refine_many(f, kin, ws, np.asarray(q_start)[None], lb0, ub0, sign, margin)[0]
-
-
-def _refine_many(f, kin, ws, q_starts, lb0, ub0, sign, margin):
-    """Local optimisations from several samples, their branch checks batched: a list of results or None."""
-    m = kin.mechanism
-    pas = np.asarray(m.passive)
-    lb, ub = lb0.copy(), ub0.copy()
-    step = np.where(kin.joint_scale[pas] == 1.0, margin, margin * kin.length_scale)
-    lb[pas] += step
-    ub[pas] -= step
-    q0 = ws.wrapped(np.atleast_2d(q_starts))
-    res = [_optimise(f, kin, q, lb, ub, sign) for q in q0]
-    settled = _settle(f, kin, ws, q0, np.array([r.x for r in res]), lb, ub)
-    return [None if s_ is None else (*s_, bool(r.success)) for s_, r in zip(settled, res)]
-
-
-def _settle(f, kin, ws, q_starts, xs, lb, ub):
-    """Re-assemble the optimiser's points at their actuated values; keep those on their start's branch.
-
-    The branch checks of all points are one batched continuation (one path per point).
-    """
-    m = kin.mechanism
-    act = np.asarray(m.actuated)
-    a = kin.assemble(np.clip(xs, lb, ub).copy())
-    q = ws.wrapped(a.q)
-    good = np.nonzero(a.converged & ws.inside(q))[0]
-    out: list = [None] * len(xs)
-    if good.size == 0:
-        return out
-    # the branch check: back to the sample by certified continuation; the optimiser's point may lie
-    # a margin from the singular edge of the branch, so the conditioning floor is lowered for this path
-    # only (the steps stay bounded by the distance to another solution, see ContinuationOptions)
-    opt = ContinuationOptions(initial_steps=4, cond_tol=1e-12)
-    back, cert = continue_path(kin, q[good], q_starts[good][:, act], None, opt)
-    lost = ~cert.certified
-    if np.any(lost):  # as Kinematics.solve: a least-squares assembly at the target from the last certified point
-        qq = back[lost].copy()
-        qq[:, act] = q_starts[good][lost][:, act]
-        back[lost] = kin.assemble(qq).q
-    # evidence: the path, taken in steps bounded by the distance to another solution, ends on the sample.
-    # Its certificate may still fail at the very start (a fold a margin away: the corrector cannot shrink
-    # its steps below the minimum there), which is why the end point, not the flag, decides.
-    values = f(q[good])
-    for j, i in enumerate(good):
-        if np.max(np.abs(ws.wrapped(back[j]) - q_starts[i]) / kin.joint_scale) <= 1e-6:
-            out[i] = (float(values[j]), q[i], lb, ub)
-    return out
-
-
-def _active(q, lb, ub, scale, tol=1e-7):
-    return (np.abs(q - lb) <= tol * scale), (np.abs(ub - q) <= tol * scale)
-
-
-def _conclude(m, kin, f, ws, lb0, ub0, name, kind, sampled, q_sampled, results, n_starts, sign, margin):
-    if not results:
-        return _describe(m, kin, q_sampled, name, kind, sampled, sampled, ws, lb0, ub0, starts=n_starts, agreeing=0,
-                         tolerance=float("nan"),
-                         evidence="no local optimisation stayed on the assembly branch: the sampled value is reported")
-    values = np.array([r[0] for r in results])
-    top = int(np.argmax(sign * values))
-    value, q, lb, ub, converged = results[top]
-    scale = kin.joint_scale
-    pas = np.asarray(m.passive)
-    low, high = _active(q, lb, ub, scale)
-    passive_active = bool(np.any(low[pas] | high[pas]))
-    cond = _passive_conditioning(kin, q)
-    singular = cond < SINGULAR
-    tol = max(1e-9 * max(1.0, abs(value)), 0.0)
-    evidence = ""
-    supremum = False
-    if passive_active and singular:
-        # a supremum at the singular edge of the branch: the value at margins 1e-2, 1e-3, 1e-4 from it
-        seq = []
-        for mg in (100 * margin, 10 * margin):
-            r = _refine_one(f, kin, ws, q, lb0, ub0, sign, mg)
-            seq.append(r[0] if r is not None else float("nan"))
-        seq.append(value)
-        gaps = np.abs(np.diff(seq))
-        supremum = True
-        tol = max(tol, float(gaps[-1]) / 9.0) if np.all(np.isfinite(gaps)) else float("nan")
-        evidence = (f"values {', '.join(f'{v:.10g}' for v in seq)} at {100 * margin:g}, {10 * margin:g}, {margin:g} "
-                    f"from the singular edge (steps {', '.join(f'{g:.2g}' for g in gaps)}); remaining gap estimated "
-                    f"at {tol:.2g} assuming at least linear convergence")
-    elif passive_active:
-        # a regular passive bound: the extreme is attained on it; optimise again with the exact bound
-        r = _refine_one(f, kin, ws, q, lb0, ub0, sign, 0.0)
-        if r is not None and sign * r[0] >= sign * value:
-            value, q, lb, ub, converged = r
-        evidence = "attained on a passive joint's workspace bound (regular configuration)"
-    agreeing = int(np.sum(np.abs(values - value) <= max(tol, 1e-7 * max(1.0, abs(value)))))
-    if not evidence:
-        evidence = f"local extreme (SLSQP, relative ftol {FTOL:g}, forward-difference gradient, step 1e-7)"
-    if not converged:
-        evidence += "; the optimiser stopped at its iteration limit (the value is a bound reached, not a converged extreme)"
-        tol = float("nan")
-    evidence += f"; {agreeing} of {n_starts} starts agree"
-    if sign * sampled > sign * value:  # never report less than what was sampled
-        return _describe(m, kin, q_sampled, name, kind, sampled, sampled, ws, lb0, ub0, starts=n_starts, agreeing=0,
-                         tolerance=float("nan"), evidence="the optimiser did not improve on the sampled value")
-    return _describe(m, kin, q, name, kind, value, sampled, ws, lb0, ub0, tolerance=tol, starts=n_starts,
-                     agreeing=agreeing, evidence=evidence, supremum=supremum, singular=singular, margin=margin)
-
-
-def _describe(m, kin, q, name, kind, value, sampled, ws, lb, ub, location=None, tolerance=0.0, starts=0, agreeing=0,
-              evidence="", supremum=False, singular=None, margin=0.0):
-    scale = kin.joint_scale
-    pas = set(int(i) for i in m.passive)
-    tol = np.where(np.isin(np.arange(len(q)), list(pas)), margin * scale + 1e-7 * scale, 1e-7 * scale)
-    bounds = []
-    for i, j in enumerate(m.joints):
-        unit = "rad" if j.type == "R" else "mm"
-        for side, edge in (("lower", lb[i]), ("upper", ub[i])):
-            if abs(q[i] - edge) <= tol[i] and not (j.type == "R" and ub[i] - lb[i] >= 4 * math.pi - 1e-9):
-                what = "passive" if i in pas else "actuated"
-                bounds.append(f"{what} joint {j.name} at its {side} workspace bound ({edge:.6g} {unit})")
-    if singular is None:
-        singular = _passive_conditioning(kin, q) < SINGULAR
-    if location is None:
-        location = "boundary" if bounds else "interior"
-    st = kin.evaluate(q[None], None, False)
-    act = {m.joints[i].name: float(q[i]) for i in m.actuated}
-    return Extreme(name, kind, float(value), float(sampled), np.asarray(q, float), act,
-                   [float(v) for v in st.output_pose[0, :3, 3]], location, bounds, bool(singular), bool(supremum),
-                   float(tolerance), int(starts), int(agreeing), evidence)
+    present = tuple(n for n in (names or COEFFICIENT_NAMES) if len(maps.coefficients.get(n, ())))
+    sampled = {n: maps.coefficients[n] for n in present}
+    return search_extremes(kin, Coefficients(kin, analysis, present), maps.q, workspace, kinds, starts,
+                           names=present, sampled=sampled, margin=margin)

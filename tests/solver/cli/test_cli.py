@@ -19,7 +19,7 @@ def test_analyze_json_contract(tmp_path, capsys):
     params = {p["name"]: p for p in doc["parameters"]}
     assert len(params) == 15
     for p in params.values():
-        assert p["verdict"] in ("gauge", "forced", "coupled", "free")
+        assert p["verdict"] in ("normalisation", "redundant", "forced", "coupled", "free")
         assert p["influential"] in (True, False, None)
     assert all(set(r) >= {"terms"} for r in doc["relations"])
     assert all(c["confirmed"] for c in doc["verification"])

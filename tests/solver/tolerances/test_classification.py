@@ -48,7 +48,9 @@ def test_slider_crank_shows_dc2_plus_dc3_and_no_gauge(slider):
     assert all(t.cls in CLASSES for t in cl.items)
     doc = cl.to_dict()
     assert "gauge" not in {v["class"] for v in doc["parameters"].values()}
-    assert doc["parameters"]["dc2"]["class"] == "assembly" and doc["parameters"]["dc2"]["equivalent"] == "dc3"
+    # one class per parameter: dc2 is merged with dc3 (class 'redundant'), and shares its tolerance
+    assert doc["parameters"]["dc2"]["class"] == "redundant" and doc["parameters"]["dc2"]["equivalent"] == "dc3"
+    assert doc["parameters"]["dc3"]["class"] == "assembly"
     assert doc["parameters"]["dc2"]["tolerance_id"] == doc["parameters"]["dc3"]["tolerance_id"]
     # the physics behind the statement: dc2 alone opens a gap; dc2 = -dc3 closes
     index = mech.parameter_index

@@ -1,0 +1,128 @@
+"""Linear worst cases of a set of tolerances: the attainable one and the triangle bound, each named for what it is.
+
+Units: mm (position rows) or rad (rotation rows).
+
+With every tolerance ``i`` within ``+- v_i`` along its direction, the first-order task error at a
+configuration is ``J (s o v)`` with ``J`` the task rows per unit of each tolerance and ``s`` in
+``[-1, 1]^n``.  Two numbers are printed, and they must not be confused:
+
+* the **attainable linear worst case** ``max_s |J (s o v)|``: the largest error some machine within
+  its tolerances actually has (the maximum of a convex function over a box is at a corner, so ``s``
+  is a sign pattern).  It is computed exactly for up to three task rows: the optimal sign pattern
+  is ``sign(J^T u)`` for the direction ``u`` of the error, which is constant on the cells of the
+  arrangement of the great circles ``u . J_i = 0``; every cell lies next to some circle, and a walk
+  around each circle meets the cells next to it one sign flip at a time (:func:`attainable`; every
+  sign pattern up to ten tolerances).  Parallel and coplanar columns are handled (an earlier
+  enumeration of the cells around the circles' crossings missed patterns when columns were
+  parallel, and read up to 17 % low on such test matrices);
+* the **triangle bound** ``sum_i |J_i| v_i``: every tolerance at its extreme *and* every error
+  pointing the same way, which no machine need reach (the Triflex-II: 0.0128 mm against an
+  attainable 0.0091 mm for a 0.01 mm spec).
+
+Both are maximised over the workspace by the one worst-case engine
+(:func:`hyperstat.solver.tolerances.worst_case.search_extremes`) through :class:`LinearWorstCase`.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from hyperstat.solver.tolerances.worst_case import Objective
+
+__all__ = ["attainable", "triangle", "LinearWorstCase"]
+
+
+def triangle(a: np.ndarray) -> np.ndarray:
+    """``sum_i |a_i|`` for the columns of each (r, n) matrix of a stack (K, r, n)."""
+    return np.sum(np.linalg.norm(a, axis=1), axis=1)
+
+
+def attainable(a: np.ndarray, chunk: int = 16) -> np.ndarray:
+    """``max_{s in {-1, 1}^n} |a s|`` for each (r, n) matrix of a stack (K, r, n), exactly for r <= 3.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = np.array([[[1.0, 1.0, 0.0], [0.0, 1.0, 1.0]]])
+    >>> round(float(attainable(a)[0]), 12), round(float(triangle(a)[0]), 12)  # (2, 2) by s = (1, 1, 1)
+    (2.828427124746, 3.414213562373)
+    """
+    a = np.asarray(a, dtype=float)
+    k, r, n = a.shape
+    if n == 0 or r == 0:
+        return np.zeros(k)
+    if r == 1:
+        return np.sum(np.abs(a[:, 0]), axis=1)
+    if n <= 10 or r > 3:  # every sign pattern (r > 3 does not occur: at most three task rows of one kind)
+        signs = np.array(list(itertools.product((-1.0, 1.0), repeat=n)))
+        return np.max(np.linalg.norm(a @ signs.T, axis=1), axis=1)
+    if r == 2:  # a flat zonotope in three dimensions: the same walk
+        a = np.concatenate([a, np.zeros((k, 1, n))], axis=1)
+    out = np.zeros(k)
+    for start in range(0, k, chunk):
+        out[start:start + chunk] = _walk_circles(a[start:start + chunk])
+    return out
+
+
+def _walk_circles(blk: np.ndarray) -> np.ndarray:
+    """``max_s |a s|`` for a stack (B, 3, n), walking around the great circle ``u . a_i = 0`` of every column.
+
+    Along the circle of column ``i`` (``u = e1 cos t + e2 sin t``) the sign of ``u . a_k`` flips at two
+    angles per column ``k``; between consecutive crossings the pattern is that of a cell of the
+    arrangement next to the circle, with ``s_i = +-1`` on its two sides, and every cell lies next to some
+    circle.  The patterns are built by one sort and one cumulative sum per circle (``O(n^2 log n)`` per
+    matrix).  Columns parallel to ``a_i`` (within 1e-12 of the largest column: ``a_i`` itself, exact
+    copies, columns below the round-off) take ``s_i`` times the sign of their projection on ``a_i``.
+    Simultaneous crossings (coplanar columns) are taken one at a time: the patterns in between are
+    sign patterns too, so the maximum is never above the true one.
+    """
+    n = blk.shape[2]
+    cols = np.swapaxes(blk, 1, 2)  # (B, n, 3)
+    norm = np.linalg.norm(cols, axis=2)
+    scale = np.maximum(norm.max(axis=1), 1e-300)
+    unit = cols / np.maximum(norm, 1e-300)[..., None]
+    e1 = np.cross(unit, np.eye(3)[np.argmin(np.abs(unit), axis=2)])  # the axis least aligned: a regular cross product
+    e1 /= np.maximum(np.linalg.norm(e1, axis=2), 1e-300)[..., None]
+    e2 = np.cross(unit, e1)
+    c, d = e1 @ blk, e2 @ blk  # (B, n_i, n_k): u(t) . a_k = c cos t + d sin t
+    tied = np.hypot(c, d) <= 1e-12 * scale[:, None, None]
+    group = np.where(tied, np.sign(unit @ blk), 0.0) @ cols  # the tied columns with their signs, (B, n_i, 3)
+    phi = np.arctan2(d, c)
+    up = np.mod(phi - np.pi / 2, 2 * np.pi)  # u . a_k turns positive
+    down = np.mod(phi + np.pi / 2, 2 * np.pi)  # and negative
+    free = ~tied
+    base = np.where(free, np.where(up < down, -1.0, 1.0), 0.0)  # the sign before the first crossing in [0, 2 pi)
+    angles = np.concatenate([up, down], axis=2)  # (B, n_i, 2 n)
+    steps = np.concatenate([np.where(free, 2.0, 0.0), np.where(free, -2.0, 0.0)], axis=2)
+    order = np.argsort(angles, axis=2)
+    steps = np.take_along_axis(steps, order, axis=2)
+    which = np.concatenate([np.arange(n), np.arange(n)])[order]
+    delta = steps[..., None] * np.take_along_axis(cols[:, None, :, :], which[..., None], axis=2)
+    w = (base @ cols)[:, :, None, :] + np.cumsum(delta, axis=2)  # (B, n_i, 2 n, 3): the pattern of every arc
+    return np.maximum(np.linalg.norm(w + group[:, :, None, :], axis=3).max(axis=(1, 2)),
+                      np.linalg.norm(w - group[:, :, None, :], axis=3).max(axis=(1, 2)))
+
+
+class LinearWorstCase(Objective):
+    """The attainable linear worst case and the triangle bound of tolerances at their values, per configuration.
+
+    Parameters
+    ----------
+    kin : Kinematics
+    rows : callable
+        ``rows(q) -> (K, r, n)``: the task rows (one kind: position in mm or rotation in rad) per unit of
+        each tolerance at configurations ``q``.
+    values : ndarray, (n,)
+        The tolerances' values.
+    """
+
+    names = ("attainable", "triangle")
+
+    def __init__(self, rows, values: np.ndarray) -> None:
+        self.rows, self.values_ = rows, np.asarray(values, dtype=float)
+
+    def values(self, q: np.ndarray) -> dict:
+        a = self.rows(np.atleast_2d(q)) * self.values_[None, None, :]
+        return {"attainable": attainable(a), "triangle": triangle(a)}

@@ -1,0 +1,479 @@
+"""Compensable tolerances with calibration: the largest defects a calibrated, compensated machine still holds.
+
+Units: mm and rad.
+
+A compensable tolerance's ``value`` keeps the spec on an *uncalibrated* machine.  A machine built to be
+calibrated may be made coarser: the template's declared measurements identify the defect (or the
+combination that absorbs it) and the controller cancels its effect on the task.  What limits how far
+(:func:`calibrated_values`):
+
+* **the second-order residual**: identification and compensation are exact only to first order when a
+  defect is absorbed by other parameters; what is left grows as the square of the defects.  It is
+  *simulated*, not assumed: for each compensable direction at a probe size, the machine's declared
+  measurements (every target, the declared frame and offsets as unknowns) at the classification's
+  configurations are fitted by Gauss-Newton over the admissible coordinates and the nuisances (the
+  nonlinear model), the actuators are then solved in the fitted model for the nominal task poses over
+  the workspace sample (Newton), and the true machine's task error there is measured.  Its
+  coefficient ``kappa_i = residual / probe^2`` shapes the values (``v_i`` proportional to
+  ``1 / sqrt(kappa_i)``), and all compensable defects *together* at those values, with random and
+  all-equal signs (nine machines), scale them so that the largest residual is the share of the spec
+  left for it (a residual of second order scales with the square of the values);
+* **the identification noise**: the calibration's 3-sigma task error from the declared measurement
+  noise (:attr:`Classification.calibration`) comes off the spec first; the second-order residual
+  shares what is left equally with the accuracy-critical classes (paper 2, eq. 30: equal shares), so
+  the accuracy-critical allocation keeps its share;
+* **the actuator stroke or the workspace**: the controller moves the actuators by the first-order
+  correction ``(S K_a)^+ S K d`` per unit defect; where the joint ranges leave a margin around the
+  declared workspace, the value must fit in it ("actuator stroke"); where they do not, the
+  compensated machine loses that much of its workspace at the bounds, and the loss is held to
+  :data:`WORKSPACE_LOSS` of each actuator's range ("workspace loss").
+
+The value with calibration is the smallest of these limits (never below the uncalibrated value:
+calibration cannot make a tolerance tighter), and the limit that binds is named.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.continuation import batched_lstsq
+from hyperstat.solver.kinematics.model import Mechanism
+from hyperstat.solver.tolerances.accuracy import output_twist_maps
+from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
+
+__all__ = ["calibrated_values", "simulate_calibration", "regular_task", "WORKSPACE_LOSS", "PROBE", "VALIDITY"]
+
+#: the share of each actuator's range the compensation may cost at the workspace's bounds (assumed)
+WORKSPACE_LOSS = 1e-3
+#: probe size of the second-order simulation: rad, or mm per length scale
+PROBE = 1e-3
+#: the largest defect the simulation is trusted at (rad, or mm per length scale): the small-defect model
+VALIDITY = 1e-2
+#: configurations of the simulated calibration (evenly taken from the classification's, which span the workspace)
+CALIBRATION_POSES = 36
+#: configurations the compensated task error is measured at (evenly taken from the workspace sample)
+TASK_POSES = 40
+#: singular values of the nominal measurement design below this share of the largest are directions the
+#: measurements do not see (round-off: the hexapod's gap is 1e-16 against 1e-2)
+IDENTIFIABLE = 1e-8
+#: compensation steps with the nominal machine's actuator map before the fitted model's own (Newton)
+CHORD_STEPS = 6
+#: the largest share of the task configurations a compensated machine may miss (its reachable set moved: the
+#: workspace's edge); more, and the defects are refused
+MISSED = 0.05
+
+
+def _targets(decl) -> np.ndarray:
+    return np.asarray(decl.targets_mm, dtype=float)
+
+
+def _measure(kin: Kinematics, q: np.ndarray, xi: np.ndarray, decl) -> tuple[np.ndarray, np.ndarray | None]:
+    """Measured positions (K, 3 n_t) of every target (mm), and the output rotations (K, 3, 3) for ``poses``."""
+    pose = kin.evaluate(q, xi, jacobians=False).output_pose
+    points = np.concatenate([pose[:, :3, :3] @ t + pose[:, :3, 3] for t in _targets(decl)], axis=1)
+    return points, (pose[:, :3, :3] if decl.measurement_kind == "poses" else None)
+
+
+def _misfit(measured: tuple, predicted: tuple, ls: float) -> np.ndarray:
+    """Measured minus predicted rows (K, 3 n_t [+ 3]), dimensionless: positions per length scale, and for ``poses``
+    the rotation taking the predicted orientation to the measured one (rad, in the base frame: the rows of the
+    measurement maps)."""
+    from hyperstat.solver.kinematics.frames import so3_log
+
+    out = [(measured[0] - predicted[0]) / ls]
+    if measured[1] is not None:
+        out.append(so3_log(measured[1] @ np.swapaxes(predicted[1], 1, 2)))
+    return np.concatenate(out, axis=1)
+
+
+def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, xi_true: np.ndarray,
+                         q_cal: np.ndarray, q_task: np.ndarray, iterations: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Task errors of machines with defects ``xi_true`` (M, n_xi) after calibration and compensation, noise-free.
+
+    Calibration: the declared measurements at ``q_cal`` (actuated values held, passive joints solved on
+    the true machine) fitted by Gauss-Newton over the admissible coordinates (the analysis' basis) and
+    the nuisances the declaration leaves unknown (tracker frame, target offsets).  Compensation: at each
+    ``q_task`` the actuators are solved in the fitted model so that it reaches the nominal task pose
+    there (Newton); the true machine is then assembled at those actuated values.
+
+    Returns
+    -------
+    position, orientation : ndarray, (M, K_task)
+        Task error norms per machine and configuration (mm, rad) on the declared task components.
+    reached : ndarray of bool, (M, K_task)
+        Whether the fitted model reached the nominal task pose there (False beyond its reachable set).
+    """
+    from hyperstat.solver.tolerances.classification import _measurement_maps
+
+    m = mechanism
+    xi_true = np.atleast_2d(xi_true)
+    n_m, k_c, k_t = len(xi_true), len(q_cal), len(q_task)
+    ls = kin.length_scale
+    pscale = kin.parameter_scale
+    basis = analysis.admissible_basis  # dimensionless
+    n_s = basis.shape[1]
+    act = np.asarray(m.actuated)
+
+    def assembled(q0: np.ndarray, xi: np.ndarray) -> np.ndarray:
+        return kin.assemble(q0, xi).q
+
+    # the true machines' measurements
+    qc = np.tile(q_cal, (n_m, 1))
+    xc = np.repeat(xi_true, k_c, axis=0)
+    qe = assembled(qc, xc)
+    y = _measure(kin, qe, xc, decl)
+    # Gauss-Newton over (admissible coordinates, nuisances); the nuisances enter linearly (tracker frame as a
+    # small rigid motion, offsets in the output frame), so their columns are those of the analysis' design.  The
+    # fit runs over the combinations the measurements see on the nominal machine (the identifiable subspace, as
+    # identify fits them); a direction they do not see stays at zero.  Orientation rows compare rotations (the
+    # rotation from the predicted to the measured one), as the measurement maps' rows do.  The first step starts
+    # from the nominal machine, whose configurations and maps are known (one design for every machine)
+    st0 = kin.evaluate(q_cal, None, jacobians=True)
+    meas0, nuis0, _ = _measurement_maps(decl, st0, output_twist_maps(kin, st0)[0], ls, pscale)
+    design = np.concatenate([(meas0 @ basis).reshape(-1, n_s), nuis0.reshape(k_c * nuis0.shape[1], -1)], axis=1)
+    _, sv, vt = np.linalg.svd(design, full_matrices=False)
+    seen = vt[sv > IDENTIFIABLE * sv[0]].T if sv.size and sv[0] > 0 else np.zeros((design.shape[1], 0))
+    at_nominal = _measure(kin, q_cal, None, decl)
+    at_nominal = (np.tile(at_nominal[0], (n_m, 1)),
+                  None if at_nominal[1] is None else np.tile(at_nominal[1], (n_m, 1, 1)))
+    first = _misfit(y, at_nominal, ls).reshape(n_m, -1)
+    coef = np.linalg.lstsq(design @ seen, first.T, rcond=None)[0].T  # coordinates in the identifiable subspace
+    for _ in range(iterations - 1):  # then Gauss-Newton at the estimate, warm-started at the true machines
+        x = coef @ seen.T
+        xi_est = (basis @ x[:, :n_s].T).T * pscale[None, :]
+        xe = np.repeat(xi_est, k_c, axis=0)
+        qe = assembled(qe, xe)
+        st = kin.evaluate(qe, xe, jacobians=True)
+        k_xi, _ = output_twist_maps(kin, st)
+        meas_xi, nuisance, _ = _measurement_maps(decl, st, k_xi, ls, pscale)
+        jac = (meas_xi @ basis).reshape(n_m, k_c, -1, n_s).reshape(n_m, -1, n_s)
+        nj = nuisance.reshape(n_m, k_c * nuisance.shape[1], -1)
+        resid = _misfit(y, _measure(kin, qe, xe, decl), ls).reshape(n_m, -1) - np.einsum("krn,kn->kr", nj, x[:, n_s:])
+        full = np.concatenate([jac, nj], axis=2) @ seen
+        coef += batched_lstsq(full, resid[..., None], damping=1e-14)[..., 0]
+    xi_est = (basis @ (coef @ seen.T)[:, :n_s].T).T * pscale[None, :]
+    # compensation: actuators solved in the fitted model for the nominal task poses, steps capped: chord steps with
+    # the nominal machine's actuator map (the same for every machine: no Jacobian per machine), then Newton steps
+    # with the fitted model's own map where the chord has not converged
+    n_rot = n_rotation_rows(decl.task)
+    st_n = kin.evaluate(q_task, None, jacobians=True)
+    sel_n = task_rows(decl.task, st_n.output_pose)
+    rows_n = sel_n @ output_twist_maps(kin, st_n)[1]  # (K_t, r, n_a)
+    chord = np.tile(_damped_inverse(rows_n), (n_m, 1, 1))
+    goal = np.tile(st_n.output_pose, (n_m, 1, 1))
+    qt = np.tile(q_task, (n_m, 1))
+    xt = np.repeat(xi_est, k_t, axis=0)
+    cap = 0.05 * kin.joint_scale[act]
+    tscale = _task_scale(decl, ls)
+    todo = np.arange(len(qt))
+    for it in range(CHORD_STEPS + iterations):
+        qt[todo] = assembled(qt[todo], xt[todo])
+        if it < CHORD_STEPS:
+            pose = kin.evaluate(qt[todo], xt[todo], jacobians=False).output_pose
+            rhs = -np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal[todo]))
+            done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
+            da = np.einsum("kar,kr->ka", chord[todo], rhs)
+        else:  # Newton with the fitted model's map
+            st = kin.evaluate(qt[todo], xt[todo], jacobians=True)
+            sel = task_rows(decl.task, st.output_pose)
+            rhs = -np.einsum("krs,ks->kr", sel, _pose_error(st.output_pose, goal[todo]))
+            done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
+            da = batched_lstsq(sel @ output_twist_maps(kin, st)[1], rhs[..., None], damping=1e-14)[..., 0]
+        da = da / np.maximum(np.max(np.abs(da) / cap, axis=1, keepdims=True), 1.0)
+        qt[todo[~done][:, None], act[None, :]] += da[~done]
+        todo = todo[~done]
+        if not len(todo):
+            break
+    qt = assembled(qt, xt)
+    pose = kin.evaluate(qt, xt, False).output_pose
+    reached = np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal))
+    reached = np.linalg.norm(reached * tscale[None, :], axis=1) <= 1e-9
+    qt = assembled(qt, np.repeat(xi_true, k_t, axis=0))
+    true_pose = kin.evaluate(qt, np.repeat(xi_true, k_t, axis=0), jacobians=False).output_pose
+    err = np.einsum("krs,ks->kr", task_rows(decl.task, true_pose), _pose_error(true_pose, goal))
+    pos = np.linalg.norm(err[:, n_rot:], axis=1).reshape(n_m, k_t)
+    rot = np.linalg.norm(err[:, :n_rot], axis=1).reshape(n_m, k_t)
+    return pos, rot, reached.reshape(n_m, k_t)
+
+
+def _damped_inverse(rows: np.ndarray, damping: float = 1e-14) -> np.ndarray:
+    """``(A^T A + lambda)^-1 A^T`` of each (r, n) matrix of a stack (K, r, n): the least-squares step's map (K, n, r)."""
+    at = np.swapaxes(rows, 1, 2)
+    ata = at @ rows
+    idx = np.arange(ata.shape[1])
+    ata[:, idx, idx] += damping * np.maximum(np.einsum("kii->ki", ata).max(axis=1), 1e-300)[:, None]
+    return np.linalg.solve(ata, at)
+
+
+def _task_scale(decl, ls: float) -> np.ndarray:
+    """Task rows in dimensionless units: rotations in rad, positions per length scale."""
+    n_rot = n_rotation_rows(decl.task)
+    rows = task_rows(decl.task, np.eye(4)[None]).shape[1]
+    return np.r_[np.ones(n_rot), np.full(rows - n_rot, 1.0 / ls)]
+
+
+def _actuation(kin: Kinematics, decl, q: np.ndarray) -> tuple:
+    """Kinematic state, twist maps, task rows and the dimensionless singular values of the actuators' task map."""
+    st = kin.evaluate(q, None, jacobians=True)
+    k_xi, k_a = output_twist_maps(kin, st)
+    sel = task_rows(decl.task, st.output_pose)
+    rows = (sel @ k_a) * _task_scale(decl, kin.length_scale)[None, :, None]
+    rows = rows * kin.joint_scale[kin.mechanism.actuated][None, None, :]
+    s = np.linalg.svd(rows, compute_uv=False)
+    smallest = s[:, min(rows.shape[1:]) - 1] if s.size else np.ones(len(q))
+    return st, k_xi, k_a, sel, smallest
+
+
+def regular_task(kin: Kinematics, decl, q: np.ndarray, floor: float = 1e-2, reference: float | None = None) -> np.ndarray:
+    """Configurations where the actuators command every task direction: the smallest singular value of the
+    dimensionless task map of the actuators at least ``floor`` of its median over ``q`` (or of ``reference``);
+    a dead centre of the task, where a defect moves the reachable task space itself, is left out and counted as
+    workspace loss."""
+    smallest = _actuation(kin, decl, q)[4]
+    return smallest >= floor * (float(np.median(smallest)) if reference is None else reference)
+
+
+def _pose_error(pose: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """Twist (omega, v) taking ``goal`` to ``pose`` (K, 6): rotation vector (rad), position difference (mm)."""
+    from hyperstat.solver.kinematics.frames import so3_log
+
+    return np.concatenate([so3_log(pose[:, :3, :3] @ np.swapaxes(goal[:, :3, :3], 1, 2)),
+                           pose[:, :3, 3] - goal[:, :3, 3]], axis=1)
+
+
+def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, spec_p, spec_o,
+                      workspace=None, share: dict | None = None, seed: int = 0) -> dict:
+    """Fill ``value_with_calibration`` and ``value_with_calibration_limit`` of every compensable tolerance (in place).
+
+    Parameters
+    ----------
+    cl : Classification
+        With the uncalibrated values filled (:func:`hyperstat.solver.tolerances.values.assign_values`).
+    configurations : ndarray, (K, n_q)
+        The workspace sample the compensated task error is measured on.
+    spec_p, spec_o : float or None
+        The spec (mm, rad).
+    share : dict, optional
+        ``position_mm`` / ``orientation_rad``: the part of the spec left to the second-order residual
+        (the values' allocation sets it; default: the spec less the calibration residual).
+
+    Returns
+    -------
+    dict
+        JSON-ready evidence: the budget, the probe, every ``kappa``, the combined simulation's worst
+        residuals, the limits per tolerance.
+    """
+    from hyperstat.solver.tolerances.workspace import workspace_of
+
+    items = [t for t in cl.items if t.cls == "compensable" and t.value]
+    if not items or cl.analysis is None:
+        return {}
+    m = mechanism
+    decl = cl.declaration
+    cal = cl.calibration
+    share = dict(share or {})
+    budget = {"position_mm": share.get("position_mm", None if spec_p is None else spec_p - cal.get("position_mm", 0.0)),
+              "orientation_rad": share.get("orientation_rad",
+                                           None if spec_o is None else spec_o - cal.get("orientation_rad", 0.0))}
+    n_rot = n_rotation_rows(decl.task)
+    has_p = len(task_rows(decl.task, np.eye(4)[None])[0]) > n_rot
+    budget = {k: v for k, v in budget.items() if v is not None and ((k == "position_mm") == has_p or
+                                                                   (k == "orientation_rad" and n_rot))}
+    q_cal = cl.configurations if cl.configurations is not None else cl.analysis.configurations
+    q_cal = q_cal[np.unique(np.linspace(0, len(q_cal) - 1, min(len(q_cal), CALIBRATION_POSES)).round().astype(int))]
+    q_all = np.atleast_2d(configurations)
+    q_all = q_all[np.unique(np.linspace(0, len(q_all) - 1, min(len(q_all), TASK_POSES)).round().astype(int))]
+    regular = regular_task(kin, decl, q_all)
+    q_task = q_all[regular]  # the dead centres of the task are counted as workspace loss, below
+    ls = kin.length_scale
+    units = {t.id: t.unit for t in items}
+    probe = {t.id: PROBE * (ls if t.unit == "mm" else 1.0) for t in items}
+    dirs = np.stack([t.direction for t in items])  # (n, n_xi) per unit of each tolerance
+    # 1. every direction alone at its probe: kappa (residual per probe^2), position and orientation
+    sizes = np.array([probe[t.id] for t in items])
+    pos, rot, ok = simulate_calibration(m, kin, cl.analysis, decl, dirs * sizes[:, None], q_cal, q_task)
+    # a residual at the round-off of the probe reads as that round-off: kappa is never below it (it shapes the values)
+    floor = 1e-11 * ls / sizes**2
+    kappa = {"position_mm": np.maximum(np.where(ok, pos, 0.0).max(axis=1) / sizes**2, floor),
+             "orientation_rad": np.maximum(np.where(ok, rot, 0.0).max(axis=1) / sizes**2, floor / ls)}
+    # 2. the shape: v_i ~ 1 / sqrt(kappa_i) (each defect the same second-order share), the worst kind first
+    weight = np.zeros(len(items))
+    for key, b in budget.items():
+        if b and b > 0:
+            weight = np.maximum(weight, kappa[key] / b)
+    shape = 1.0 / np.sqrt(np.maximum(weight, 1e-300))
+    # 3. all together, nine machines (all-equal signs and eight random patterns), scaled to the budget: a second-order
+    # residual scales with the square of the values, and the scaling is checked by simulating again at the values
+    rng = np.random.default_rng(seed)
+    signs = np.vstack([np.ones(len(items)), rng.choice([-1.0, 1.0], size=(8, len(items)))])
+    is_mm = np.array([units[t.id] == "mm" for t in items])
+    dimensionless = shape / np.where(is_mm, ls, 1.0)
+    unit = shape * (PROBE / max(float(np.max(dimensionless)), 1e-300))  # scale 1: the largest defect at the probe
+    cap = VALIDITY * np.where(is_mm, ls, 1.0)  # the simulation is trusted up to this (rad, mm)
+    noise_bound = any(b <= 0 for b in budget.values())
+    worst, unreached, limiting_kind = {}, 0, None
+    # from the probe (scale 1) up, each step by what the residual left so far allows (a residual of second order
+    # grows as the square of the scale), every scale checked by simulation; a refused one is bisected
+    good, bad, scale, missed = 0.0, np.inf, 1.0, False
+    for _ in range(6):
+        if noise_bound:
+            break
+        values = np.minimum(scale * unit, cap)
+        pos_c, rot_c, ok_c = simulate_calibration(m, kin, cl.analysis, decl, (signs * values[None, :]) @ dirs, q_cal,
+                                                  q_task)
+        found = {"position_mm": float(np.where(ok_c, pos_c, 0.0).max()),
+                 "orientation_rad": float(np.where(ok_c, rot_c, 0.0).max())}
+        ratio, kind = min(((math.sqrt(b / found[k]) if found[k] > 0 else np.inf, k) for k, b in budget.items()),
+                          default=(np.inf, None))
+        if np.mean(~ok_c) > MISSED:  # the calibrated model misses the task poses: beyond what it can compensate
+            ratio, missed = min(ratio, 0.5), True
+        elif ratio < 1.0:
+            missed = False
+        if ratio >= 1.0:  # within the budget: verified
+            good, worst, unreached, limiting_kind = scale, found, int(np.sum(~ok_c)), kind
+            if ratio <= 1.15 or np.all(values >= cap):  # within 15 % of the budget: close enough, on the safe side
+                break
+            scale = min(scale * min(0.99 * ratio, 10.0), math.sqrt(scale * bad) if math.isfinite(bad) else np.inf)
+        else:  # beyond it: back between the verified scale and this one
+            bad = scale
+            scale = math.sqrt(good * scale) if good else scale * 0.25
+        if not math.isfinite(scale):
+            break
+    values = np.zeros(len(items)) if noise_bound else np.minimum(good * unit, cap)
+    capped = values >= cap * (1 - 1e-12)
+    second = values
+    # 4. actuator stroke, or the workspace lost where the compensation cannot follow
+    ws = workspace or workspace_of(m)
+    lo_ws, hi_ws = ws.actuated_box(m)
+    lo_j, hi_j = m.ranges[m.actuated].T
+    margin = np.minimum(lo_ws - lo_j, hi_j - hi_ws)
+    width = hi_ws - lo_ws
+    rev = np.array([m.joints[i].type == "R" for i in m.actuated])
+    turn = rev & (width >= 2 * math.pi - 1e-9)
+    st = kin.evaluate(q_task, None, jacobians=True)
+    k_xi, k_a = output_twist_maps(kin, st)
+    sel = task_rows(decl.task, st.output_pose)
+    corr = np.abs(np.linalg.pinv(sel @ k_a, rcond=1e-8) @ (sel @ k_xi @ dirs.T))  # (K, n_a, n)
+    per_actuator = corr.max(axis=0)  # (n_a, n) actuator motion per unit of each tolerance
+    has_margin = margin > 1e-12 * np.maximum(width, 1e-300)
+    room = np.where(turn, np.inf, np.where(has_margin, margin, WORKSPACE_LOSS * width))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        per_unit = np.where(per_actuator > 0, room[:, None] / per_actuator, np.inf)
+    stroke, which = per_unit.min(axis=0), per_unit.argmin(axis=0)
+    # the task's dead centres (where the actuators lose a task direction: the slider-crank's stroke ends): there the
+    # defect moves the reachable task space itself, by its uncancelled task effect; the loss is held to
+    # WORKSPACE_LOSS of the task's extent over the sample
+    loss_task, loss_where = _task_space_loss(kin, decl, q_all, dirs, cl)
+    extent = _task_extent(kin, decl, q_all)
+    with np.errstate(divide="ignore"):
+        task_limit = np.where(loss_task > 0, WORKSPACE_LOSS * extent / loss_task, np.inf)
+    evidence = {"budget": budget, "probe": {"rad": PROBE, "mm": PROBE * ls}, "validity": {"rad": VALIDITY,
+                                                                                         "mm": VALIDITY * ls},
+                "machines_combined": int(len(signs)), "combined_worst_at_the_values": worst,
+                "workspace_loss_allowed": WORKSPACE_LOSS, "task_extent": extent,
+                "configurations": {"calibration": int(len(q_cal)), "task": int(len(q_task)),
+                                   "task_singular_left_out": int(np.sum(~regular)),
+                                   "task_dead_centres": loss_where,
+                                   "not_reached_in_the_combined_machines": unreached}, "items": {}}
+    unit_of = lambda a: "rad" if rev[a] else "mm"  # noqa: E731
+    for i, t in enumerate(items):
+        a = int(which[i])
+        actuator = m.joints[m.actuated[a]].name
+        limits: dict = {}
+        for key, v in ((("workspace loss" if missed and not capped[i] else "second-order residual"), second[i]),
+                       (("actuator stroke" if has_margin[a] else "workspace loss"), stroke[i]),
+                       ("workspace loss", task_limit[i])):
+            if math.isfinite(v):
+                limits[key] = min(limits.get(key, np.inf), float(v))
+        if noise_bound:
+            value, limit = 0.0, "identification noise"
+            words = ("identification noise: the calibration's 3-sigma task error from the declared noise "
+                     f"({cal.get('position_mm', 0.0):.3g} mm, {cal.get('orientation_rad', 0.0):.3g} rad) uses up "
+                     "the spec")
+        else:
+            limit = min(limits, key=limits.get)
+            value = limits[limit]
+            if limit == "workspace loss" and missed and limits[limit] == float(second[i]):
+                words = (f"workspace loss: beyond it the calibrated machines (nine simulated, every compensable defect "
+                         f"at its value) miss more than {100 * MISSED:g} % of the task poses over the workspace sample: "
+                         "the reachable task space moves by the defects")
+            elif limit == "second-order residual" and capped[i]:
+                words = (f"second-order residual: simulated only up to {VALIDITY:g} rad or {VALIDITY:g} of the length "
+                         f"scale ({VALIDITY * ls:.3g} mm), where the nine calibrated machines still keep the spec "
+                         "(the small-defect model is not trusted beyond)")
+            elif limit == "second-order residual" and limiting_kind is None:
+                words = ("second-order residual: no simulated calibrated machine kept the spec down to the probe size "
+                         f"({PROBE:g} rad or {PROBE:g} of the length scale)")
+            elif limit == "second-order residual":
+                words = (f"second-order residual: with every compensable defect at its value together (nine simulated "
+                         f"machines, calibrated from the declared measurements and compensated through the nonlinear "
+                         f"model), the task error left reaches the share of the spec it has after the identification "
+                         f"noise ({budget[limiting_kind]:.3g} {limiting_kind.split('_')[1]})")
+            elif limit == "actuator stroke":
+                words = (f"actuator stroke: compensating it moves actuator {actuator} by {per_actuator[a, i]:.3g} "
+                         f"{unit_of(a)} per unit, within the {margin[a]:.3g} {unit_of(a)} its range leaves around the "
+                         "workspace")
+            elif math.isfinite(task_limit[i]) and limits["workspace loss"] == float(task_limit[i]):
+                words = (f"workspace loss: at the task's dead centres the actuators cannot follow it, and the reachable "
+                         f"task space moves by {loss_task[i]:.3g} per unit; the loss is held to "
+                         f"{100 * WORKSPACE_LOSS:g} % of the task's extent ({WORKSPACE_LOSS * extent:.3g}, assumed)")
+            else:
+                words = (f"workspace loss: compensating it moves actuator {actuator} by {per_actuator[a, i]:.3g} "
+                         f"{unit_of(a)} per unit and its range leaves no margin around the workspace: the loss is held "
+                         f"to {100 * WORKSPACE_LOSS:g} % of its range ({WORKSPACE_LOSS * width[a]:.3g} {unit_of(a)}, "
+                         "assumed)")
+        if value < t.value:
+            value, words = t.value, words + "; calibration does not open it beyond the value without calibration"
+        t.value_with_calibration = float(value)
+        t.value_with_calibration_limit = words
+        evidence["items"][t.id] = {"kappa_position": float(kappa["position_mm"][i]),
+                                   "kappa_orientation": float(kappa["orientation_rad"][i]), "limits": limits,
+                                   "binding": limit}
+    return evidence
+
+
+def _task_space_loss(kin: Kinematics, decl, q: np.ndarray, dirs: np.ndarray, cl) -> tuple[np.ndarray, int]:
+    """Largest uncancellable task effect per unit of each direction at the task's dead centres (n,), and how many.
+
+    The dead centres: the workspace's candidates solved where a passive joint's velocity changes sign
+    (:func:`hyperstat.solver.tolerances.worst_case.workspace_candidates`) and the sample's configurations,
+    kept where the actuators lose a task direction (:func:`regular_task` false).
+    """
+    from hyperstat.solver.tolerances.workspace import workspace_of
+    from hyperstat.solver.tolerances.worst_case import workspace_candidates
+
+    m = kin.mechanism
+    cand, labels = workspace_candidates(kin, workspace_of(m), q)
+    median = float(np.median(_actuation(kin, decl, q)[4]))
+    pool = np.vstack([q] + ([cand] if len(cand) else []))
+    singular = ~regular_task(kin, decl, pool, reference=median)
+    if not singular.any():
+        return np.zeros(len(dirs)), 0
+    st, k_xi, k_a, sel, _ = _actuation(kin, decl, pool[singular])
+    scale = _task_scale(decl, kin.length_scale)[None, :, None]
+    effect = sel @ k_xi @ dirs.T  # (K, r, n)
+    ta = (sel @ k_a) * scale * kin.joint_scale[m.actuated][None, None, :]
+    u, sv, _ = np.linalg.svd(ta, full_matrices=True)
+    seen = (sv >= 1e-2 * median)  # the task directions the actuators still command there
+    left = effect.copy()
+    for k in range(len(left)):
+        span = u[k][:, :int(seen[k].sum())]
+        left[k] = effect[k] - (span * (1 / scale[0])) @ (span.T @ (effect[k] * scale[0])) if span.size else effect[k]
+    return np.linalg.norm(left, axis=1).max(axis=0), int(singular.sum())
+
+
+def _task_extent(kin: Kinematics, decl, q: np.ndarray) -> float:
+    """The smallest extent of the task over the sample: of the position components (mm), else the rotations (rad)."""
+    pose = kin.evaluate(q, None, jacobians=False).output_pose
+    n_rot = n_rotation_rows(decl.task)
+    rows = task_rows(decl.task, pose[:1])[0]
+    if rows.shape[0] > n_rot:
+        p = pose[:, :3, 3] @ rows[n_rot:, 3:].T
+        return float(np.min(np.ptp(p, axis=0)))
+    from hyperstat.solver.kinematics.frames import so3_log
+
+    r = so3_log(pose[:, :3, :3]) @ rows[:n_rot, :3].T
+    return float(np.min(np.ptp(r, axis=0)))

@@ -1,0 +1,52 @@
+"""The attainable linear worst case equals the maximum over every sign pattern, the triangle bound is above it.
+
+Units: any (the matrices are task rows per unit tolerance times the values).  The expected value is
+the brute-force maximum over all 2^n sign patterns, with n = 11 to 13 so that the walk (not the
+enumeration used up to ten tolerances) is what is tested, on matrices with the structure real
+mechanisms give: exactly parallel columns, integer (coplanar, tied) columns, zero and round-off columns.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from hyperstat.solver.tolerances.bounds import attainable, triangle
+
+
+def _every_pattern(a: np.ndarray) -> np.ndarray:
+    signs = np.array(list(itertools.product((-1.0, 1.0), repeat=a.shape[2])))
+    return np.max(np.linalg.norm(a @ signs.T, axis=1), axis=1)
+
+
+def _structured(kind: str, rng, r: int, n: int) -> np.ndarray:
+    a = rng.normal(size=(4, r, n))
+    if kind == "parallel":
+        a[:, :, 1] = 0.5 * a[:, :, 0]
+        a[:, :, 2] = -2.0 * a[:, :, 0]
+    elif kind == "integer":
+        a = rng.integers(-1, 2, size=a.shape).astype(float)
+    elif kind == "zero and round-off":
+        a[:, :, 0] = 0.0
+        a[:, :, 3:6] *= 1e-13
+    return a
+
+
+@pytest.mark.parametrize("kind", ["generic", "parallel", "integer", "zero and round-off"])
+@pytest.mark.parametrize("rows", [2, 3])
+def test_attainable_is_the_maximum_over_every_sign_pattern(kind, rows):
+    rng = np.random.default_rng(len(kind) + 10 * rows)
+    for n in (11, 12, 13):
+        a = _structured(kind, rng, rows, n)
+        want = _every_pattern(a)
+        got = attainable(a)
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12 * np.max(np.abs(a))), (kind, rows, n, got, want)
+        assert np.all(triangle(a) >= got * (1 - 1e-12))
+
+
+def test_one_row_is_the_sum_of_magnitudes_and_no_tolerance_is_zero():
+    a = np.array([[[1.0, -2.0, 0.5] * 5]])
+    assert attainable(a)[0] == pytest.approx(17.5, rel=1e-15) == triangle(a)[0]
+    assert attainable(np.zeros((2, 3, 0))).tolist() == [0.0, 0.0]
