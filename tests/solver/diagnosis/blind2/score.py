@@ -64,7 +64,8 @@ def import_models(hyperstat, outdir):
 def run(cmd):
     t0 = time.time()
     try:
-        r = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT)
+        env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT, env=env)
         return r.returncode, r.stderr.strip()[-400:], time.time() - t0
     except subprocess.TimeoutExpired:
         return -1, "timeout", time.time() - t0
