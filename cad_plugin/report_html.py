@@ -53,7 +53,8 @@ table.tol { font-size: .8em; width: 100%; } table.tol td.stmt { font-family: "De
 .fcf > span { border-left: 1px solid #111; padding: 0 .25em; line-height: 1.2; display: inline-flex; align-items: center; }
 .fcf > span:first-child { border-left: none; } svg.gdt { display: block; }
 img { max-width: 100%; } figure { margin: .3em 0; break-inside: avoid; page-break-inside: avoid; }
-figure svg { max-width: 100%; height: auto; display: block; } .limit { font-size: .8em; color: #333; } figcaption, .note { color: #333; font-size: .85em; }
+figure svg { max-width: 100%; height: auto; display: block; } .limit { font-size: .8em; color: #333; } td.num .limit { white-space: normal; }
+ul.limits { font-size: .75em; columns: 2; column-gap: 1.2em; margin: .2em 0; padding-left: 1.2em; } ul.limits li { break-inside: avoid; } figcaption, .note { color: #333; font-size: .85em; }
 .cols { display: flex; gap: 1em; align-items: flex-start; } .cols > * { flex: 1; }
 dl.glossary { columns: 3; column-gap: 1.2em; font-size: .8em; } dl.glossary dt { font-weight: bold; break-after: avoid; }
 dl.glossary dd { margin: 0 0 .25em 1em; break-inside: avoid; }
@@ -154,17 +155,21 @@ def _summary(doc: dict) -> str:
                      "-" if t.get("contribution_percent") is None else f"{t['contribution_percent']:.1f}"])
     table = _table(["id", "feature: what it is", "statement", "without calibration", "with calibration", "drawing",
                     "class", "contr. %"], rows, "tol", {3, 4, 7}, {0: "nw", 2: "stmt", 6: "nw"}, "tolerance-table",
-                   [4, 31, 16, 11, 11, 11, 11, 5])
+                   [4, 29, 16, 11, 11, 11, 13, 5])
+    limits = [f"<li><b>{_e(t['id'])}</b> {_e(t['value_with_calibration_limit'])}</li>" for t in tol["items"]
+              if t.get("value_with_calibration") is not None and t.get("value_with_calibration_limit")]
+    limits_html = ('<p class="note">What limits each value with calibration (the word in the table, in full):</p>'
+                   f'<ul class="limits">{"".join(limits)}</ul>' if limits else "")
     return ('<section id="summary">' + "".join(block) + "".join(cards) + note + table
             + "<p class=\"note\">contr. %: share of the first-order task-error variance with every accuracy "
-              "tolerance at its value, without calibration.</p></section>")
+              "tolerance at its value, without calibration.</p>" + limits_html + "</section>")
 
 
 def _with_calibration(item: dict) -> str:
-    """The with-calibration value, what limits it in small type below."""
+    """The with-calibration value, the kind of limit that binds in small type below (in full under the table)."""
     if item.get("value_with_calibration") is None:
         return "-"
-    limit = item.get("value_with_calibration_limit")
+    limit = (item.get("value_with_calibration_limit") or "").split(":")[0].strip()
     return _e(tolerance_value(item, "value_with_calibration")) + (f'<br><span class="limit">{_e(limit)}</span>'
                                                                    if limit else "")
 
