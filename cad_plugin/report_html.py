@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import base64
 import html
+import re
 
 from hyperstat.cad_plugin.gdt import symbol_of, symbol_svg, zone_text
 from hyperstat.cad_plugin.palette import CLASS_COLORS, CLASS_LABELS, tolerance_counts
-from hyperstat.cad_plugin.report_words import (calibrated_value, contributor_groups, frames_of, glossary, micro,
-                                               significance, spec_text, title_rows, tolerance_value, um, values_note,
-                                               where_words)
+from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, contributor_groups, frames_of, glossary,
+                                               limit_lines, micro, significance, spec_text, title_rows, tolerance_value,
+                                               um, values_note, where_words)
 
 __all__ = ["render_html", "SECTIONS", "CSS"]
 
@@ -156,8 +157,7 @@ def _summary(doc: dict) -> str:
     table = _table(["id", "feature: what it is", "statement", "without calibration", "with calibration", "drawing",
                     "class", "contr. %"], rows, "tol", {3, 4, 7}, {0: "nw", 2: "stmt", 6: "nw"}, "tolerance-table",
                    [4, 29, 16, 11, 11, 11, 13, 5])
-    limits = [f"<li><b>{_e(t['id'])}</b> {_e(t['value_with_calibration_limit'])}</li>" for t in tol["items"]
-              if t.get("value_with_calibration") is not None and t.get("value_with_calibration_limit")]
+    limits = [f"<li>{_e(line)}</li>" for line in limit_lines(tol["items"])]
     limits_html = ('<p class="note">What limits each value with calibration (the word in the table, in full):</p>'
                    f'<ul class="limits">{"".join(limits)}</ul>' if limits else "")
     return ('<section id="summary">' + "".join(block) + "".join(cards) + note + table
@@ -172,6 +172,19 @@ def _with_calibration(item: dict) -> str:
     limit = (item.get("value_with_calibration_limit") or "").split(":")[0].strip()
     return _e(tolerance_value(item, "value_with_calibration")) + (f'<br><span class="limit">{_e(limit)}</span>'
                                                                    if limit else "")
+
+
+def _breakable(mathml: str) -> str:
+    """A relation's MathML as inline pieces that a narrow cell can wrap between, before each +, - and =.
+
+    >>> _breakable('<math display="block"><mrow><mi>a</mi><mo>+</mo><mi>b</mi></mrow></math>')
+    '<math><mrow><mi>a</mi></mrow></math> <math><mrow><mo>+</mo><mi>b</mi></mrow></math>'
+    """
+    m = re.fullmatch(r'<math[^>]*><mrow>(.*)</mrow></math>', mathml, flags=re.S)
+    if not m:
+        return mathml
+    pieces = re.split(r"(?=<mo>(?:\+|&#8722;|=|-)</mo>)", m.group(1))
+    return " ".join(f"<math><mrow>{p}</mrow></math>" for p in pieces if p)
 
 
 def _skeleton(images: dict) -> str:
@@ -196,11 +209,12 @@ def _assembly(doc: dict) -> str:
     for a in conditions:
         frames = "<br>".join(_fcf(c) + f' <span class="limit">{_e(c.get("text", ""))}</span>'
                              for c in frames_of(items.get(a["id"], {})))
-        rows.append([_e(a["id"]), a["mathml"], _e(tolerance_value(a)), _e(a["feature"]), frames or "-",
-                     _e("; ".join(a.get("limiting") or []) or "-")])
+        rows.append([_e(a["id"]), _breakable(a["mathml"]), _e(tolerance_value(a)), _e(a["feature"]), frames or "-",
+                     _e(", ".join(re.sub(r"^joint |\s*\(.*\)$", "", j) for j in a.get("limiting") or []) or "-")])
     out = [_head("assembly", "Assembly conditions", _table(["id", "condition", "value", "feature", "drawing (ISO 1101)",
-                                                             "plays at their bound with the largest effect"], rows,
-                                                            "tol", numeric={2}, columns={0: "nw", 3: "nw"}))]
+                                                             "joints whose plays limit it most (clearances below)"], rows,
+                                                            "tol", numeric={2}, columns={0: "nw"}, ident="assembly-table",
+                                                            widths=[4, 30, 10, 11, 33, 12]))]
     out.append(f"<p class=\"note\">Value: {_e(conditions[0]['value_source'])}.</p>")
     red = tol.get("redundant", {})
     if red:
@@ -232,12 +246,11 @@ def _accuracy(doc: dict, images: dict) -> str:
                 cells = [f"{k}: {tolerance_value({'value': c['tolerance'], 'unit': c['unit']}) if c['tolerance'] is not None else 'no limit'}"
                          f" ({len(c['parameters'])} parameters)" for k, c in a["classes"].items()]
                 parts.append(f"<p><b>{_e(label)}</b>: " + _e("; ".join(cells)) + "</p>")
-    bounded = [t for t in tol["items"] if t.get("bounds")]
-    for t in bounded:
-        b = t["bounds"]
-        parts.append(f"<p>{_e(t['id'])} {_e(t['statement'])} ({_e(t['feature'])}): attainable linear worst case "
-                     f"{b['attainable_linear_worst_case']:.3g} {_e(b.get('unit', 'mm'))}, triangle bound "
-                     f"{b['triangle_bound']:.3g} {_e(b.get('unit', 'mm'))}.</p>")
+    bounds = bounds_lines(tol["items"])
+    if bounds:
+        parts.append("<p>Linear bounds of the task error with every tolerance at its value (the attainable worst "
+                     "case over the sign patterns, and the triangle bound no machine need reach):</p><ul>"
+                     + "".join(f"<li>{_e(line)}</li>" for line in bounds) + "</ul>")
     out = [_head("accuracy", "Accuracy and allocation", "".join(parts[:1]))] + parts[1:]
     types = _joint_types(doc)
     if doc.get("worst_cases"):

@@ -6,7 +6,7 @@ Units: lengths in mm, angles in rad; residuals in µm.
 from __future__ import annotations
 
 from hyperstat.cad_plugin.palette import tolerance_counts
-from hyperstat.cad_plugin.report_words import (calibrated_value, contributor_groups, frames_of, glossary, micro, significance,
+from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, contributor_groups, frames_of, glossary, micro, significance,
                                                title_rows, tolerance_value, um, values_note, where_words)
 
 __all__ = ["render_markdown", "checked_text"]
@@ -72,12 +72,11 @@ def render_markdown(doc: dict) -> str:
             lines.append(f"| {label} | {w['coefficient']} | {w['max']:.4g} | {w['sampled_max']:.4g} | "
                          f"{w['optimiser_tolerance']:.1g}{' (iteration limit)' if 'iteration limit' in w['evidence'] else ''}"
                          f" | {where_words(full, types)} |")
-    for t in tol["items"]:
-        if t.get("bounds"):
-            b = t["bounds"]
-            lines += ["", f"{t['id']} {t['statement']}: attainable linear worst case "
-                          f"{b['attainable_linear_worst_case']:.3g} {b.get('unit', 'mm')}, triangle bound "
-                          f"{b['triangle_bound']:.3g} {b.get('unit', 'mm')}"]
+    bounds = bounds_lines(tol["items"])
+    if bounds:
+        lines += ["", "Linear bounds of the task error with every tolerance at its value (the attainable worst case "
+                      "over the sign patterns, and the triangle bound no machine need reach):", ""]
+        lines += [f"- {line}" for line in bounds]
     note = values_note(doc)
     if note:
         lines += ["", note]

@@ -15,7 +15,7 @@ import re
 
 __all__ = ["micro", "safe_round", "tolerance_value", "calibrated_value", "um", "significance", "SIGNIFICANCE",
            "coefficient_words", "glossary", "title_rows", "where_words", "contributor_groups", "spec_text",
-           "values_note", "frames_of", "display_path"]
+           "values_note", "frames_of", "display_path", "bounds_lines", "limit_lines"]
 
 #: significance marks of an estimate (|estimate| / its standard deviation), strongest first
 SIGNIFICANCE = (("**", 3.0, "significant: the estimate is at least 3 standard deviations from zero"),
@@ -286,3 +286,44 @@ def glossary(doc: dict) -> list[tuple[str, str]]:
                  ("linear worst case", "every tolerance at its extreme in the worst direction (triangle inequality): "
                                        "a bound the samples never exceed")]
     return rows
+
+
+def _ids(items: list) -> str:
+    """``"T16-T19, T22"``: the items' tolerance ids, consecutive ids as ranges."""
+    from hyperstat.cad_plugin.palette import callout_text
+
+    return callout_text("", [t["id"] for t in items]).lstrip(": ")
+
+
+def _grouped(items: list, key) -> list:
+    """``[(key value, items)]`` in the order of first appearance, items with an equal key together."""
+    groups: dict = {}
+    for t in items:
+        groups.setdefault(key(t), []).append(t)
+    return list(groups.items())
+
+
+def bounds_lines(items: list) -> list[str]:
+    """One line per distinct pair of linear bounds, with the tolerances that share it (their ids as ranges).
+
+    >>> b = {"attainable_linear_worst_case": 0.036, "triangle_bound": 0.0463, "unit": "mm"}
+    >>> bounds_lines([{"id": "T16", "bounds": b}, {"id": "T17", "bounds": b}, {"id": "T20", "bounds": None}])
+    ['T16-T17: attainable linear worst case 0.036 mm, triangle bound 0.0463 mm']
+    """
+    def key(t):
+        b = t["bounds"]
+        return (f"{b['attainable_linear_worst_case']:.3g}", f"{b['triangle_bound']:.3g}", b.get("unit", "mm"))
+
+    return [f"{_ids(group)}: attainable linear worst case {a} {u}, triangle bound {tri} {u}"
+            for (a, tri, u), group in _grouped([t for t in items if t.get("bounds")], key)]
+
+
+def limit_lines(items: list) -> list[str]:
+    """What limits each value with calibration, in full, one line per distinct text with its tolerances' ids.
+
+    >>> limit_lines([{"id": "T3", "value_with_calibration": 0.3, "value_with_calibration_limit": "noise: a"},
+    ...              {"id": "T4", "value_with_calibration": 0.2, "value_with_calibration_limit": "noise: a"}])
+    ['T3-T4: noise: a']
+    """
+    use = [t for t in items if t.get("value_with_calibration") is not None and t.get("value_with_calibration_limit")]
+    return [f"{_ids(group)}: {text}" for text, group in _grouped(use, lambda t: t["value_with_calibration_limit"])]
