@@ -49,6 +49,25 @@ def _cannot_size_words(cannot_size: list) -> str:
     return f"; {names} could not be sized: the model declares no mass, and no mass is assumed (see cannot_size)"
 
 
+def _stand_in_words(selected: list, cannot_size: list) -> str:
+    """The caveat of an answer reached without the gravity effects (no masses): what was chosen may stand in for them.
+
+    A joint scale error, a low-order harmonic or a joint offset that varies with the pose can mimic a
+    gravity load over a pose set; without masses the equivalence check (:mod:`.equivalence`) cannot
+    compare the chosen effect with them.
+
+    >>> _stand_in_words(["angle-scale"], [{"effect": "compliance"}])
+    '; angle-scale was not compared with compliance (not sized without masses) and may stand in for it: declare the masses before trusting this answer'
+    >>> _stand_in_words(["angle-scale"], [])
+    ''
+    """
+    if not cannot_size or not selected:
+        return ""
+    names = ", ".join(c["effect"] for c in cannot_size)
+    return (f"; {' + '.join(selected)} was not compared with {names} (not sized without masses) and may stand in "
+            f"for {'it' if len(cannot_size) == 1 else 'them'}: declare the masses before trusting this answer")
+
+
 def _spectrum_words(rejected: list) -> str:
     refused = [r for r in rejected if r["stage"] == "spectrum"]
     return "".join(f"; {r['effect']} was not chosen: {r['reason']}" for r in refused)
@@ -90,7 +109,9 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
             if notes:
                 out["same_signature"] = notes
                 out["evidence"] += "; " + "; ".join(notes)
-            out["evidence"] += tail
+            out["evidence"] += tail + _stand_in_words(selected, cannot_size)
+            if cannot_size:
+                out["unchecked_against"] = [c["effect"] for c in cannot_size]
             return "explained", out
         remaining = None
         if val is not None and noise is not None:
@@ -114,7 +135,9 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
                                 "every direction): consistent with a noise model of "
                                 + noise_statement(data, factor)["text"])
             out["noise_consistent"] = noise_statement(data, factor)
-        out["evidence"] += _spectrum_words(rejected) + tail
+        out["evidence"] += _spectrum_words(rejected) + tail + _stand_in_words(selected, cannot_size)
+        if cannot_size:
+            out["unchecked_against"] = [c["effect"] for c in cannot_size]
         return "partly explained", out
     # nothing selected: over-fitting, structure or noise?
     factor = test["identification"]["noise_factor"]  # 3K - rank degrees of freedom: the sharper estimate

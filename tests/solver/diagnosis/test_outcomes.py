@@ -214,6 +214,9 @@ def test_a_model_without_masses_cannot_size_compliance(tmp_path, capsys):
     assert "compliance" not in doc["named_effects"] and doc["outcome"] != "explained"
     assert "compliance" not in [e["effect"] for e in doc["ranking"]]
     assert "could not be sized" in doc["verdict"]["evidence"]
+    if doc["named_effects"]:  # what stands in for the unsized gravity effects says so, and which it was not compared with
+        assert "may stand in" in doc["verdict"]["evidence"] and "declare the masses" in doc["verdict"]["evidence"]
+        assert set(doc["verdict"]["unchecked_against"]) == set(sizes)
     # no mass is assumed: the gravity loads of the bare model are zero without a payload
     from hyperstat.solver.diagnosis.effects import gravity_loads
 
