@@ -39,6 +39,10 @@ def triangle(a: np.ndarray) -> np.ndarray:
     return np.sum(np.linalg.norm(a, axis=1), axis=1)
 
 
+#: floats of one block of the sign-pattern enumeration (32 MiB)
+PATTERN_BLOCK = 1 << 22
+
+
 def attainable(a: np.ndarray, chunk: int = 16) -> np.ndarray:
     """``max_{s in {-1, 1}^n} |a s|`` for each (r, n) matrix of a stack (K, r, n), exactly for r <= 3.
 
@@ -57,7 +61,9 @@ def attainable(a: np.ndarray, chunk: int = 16) -> np.ndarray:
         return np.sum(np.abs(a[:, 0]), axis=1)
     if n <= 10 or r > 3:  # every sign pattern (r > 3 does not occur: at most three task rows of one kind)
         signs = np.array(list(itertools.product((-1.0, 1.0), repeat=n)))
-        return np.max(np.linalg.norm(a @ signs.T, axis=1), axis=1)
+        step = max(1, PATTERN_BLOCK // (r * len(signs)))  # configurations per block: memory (K r 2^n floats)
+        return np.concatenate([np.max(np.linalg.norm(a[i:i + step] @ signs.T, axis=1), axis=1)
+                               for i in range(0, k, step)])
     if r == 2:  # a flat zonotope in three dimensions: the same walk
         a = np.concatenate([a, np.zeros((k, 1, n))], axis=1)
     out = np.zeros(k)

@@ -268,6 +268,16 @@ def coefficient_at(mechanism: Mechanism, q: np.ndarray, name: str, analysis=None
 
 #: configurations per block of :func:`branch_conditioning` (memory: one closure Jacobian each)
 CONDITIONING_BLOCK = 4096
+#: at most this many configurations of a sample serve as start points of the structured candidates and as the
+#: reference of the conditioning floor (evenly taken: a 100,000-configuration sample was certified again, 600 MiB)
+POOL = 2048
+
+
+def _spread(sample: np.ndarray, n: int) -> np.ndarray:
+    """At most ``n`` configurations of ``sample``, evenly taken (all of them when there are fewer)."""
+    if len(sample) <= n:
+        return sample
+    return sample[np.linspace(0, len(sample) - 1, n).round().astype(int)]
 
 
 def branch_conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
@@ -454,7 +464,7 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
         out = (np.zeros((0, kin.n_q)), [])
         _remember(key, out)
         return out
-    q, cert = continue_nearest(kin, np.array(all_targets), None, m.home, pool=sample if len(sample) else None,
+    q, cert = continue_nearest(kin, np.array(all_targets), None, m.home, pool=_spread(sample, POOL) if len(sample) else None,
                                inside=workspace.inside)
     ok = cert.certified
     n_t = len(targets)
@@ -652,7 +662,8 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
                 origin.append(pool_label[i])
     if not paths:
         return out
-    floor_at = CONDITIONING_FLOOR * float(np.median(branch_conditioning(kin, sample))) if len(sample) else 0.0
+    floor_at = CONDITIONING_FLOOR * float(np.median(branch_conditioning(kin, _spread(sample, POOL)))) \
+        if len(sample) else 0.0
     result = _ascend(space, objective, np.array(paths), owner, np.array(sense), iterations, floor_at)
     _polish(space, objective, result, owner, np.array(sense))
     for name in dict.fromkeys(owner):
