@@ -51,7 +51,7 @@ demo: setup
 # The FreeCAD workbench tests run the real FreeCAD: HYPERSTAT_REQUIRE_FREECAD=1 makes them fail, not skip,
 # if it is missing.
 test: setup system-deps freecad-deps
-	HYPERSTAT_REQUIRE_FREECAD=1 $(PY) -m pytest -q
+	HYPERSTAT_REQUIRE_FREECAD=1 $(PY) -m pytest -q --durations=15
 
 # The README's and the docs' pictures (docs/img/, committed), drawn again by the real commands: the templates'
 # skeleton drawings, the report's page 1 in Chromium, the accuracy maps (docs/make_images.py), and FreeCAD's
