@@ -6,8 +6,9 @@ Units: lengths in mm, angles in rad; residuals in µm.
 from __future__ import annotations
 
 from hyperstat.cad_plugin.palette import tolerance_counts
-from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, contributor_groups, frames_of, glossary, micro, significance,
-                                               title_rows, tolerance_value, um, values_note, where_words)
+from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, contributor_groups, frames_of, glossary,
+                                               micro, significance, title_rows, tolerance_value, um, values_note,
+                                               where_words)
 
 __all__ = ["render_markdown", "checked_text"]
 

@@ -55,7 +55,7 @@ def attainable(a: np.ndarray, chunk: int = 16) -> np.ndarray:
     """
     a = np.asarray(a, dtype=float)
     k, r, n = a.shape
-    if n == 0 or r == 0:
+    if n == 0 or r == 0 or k == 0:
         return np.zeros(k)
     if r == 1:
         return np.sum(np.abs(a[:, 0]), axis=1)

@@ -295,7 +295,8 @@ def branch_conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
         return np.ones(len(q))
     out = np.empty(len(q))
     for start in range(0, len(q), CONDITIONING_BLOCK):  # blocks: the closure Jacobians of a whole sample do not fit
-        b = kin.scaled_rows(kin.evaluate(q[start:start + CONDITIONING_BLOCK], None, "joints").closure_q)[:, :, m.passive]
+        block = q[start:start + CONDITIONING_BLOCK]
+        b = kin.scaled_rows(kin.evaluate(block, None, "joints").closure_q)[:, :, m.passive]
         s = np.linalg.svd(b, compute_uv=False)
         out[start:start + CONDITIONING_BLOCK] = s[:, min(b.shape[1:]) - 1] / np.maximum(s[:, 0], 1e-300)
     return out
@@ -402,7 +403,7 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
       sign, bracketed on a grid of ``grid`` points and solved by regula falsi.
 
     Everything is assembled on the workspace's branch by certified continuation from the nearest
-    configuration of ``sample`` (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`);
+    configuration of ``sample`` (at most :data:`POOL` of them, evenly taken) (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`);
     what does not assemble inside the workspace is left out.  ``varied`` (bool per actuated joint)
     restricts the box to the actuators a function depends on (the others stay at home).
 
@@ -464,8 +465,8 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
         out = (np.zeros((0, kin.n_q)), [])
         _remember(key, out)
         return out
-    q, cert = continue_nearest(kin, np.array(all_targets), None, m.home, pool=_spread(sample, POOL) if len(sample) else None,
-                               inside=workspace.inside)
+    pool = _spread(sample, POOL) if len(sample) else None
+    q, cert = continue_nearest(kin, np.array(all_targets), None, m.home, pool=pool, inside=workspace.inside)
     ok = cert.certified
     n_t = len(targets)
     out_q = [q[i] for i in range(n_t) if ok[i]]

@@ -50,3 +50,14 @@ def test_one_row_is_the_sum_of_magnitudes_and_no_tolerance_is_zero():
     a = np.array([[[1.0, -2.0, 0.5] * 5]])
     assert attainable(a)[0] == pytest.approx(17.5, rel=1e-15) == triangle(a)[0]
     assert attainable(np.zeros((2, 3, 0))).tolist() == [0.0, 0.0]
+    assert attainable(np.zeros((0, 3, 5))).shape == (0,)  # an empty stack (no configuration) is no error
+
+
+def test_blocks_of_the_enumeration_give_the_same_maximum(monkeypatch):
+    """The sign patterns are enumerated in blocks of configurations (memory); any block size gives the same values."""
+    import hyperstat.solver.tolerances.bounds as bounds
+
+    a = np.random.default_rng(3).normal(size=(37, 3, 9))
+    whole = _every_pattern(a)
+    monkeypatch.setattr(bounds, "PATTERN_BLOCK", 3 * 512 * 5)  # 5 configurations per block, the last one short
+    assert np.array_equal(attainable(a), whole)
