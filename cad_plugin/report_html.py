@@ -175,16 +175,31 @@ def _with_calibration(item: dict) -> str:
 
 
 def _breakable(mathml: str) -> str:
-    """A relation's MathML as inline pieces that a narrow cell can wrap between, before each +, - and =.
+    """A relation's MathML as inline pieces that a narrow cell can wrap between, before each top-level +, - and =.
+
+    Only the relation's own row is split (a nested row, a fraction, stays whole); MathML that does not
+    parse, or has no single top-level row, is returned as it is.
 
     >>> _breakable('<math display="block"><mrow><mi>a</mi><mo>+</mo><mi>b</mi></mrow></math>')
     '<math><mrow><mi>a</mi></mrow></math> <math><mrow><mo>+</mo><mi>b</mi></mrow></math>'
+    >>> _breakable('<math><mrow><mi>a</mi><mo>=</mo><mrow><mo>-</mo><mn>2</mn></mrow></mrow></math>')
+    '<math><mrow><mi>a</mi></mrow></math> <math><mrow><mo>=</mo><mrow><mo>-</mo><mn>2</mn></mrow></mrow></math>'
     """
-    m = re.fullmatch(r'<math[^>]*><mrow>(.*)</mrow></math>', mathml, flags=re.S)
-    if not m:
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(mathml)
+    except ET.ParseError:
         return mathml
-    pieces = re.split(r"(?=<mo>(?:\+|&#8722;|=|-)</mo>)", m.group(1))
-    return " ".join(f"<math><mrow>{p}</mrow></math>" for p in pieces if p)
+    if root.tag != "math" or len(root) != 1 or root[0].tag != "mrow":
+        return mathml
+    groups: list = [[]]
+    for child in root[0]:
+        if child.tag == "mo" and (child.text or "").strip() in ("+", "-", "\u2212", "=") and groups[-1]:
+            groups.append([])
+        groups[-1].append(child)
+    return " ".join("<math><mrow>" + "".join(ET.tostring(c, encoding="unicode") for c in g) + "</mrow></math>"
+                    for g in groups)
 
 
 def _skeleton(images: dict) -> str:
