@@ -33,7 +33,14 @@ import numpy as np
 from hyperstat.solver.kinematics.closure import Kinematics, batched_lstsq
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.frames import so3_exp, so3_left_jacobian, so3_log, skew
+from hyperstat.solver.calibration.fit_checks import (FIT_QUALITY, MAX_CONDITION, MIN_EQUATIONS_PER_PARAMETER,
+                                                     POSE_EQUATIONS, SIGMA_INPUTS, SIGMA_WARN, SIZE_INPUTS,
+                                                     TARGET_SEPARATION_MM, coinciding_targets, equation_count,
+                                                     fit_quality, joint_region, noise_ratios, target_label,
+                                                     target_stats)
 from hyperstat.solver.calibration.measurements import MeasurementSet
+from hyperstat.solver.calibration.outliers import (FAMILY_ALPHA, coincident_across, coincident_poses,
+                                                   deleted_residual_test, threshold)
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.threads import limited_blas
@@ -496,6 +503,15 @@ class IdentificationResult:
     orientation: dict | None = None
     held_back: dict | None = None
     fit_quality: str = "ok"
+    findings: list = field(default_factory=list)
+    targets: dict = field(default_factory=dict)
+    noise_ratios: dict | None = None
+    equations: dict | None = None
+    distinct_poses: int | None = None
+    repeated_poses: list = field(default_factory=list)
+    region: dict | None = None
+    excluded: list = field(default_factory=list)
+    outlier_scale: float | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (units: mm, rad)."""
@@ -515,6 +531,14 @@ class IdentificationResult:
             "noise_rms": self.noise_rms,
             "sigma": self.sigma,
             "fit_quality": self.fit_quality,
+            "noise_ratios": self.noise_ratios,
+            "targets": self.targets,
+            "equations": self.equations,
+            "distinct_poses": self.distinct_poses,
+            "repeated_poses": self.repeated_poses,
+            "region": self.region,
+            "excluded": self.excluded,
+            "findings": [{k: v for k, v in f.items()} for f in self.findings],
             "converged": self.converged,
             "nominal": self.nominal,
             "base_rounds": self.base_rounds,
@@ -529,11 +553,12 @@ class IdentificationResult:
 
     def residuals_csv(self) -> str:
         """Per-observation residuals as CSV text (mm), identification then validation rows."""
-        out = ["set,pose,target,dx[mm],dy[mm],dz[mm],norm[mm],weighted_norm,robust_z,outlier"]
+        out = ["set,pose,target,dx[mm],dy[mm],dz[mm],norm[mm],weighted_norm,robust_z,deleted_z,outlier"]
         for label, table in (("identification", self.residual_table), ("validation", self.validation_table)):
             for r in table:
                 out.append(f"{label},{r['pose']},{r['target']},{r['dx']:.9g},{r['dy']:.9g},{r['dz']:.9g},"
-                           f"{r['norm']:.9g},{r['weighted_norm']:.6g},{r['robust_z']:.4g},{int(r['outlier'])}")
+                           f"{r['norm']:.9g},{r['weighted_norm']:.6g},{r['robust_z']:.4g},{r['deleted_z']:.4g},"
+                           f"{int(r['outlier'])}")
         return "\n".join(out) + "\n"
 
     def estimates(self) -> dict:
@@ -691,43 +716,19 @@ def gauss_newton(evaluate, x0: np.ndarray, column_scale: np.ndarray, max_iter: i
     return x
 
 
-OUTLIER_Z = 3.5  #: robust z-score above which an observation is flagged (Iglewicz and Hoaglin)
-SIGMA_WARN = 3.0  #: weighted-residual standard deviation above which the rigid model misses something
-SIGMA_INPUTS = 100.0  #: sigma from which the inputs (joint map, units, targets), not the model, are at fault
-SIZE_INPUTS = 0.01  #: residual RMS above this share of the machine's length scale: the inputs are at fault
-FIT_QUALITY = ("ok", "model misses an effect", "inputs wrong")
-
-
-def fit_quality(sigma: float, rms: float, length_scale: float, noise_stated: bool) -> str:
-    """Severity of a fit, one of :data:`FIT_QUALITY`.
-
-    ``"inputs wrong"`` when the residual RMS (mm) exceeds :data:`SIZE_INPUTS` of the
-    machine's length scale (a wrong joint sign, offset or coupling, a unit error, targets
-    stacked in one column move the point by a fraction of a link) or, with a stated noise,
-    sigma reaches :data:`SIGMA_INPUTS`; ``"model misses an effect"`` when sigma exceeds
-    :data:`SIGMA_WARN` otherwise (compliance, gear errors, temperature: a few times the
-    noise, well below a link's size); ``"ok"`` else.  Without a stated noise only the size
-    test applies.
-
-    >>> fit_quality(6.6, 0.57, 1500.0, True), fit_quality(1840.0, 40.0, 1500.0, True), fit_quality(1.02, 0.03, 1500.0, True)
-    ('model misses an effect', 'inputs wrong', 'ok')
-    """
-    if rms > SIZE_INPUTS * length_scale or (noise_stated and sigma >= SIGMA_INPUTS):
-        return "inputs wrong"
-    if noise_stated and sigma > SIGMA_WARN:
-        return "model misses an effect"
-    return "ok"
+MAX_EXCLUDED = 20  #: most observations --exclude-outliers takes out (beyond, the campaign itself is suspect)
+OUTLIER_Z = 3.5  #: modified z-score (Iglewicz and Hoaglin) reported per observation as ``robust_z`` (informative)
 
 
 def residual_table(data: MeasurementSet, resid: np.ndarray, w: np.ndarray) -> list:
-    """Per-observation residuals with robust outlier flags (mm).
+    """Per-observation residuals (mm) with two outlier statistics.
 
-    The weighted residual norm ``|r| / sigma`` of each observation is compared with the
-    median of all of them through the median absolute deviation (MAD, scaled by 1.4826 so
-    that it estimates a standard deviation): ``z = (e - median) / (1.4826 MAD)``, flagged
-    above :data:`OUTLIER_Z` (Iglewicz and Hoaglin's modified z-score).  A robust statistic:
-    a few gross errors do not hide themselves by inflating the scale, as they would with
-    the mean and standard deviation.
+    ``robust_z``: the weighted residual norm ``|r| / sigma`` of each observation against the
+    median of all of them through the median absolute deviation (MAD, scaled by 1.4826 so that
+    it estimates a standard deviation), ``z = (e - median) / (1.4826 MAD)`` (Iglewicz and
+    Hoaglin's modified z-score; informative).  ``deleted_z`` and ``outlier`` are filled by
+    :func:`identify`: the normalised residual with the observation left out and the flag of the
+    test of :mod:`hyperstat.solver.calibration.outliers` (the one the export gate reads).
     """
     e = np.linalg.norm(resid, axis=1)
     ew = e * w
@@ -738,7 +739,7 @@ def residual_table(data: MeasurementSet, resid: np.ndarray, w: np.ndarray) -> li
     idx = data.target_index
     return [{"pose": data.pose_id[i], "target": names[int(idx[i])], "dx": float(resid[i, 0]), "dy": float(resid[i, 1]),
              "dz": float(resid[i, 2]), "norm": float(e[i]), "weighted_norm": float(ew[i]), "robust_z": float(z[i]),
-             "outlier": bool(z[i] > OUTLIER_Z)} for i in range(len(e))]
+             "deleted_z": 0.0, "outlier": False} for i in range(len(e))]
 
 
 def orientation_residual(rotation: np.ndarray, data: MeasurementSet) -> np.ndarray:
@@ -838,6 +839,8 @@ def identify(
     max_rounds: int = 5,
     select_size: str = "none",
     folds: int = 5,
+    exclude_outliers: bool = False,
+    _excluded: list | None = None,
 ) -> IdentificationResult:
     """Identify the base parameters from ``data`` (paper 1, eq. 10, Levenberg-Marquardt).
 
@@ -878,6 +881,10 @@ def identify(
         best), ``"bic"`` by the Bayesian information criterion with the file's noise model;
         ``"auto"`` uses BIC (CV without a noise model) when there are fewer than 5 equations
         per base parameter; ``"none"`` keeps the full base set.
+    exclude_outliers : bool
+        Refit without the observations the outlier test flags (identification and held-out),
+        again until none is flagged; the excluded ones are listed in ``excluded`` (never removed
+        otherwise: a flagged outlier stops an export).
 
     Returns
     -------
@@ -894,7 +901,7 @@ def identify(
     model = model or MeasurementModel(mechanism, analysis, kinematics, effects, targets=list(data.target_names),
                                       orientation=oriented)
     oriented = model.orientation and data.rotation is not None
-    warns: list[str] = []
+    early: list[dict] = []  # findings made before the end of the fit
     prior = data.target_priors if data.n_targets > 1 else data.target
     theta = model.initial(data.tracker, prior) if theta0 is None else np.array(theta0, dtype=float)
     if theta0 is None:
@@ -990,8 +997,11 @@ def identify(
             rounds.append(rank)
             break
     else:
-        warns.append(f"the identifiable set still changed after {max_rounds} rounds (ranks {rounds}): the rank "
-                     f"decision is fragile at this solution; read the singular-value gap.")
+        early.append(_finding("fragile-rank", f"the identifiable set still changed after {max_rounds} rounds (ranks "
+                                              f"{rounds}): the rank decision is fragile at this solution; read the "
+                                              f"singular-value gap.",
+                              f"its identifiable set still changed after {max_rounds} rounds (ranks {rounds}): the rank "
+                              f"decision is fragile"))
     rank = rank_used
     if held_back is not None:
         # the singular-value gap at the accepted rank, from the Jacobian at the solution
@@ -1012,12 +1022,11 @@ def identify(
             converged = converged and ok
             _, _, jw_all = fitter.residual(theta)
             js = jw_all * scale
-            warns.append(f"small data ({n_rows} equations): {selection['method']} kept {selection['chosen']} of "
-                         f"{selection['sizes'][-1]} geometry parameters; the others are held at their nominal value.")
+            early.append(_finding("model-size", f"small data ({n_rows} equations): {selection['method']} kept "
+                                                f"{selection['chosen']} of {selection['sizes'][-1]} geometry parameters; "
+                                                f"the others are held at their nominal value."))
     base_list = list(chosen)
     base_idx = np.array(base_list, dtype=int)
-    if n_rows < 2 * len(base_list):
-        warns.append(f"only {n_rows} equations for {len(base_list)} parameters: expect poor accuracy.")
     unident = _unidentifiable(model, js, base_list, visible, scale)
     if selection is not None and selection["chosen"] < selection["sizes"][-1]:
         left = set(selection["order"][selection["chosen"]:])
@@ -1025,11 +1034,23 @@ def identify(
             if u["name"] in left:
                 u["reason"] = "left out by the model-size selection (cross-validation); " + u["reason"]
     final, rw, jw_all = fitter.residual(theta)
+    twists = model.actuation_jacobian()
     resid = final.position - data.position
     jw = jw_all[:, base_idx]
-    dof = max(jw.shape[0] - len(base_list), 1)
-    sigma2 = float(rw @ rw / dof)
-    jtj = jw.T @ jw
+    # poses repeated within the noise count once (issue 37): their rows share one weight
+    sigma_axis = _sigma_rows(data)
+    unweighted = sigma_axis is None
+    if unweighted:  # no stated noise: the fit's own residual scale per axis (mm)
+        sigma_axis = np.full(len(data), float(np.sqrt(rw @ rw / max(len(rw) - len(base_list), 1))))
+    act = model.mechanism.actuated
+    width = np.ptp(model.mechanism.ranges[act], axis=1)
+    groups = coincident_poses(data, twists, sigma_axis, width, model.kin.length_scale) if twists is not None else []
+    copies = {p: len(g) for g in groups for p in g}
+    row_factor = np.array([1.0 / copies.get(p, 1) for p in data.pose_id])
+    c = np.tile(np.repeat(row_factor, 3), 2 if oriented else 1)
+    dof = max(float(c.sum()) - len(base_list), 1.0)
+    sigma2 = float((c * rw) @ rw / dof)
+    jtj = jw.T @ (c[:, None] * jw)
     try:
         cov = sigma2 * np.linalg.inv(jtj)
     except np.linalg.LinAlgError:
@@ -1050,35 +1071,76 @@ def identify(
     for j, name in enumerate(model.names):
         params.append({"name": name, "kind": model.kinds[j], "unit": model.units[j], "estimate": float(theta[j]),
                        "std": float(std_of[j]) if j in std_of else None, "identifiable": j in std_of})
+    sigma = float(np.sqrt(sigma2))
+    # outliers: each observation judged with itself (and its repeats) left out
+    blocks, block_rows = _observation_blocks(data, groups, oriented)
+    t2, out_scale, flagged = deleted_residual_test(rw, jw, blocks, not unweighted)
+    table = residual_table(data, resid, w)
+    limit = threshold(3 * (2 if oriented else 1), len(blocks))
+    for b, rows in enumerate(block_rows):
+        for i in rows:
+            table[i]["deleted_z"] = float(np.sqrt(t2[b]))
+            table[i]["outlier"] = bool(flagged[b])
     val_stats = None
     val_res = None
     val_table: list = []
+    val_targets = None
+    repeated_held_out: list = []
+    vp = None
     if validation is not None and len(validation):
         vp = model.predict(theta, validation)
-        if not vp.converged.all():
-            warns.append("some validation poses did not assemble with the identified model.")
         val_res = vp.position - validation.position
         val_stats = error_stats(val_res)
         val_table = residual_table(validation, val_res, _weights(validation))
-    sigma = float(np.sqrt(sigma2))
-    table = residual_table(data, resid, w)
+        val_sigma = _sigma_rows(validation)
+        val_targets = target_stats(validation, val_res, val_sigma)
+        # held-out residuals are prediction errors already; their scale is their own robust one (a model that
+        # predicts every held-out pose badly is judged by the noise ratios, not called a set of outliers), never
+        # below the identification's
+        vw = np.linalg.norm(val_res, axis=1) / (1.0 if unweighted else
+                                                (val_sigma if val_sigma is not None else sigma_axis.mean()))
+        from scipy.stats import chi2  # imported here: import hyperstat.solver stays fast
+
+        val_scale = max(out_scale, float(np.sqrt(np.median(vw**2) / chi2.ppf(0.5, 3))))
+        limit_v = threshold(3, len(vw))
+        for i, r in enumerate(val_table):
+            r["deleted_z"] = float(vw[i] / val_scale)
+            r["outlier"] = bool(vw[i] ** 2 / val_scale ** 2 > limit_v)
+        if twists is not None:
+            repeated_held_out = coincident_across(data, validation, twists, sigma_axis, width, model.kin.length_scale)
     orientation = None
     if oriented:
         ang = np.linalg.norm(orientation_residual(final.rotation, data), axis=1)
         orientation = {"identification": _angle_stats(ang), "validation": None,
                        "noise_rms": float(np.sqrt(3.0) * data.rotation_noise)}
-        if validation is not None and len(validation) and validation.rotation is not None:
-            vp = model.predict(theta, validation)
+        if vp is not None and validation.rotation is not None:
             orientation["validation"] = _angle_stats(np.linalg.norm(orientation_residual(vp.rotation, validation),
                                                                     axis=1))
     nominal_doc = None
     if nominal:
         nominal_doc = _nominal_error(model, data, validation, theta_prior, w, scale, preferred, fitter.q, rank_tol,
                                      max_nfev)
-    quality = fit_quality(sigma, error_stats(resid)["rms"], model.kin.length_scale, data.noise is not None)
-    warns += _trust_warnings(data, validation, sigma, converged, table, val_stats, nominal_doc, resid, quality,
-                             model.kin.length_scale)
-    return IdentificationResult(
+    id_targets = target_stats(data, resid, None if unweighted else sigma_axis)
+    reference = None if not unweighted else float(np.sqrt(3.0) * sigma)
+    ratios = {"identification": noise_ratios(id_targets, reference),
+              "validation": None if val_targets is None else noise_ratios(val_targets, reference),
+              "reference": "fit" if unweighted else "stated noise"}
+    judged = list(ratios["validation"].values()) if ratios["validation"] else []
+    if not unweighted:
+        judged += list(ratios["identification"].values())
+    quality = fit_quality(sigma, error_stats(resid)["rms"], model.kin.length_scale, data.noise is not None, judged,
+                          None if val_stats is None else val_stats["rms"])
+    counts = equation_count(_rows_per_pose(data, groups, oriented), [model.kinds[b] for b in base_list])
+    offsets, offset_cov = _target_offsets(model, theta, base_list, cov)
+    context = {"data": data, "validation": validation, "sigma": sigma, "converged": converged, "table": table,
+               "val_table": val_table, "val_stats": val_stats, "nominal": nominal_doc, "resid": resid,
+               "quality": quality, "length_scale": model.kin.length_scale, "ratios": ratios, "counts": counts,
+               "condition": float(sv_b[0] / sv_b[-1]), "groups": groups, "repeated_held_out": repeated_held_out,
+               "coinciding": coinciding_targets(offsets, offset_cov) if len(offsets) > 1 else [],
+               "unassembled": 0 if vp is None else int((~vp.converged).sum()), "limit": limit,
+               "excluded": list(_excluded or [])}
+    findings = early + _findings(context)
+    result = IdentificationResult(
         rank=rank,
         n_unknowns=model.n,
         condition_number=float(sv_b[0] / sv_b[-1]),
@@ -1101,7 +1163,7 @@ def identify(
         model=model,
         residuals=resid,
         validation_residuals=val_res,
-        warnings=warns,
+        warnings=[f["message"] for f in findings],
         nominal=nominal_doc,
         residual_table=table,
         validation_table=val_table,
@@ -1114,7 +1176,89 @@ def identify(
             "rank_at_solution": held_back[0], "extra_directions": held_back[1], "chi2_decrease": held_back[2],
             "reason": "numerically independent at the solution but not significant (chi-square test, 0.1 %): "
                       "held at their prior"},
+        findings=findings,
+        targets={name: {"identification": id_targets[name],
+                        "validation": None if val_targets is None else val_targets.get(name)} for name in id_targets},
+        noise_ratios=ratios,
+        equations=counts,
+        distinct_poses=data.n_poses - sum(len(g) - 1 for g in groups),
+        repeated_poses=groups,
+        region=joint_region(model.mechanism, data),
+        excluded=list(_excluded or []),
+        outlier_scale=out_scale,
     )
+    if exclude_outliers and len(result.excluded) < MAX_EXCLUDED:
+        # one identification observation at a time, the worst first (a gross error pulls the fit and can make its
+        # neighbours look out of line: they are judged again without it); held-out ones, which pull nothing, at once
+        worst = max((r["deleted_z"] for r in table if r["outlier"]), default=None)
+        drop = [r["outlier"] and r["deleted_z"] == worst for r in table] if worst is not None else [False] * len(table)
+        drop_v = [r["outlier"] for r in val_table] if worst is None else [False] * len(val_table)
+        if any(drop) or any(drop_v):
+            gone = result.excluded + [
+                {"set": name, "pose": r["pose"], "target": r["target"], "deleted_z": r["deleted_z"], "norm": r["norm"]}
+                for name, rows, flags in (("identification", table, drop), ("validation", val_table, drop_v))
+                for r, f in zip(rows, flags) if f]
+            keep_v = None if not val_table else ~np.array(drop_v, dtype=bool)
+            return identify(mechanism, analysis, data.subset(~np.array(drop, dtype=bool)),
+                            None if keep_v is None else validation.subset(keep_v), effects=effects,
+                            kinematics=kinematics, rank_tol=rank_tol, max_nfev=max_nfev, base=imposed,
+                            nominal=nominal, max_rounds=max_rounds, select_size=select_size, folds=folds,
+                            exclude_outliers=True, _excluded=gone)
+    return result
+
+
+def _observation_blocks(data: MeasurementSet, groups: list, oriented: bool) -> tuple[list, list]:
+    """Residual rows of each observation (one target at one pose), repeats of one pose and target merged.
+
+    Returns the blocks (arrays of rows of the weighted residual vector: 3 positions, then 3 orientations with
+    6-D data) and, per block, the observations (rows of ``data``) it holds.
+    """
+    k = len(data)
+    group_of = {p: g[0] for g in groups for p in g}
+    members: dict = {}
+    for i, (p, t) in enumerate(zip(data.pose_id, data.target_index)):
+        members.setdefault((group_of.get(p, p), int(t)), []).append(i)
+    blocks, rows = [], []
+    for obs in members.values():
+        idx = np.concatenate([np.arange(3 * i, 3 * i + 3) for i in obs])
+        if oriented:
+            idx = np.concatenate([idx, idx + 3 * k])
+        blocks.append(idx)
+        rows.append(obs)
+    return blocks, rows
+
+
+def _rows_per_pose(data: MeasurementSet, groups: list, oriented: bool) -> list:
+    """Equation rows of each distinct pose (a group of repeated poses counted once, by its largest member)."""
+    per = 6 if oriented else 3
+    count: dict = {}
+    for p in data.pose_id:
+        count[p] = count.get(p, 0) + per
+    group_of = {p: g[0] for g in groups for p in g}
+    merged: dict = {}
+    for p, n in count.items():
+        key = group_of.get(p, p)
+        merged[key] = max(merged.get(key, 0), n)
+    return list(merged.values())
+
+
+def _target_offsets(model: MeasurementModel, theta: np.ndarray, base: list, cov: np.ndarray) -> tuple[dict, dict]:
+    """Identified target offsets (mm) and the covariance blocks between them (zero where not identified)."""
+    offsets, where = {}, {}
+    for t, name in enumerate(model.targets):
+        cols = list(range(model.sl_target.start + 3 * t, model.sl_target.start + 3 * t + 3))
+        offsets[target_label(name)] = theta[cols].tolist()
+        where[target_label(name)] = [base.index(c) if c in base else None for c in cols]
+    blocks = {}
+    for a, ia in where.items():
+        for b, ib in where.items():
+            m = np.zeros((3, 3))
+            for r, x in enumerate(ia):
+                for cc, y in enumerate(ib):
+                    if x is not None and y is not None:
+                        m[r, cc] = cov[x, y]
+            blocks[(a, b)] = m
+    return offsets, blocks
 
 
 def _angle_stats(ang: np.ndarray) -> dict:
@@ -1221,22 +1365,70 @@ def _nominal_error(model: MeasurementModel, data: MeasurementSet, validation: Me
     return out
 
 
-def _trust_warnings(data: MeasurementSet, validation, sigma: float, converged: bool, table: list,
-                    val_stats: dict | None, nominal: dict | None, resid: np.ndarray, quality: str = "ok",
-                    length_scale: float = 1.0) -> list:
-    """Loud warnings: wrong inputs, a model that misses an effect, divergence, outliers, a calibration worse
-    than the nominal model (the words follow :func:`fit_quality`)."""
+def _finding(code: str, message: str, reason: str | None = None, **details) -> dict:
+    """One finding of a fit: ``code``, the warning ``message``, and the gate's ``reason`` (None: a note that
+    does not stop an export, passed on all the same)."""
+    return {"code": code, "refuses": reason is not None, "message": message, "reason": reason, **details}
+
+
+def _observation_name(r: dict) -> str:
+    return f"{r['pose']}/{r['target']}" if r["target"] else str(r["pose"])
+
+
+def _worst(ratios: dict | None) -> tuple[str, float] | None:
+    """The target with the largest noise ratio, or None."""
+    items = [(k, v) for k, v in (ratios or {}).items() if v is not None]
+    return max(items, key=lambda kv: kv[1]) if items else None
+
+
+def _findings(ctx: dict) -> list:
+    """What the fit's numbers say about it, worst first (the words of :func:`fit_quality` and the gate's reasons).
+
+    Every finding with a ``reason`` stops an export unless ``--force`` (:mod:`hyperstat.solver.export.calibration_gate`).
+    """
     out = []
-    if not converged:
-        out.append("THE FIT DID NOT CONVERGE (the cost rose or the iteration limit was hit): the estimates are not "
-                   "a least-squares solution; check the joint map, the units and the targets.")
-    rms = error_stats(resid)["rms"]
-    size = f"RMS {rms:.4g} mm, {100 * rms / length_scale:.2g} % of the machine's size"
+    data, sigma, quality, ratios = ctx["data"], ctx["sigma"], ctx["quality"], ctx["ratios"]
+    flagged = [r for r in ctx["table"] if r["outlier"]]
+    flagged_v = [r for r in ctx["val_table"] if r["outlier"]]
+    pulled = ""
+    if flagged or flagged_v:
+        pulled = (f" {len(flagged) + len(flagged_v)} observation(s) are flagged as outliers (below): the fit without "
+                  f"them may be sound (--exclude-outliers).")
+    stated = data.noise is not None or getattr(data, "row_sigma", None) is not None
+    noise_words = "the noise the data state" if stated else "the fit's own residual scale (the data state no noise)"
+    rms = error_stats(ctx["resid"])["rms"]
+    size = f"RMS {rms:.4g} mm, {100 * rms / ctx['length_scale']:.2g} % of the machine's size"
+    val_stats, nominal = ctx["val_stats"], ctx["nominal"]
+    if not ctx["converged"]:
+        out.append(_finding("not-converged", "THE FIT DID NOT CONVERGE (the cost rose or the iteration limit was hit): "
+                            "the estimates are not a least-squares solution; check the joint map, the units and the "
+                            "targets.", "the fit did not converge (its estimates are not a least-squares solution)"))
+    worst_val = _worst(ratios["validation"])
+    worst_id = _worst(ratios["identification"]) if stated else None
+    inputs = "a wrong joint map, wrong units, targets stacked in one column or a moved tracker"
     if quality == "inputs wrong":
-        times = f"the residuals are {sigma:.3g} times the stated noise; " if data.noise is not None else ""
-        out.append(f"ABSURD FIT: sigma = {sigma:.3g} ({times}{size}). The inputs are wrong, not the model: a wrong "
-                   f"joint map (sign, offset, coupling such as FANUC's q3 = J3 + J2), wrong units, several targets "
-                   f"stacked in one column, or a moved tracker. Do not use this calibration.")
+        if rms > SIZE_INPUTS * ctx["length_scale"] or (stated and sigma >= SIGMA_INPUTS):
+            times = f"the residuals are {sigma:.3g} times the stated noise; " if stated else ""
+            message = (f"ABSURD FIT: sigma = {sigma:.3g} ({times}{size}). The inputs are wrong, not the model: a wrong "
+                       f"joint map (sign, offset, coupling such as FANUC's q3 = J3 + J2), wrong units, several "
+                       f"targets stacked in one column, or a moved tracker. Do not use this calibration.{pulled}")
+            detail = (f"the residuals are {sigma:.3g} times {noise_words}" if stated else f"the residuals reach {size}")
+        else:
+            which, (name, r) = ("held-out", worst_val) if worst_val and (
+                worst_val[1] >= SIGMA_INPUTS or val_stats["rms"] > SIZE_INPUTS * ctx["length_scale"]) else \
+                ("identification", worst_id)
+            v = ctx["val_stats"] if which == "held-out" else error_stats(ctx["resid"])
+            message = (f"ABSURD FIT: the {which} residuals of {name} are {r:.3g} times {noise_words} (RMS "
+                       f"{v['rms']:.4g} mm, {100 * v['rms'] / ctx['length_scale']:.2g} % of the machine's size; "
+                       f"sigma on the fitted poses {sigma:.3g}). The inputs are wrong, not the model: one target's "
+                       f"columns copied from another's or several stacked in one column, a wrong joint map, wrong "
+                       f"units, a moved tracker, or held-out poses of another machine. Do not use this calibration."
+                       f"{pulled}")
+            detail = f"the {which} residuals of {name} are {r:.3g} times {noise_words}"
+            inputs = ("one target's columns copied from another's, targets stacked in one column, a wrong joint map, "
+                      "wrong units or a moved tracker")
+        out.append(_finding("inputs-wrong", message, f"identify calls the fit absurd: {detail} (the inputs are wrong: "
+                                                     f"{inputs})"))
     elif quality == "model misses an effect":
         gain = ""
         if nominal is not None and val_stats is not None and nominal.get("validation") is not None:
@@ -1244,22 +1436,115 @@ def _trust_warnings(data: MeasurementSet, validation, sigma: float, converged: b
             change = "cuts" if after <= before else "raises"
             gain = (f" The calibration {change} the held-out error by {100 * abs(before - after) / before:.0f} % "
                     f"({before:.4g} -> {after:.4g} mm).")
-        out.append(f"MODEL MISSES AN EFFECT: sigma = {sigma:.3g} (the residuals are {sigma:.3g} times the stated "
-                   f"noise; {size}). The inputs look right (a wrong joint map or unit gives sigma in the hundreds and "
-                   f"errors of a link's size), but the rigid model misses something (compliance, a gear error, "
-                   f"temperature) or the stated noise is too small.{gain} Run `hyperstat diagnose` on the same files "
-                   f"to find what is missing before using this calibration.")
-    n_out = sum(r["outlier"] for r in table)
-    if n_out:
-        worst = sorted((r for r in table if r["outlier"]), key=lambda r: -r["robust_z"])[:5]
-        out.append(f"{n_out} observation(s) flagged as outliers (robust z > {OUTLIER_Z}): "
-                   + ", ".join(f"{r['pose']}{'/' + r['target'] if r['target'] else ''} (z = {r['robust_z']:.1f})"
-                               for r in worst) + ".")
+        held = ""
+        if worst_val is not None:
+            held = f"; on the held-out poses {worst_val[1]:.3g} times it ({worst_val[0]})"
+        if stated and sigma > SIGMA_WARN:
+            message = (f"MODEL MISSES AN EFFECT: sigma = {sigma:.3g} (the residuals are {sigma:.3g} times the stated "
+                       f"noise{held}; {size}). The inputs look right (a wrong joint map or unit gives sigma in the "
+                       f"hundreds and errors of a link's size), but the rigid model misses something (compliance, a "
+                       f"gear error, temperature) or the stated noise is too small.{gain} Run `hyperstat diagnose` on "
+                       f"the same files to find what is missing before using this calibration.{pulled}")
+            detail = f"its residuals are {sigma:.3g} times the noise the data state{held}"
+        else:
+            name, r = worst_val if worst_val and worst_val[1] > SIGMA_WARN else worst_id
+            message = (f"MODEL MISSES AN EFFECT: on the held-out poses the residuals of {name} are {r:.3g} times "
+                       f"{noise_words} (sigma on the fitted poses {sigma:.3g}; held-out RMS {val_stats['rms']:.4g} mm). "
+                       f"The calibrated model does not predict poses it was not fitted to: an effect the fit absorbed "
+                       f"on its own poses (compliance, a gear error, temperature), too few poses for the parameters, "
+                       f"or held-out noise larger than stated.{gain} Run `hyperstat diagnose` on the same files before "
+                       f"using this calibration." if worst_val and worst_val[1] > SIGMA_WARN else
+                       f"MODEL MISSES AN EFFECT: the residuals of {name} are {r:.3g} times {noise_words} ({size}): the "
+                       f"rigid model misses something for that target, or its noise is understated.{gain} Run "
+                       f"`hyperstat diagnose` on the same files before using this calibration.")
+            detail = f"the {'held-out ' if worst_val and worst_val[1] > SIGMA_WARN else ''}residuals of {name} are " \
+                     f"{r:.3g} times {noise_words}"
+        out.append(_finding("effect-missing", message,
+                            f"{detail}: the calibrated model is not what the data say the machine is (an effect it "
+                            f"lacks: run 'hyperstat diagnose' and export with --diagnose or --effect; or too few poses; "
+                            f"or the noise understated)"))
+    counts = ctx["counts"]
+    if not counts["enough"]:
+        out.append(_finding(
+            "too-few-equations",
+            f"only {counts['equations']} equations for {counts['parameters']} parameters ({counts['machine_equations']} "
+            f"from {counts['poses']} distinct poses for the machine's {counts['machine_parameters']}, at most "
+            f"{POSE_EQUATIONS} a pose): expect poor accuracy; at least {MIN_EQUATIONS_PER_PARAMETER:g} equations per "
+            f"parameter are needed, i.e. at least {counts['min_poses']} poses like these.",
+            f"it has {counts['per_parameter']:.2g} equations per identified parameter ({counts['equations']} for "
+            f"{counts['parameters']}, {counts['poses']} distinct poses), fewer than the "
+            f"{MIN_EQUATIONS_PER_PARAMETER:g} needed: give at least {counts['min_poses']} poses"))
+    if ctx["condition"] > MAX_CONDITION:
+        out.append(_finding(
+            "poor-conditioning",
+            f"POORLY CONDITIONED: condition number {ctx['condition']:.3g} (scaled columns) above {MAX_CONDITION:.0e}: "
+            f"the weakest identified combination is fitted from the noise; spread the poses over the workspace "
+            f"(simulate --select d-optimal shows how) or identify fewer parameters.",
+            f"its condition number {ctx['condition']:.3g} exceeds {MAX_CONDITION:.0e} (the weakest identified "
+            f"combination is fitted from the noise)"))
+    for c in ctx["coinciding"]:
+        a, b = c["targets"]
+        out.append(_finding(
+            "coinciding-targets",
+            f"TARGETS COINCIDE: {a} and {b} are identified {c['distance_mm']:.3g} mm apart (three standard deviations "
+            f"or {TARGET_SEPARATION_MM:g} mm: {c['limit_mm']:.3g} mm); two reflectors cannot share a point: one "
+            f"target's columns are likely a copy of the other's.",
+            f"targets {a} and {b} coincide ({c['distance_mm']:.3g} mm apart): one's columns are likely a copy of the "
+            f"other's", targets=[a, b]))
+    groups = ctx["groups"]
+    if groups:
+        extra = sum(len(g) - 1 for g in groups)
+        shown = ", ".join(" = ".join(g) for g in groups[:4]) + (", ..." if len(groups) > 4 else "")
+        out.append(_finding(
+            "repeated-poses",
+            f"REPEATED POSES: {extra} of {data.n_poses} poses repeat others within the noise (same metadata, actuated "
+            f"values that move the target by less than one standard deviation): {shown}. They are counted once for "
+            f"sigma and the standard deviations ({data.n_poses - extra} distinct poses); a copied row is not an "
+            f"independent measurement.",
+            f"{extra} of its {data.n_poses} poses repeat others within the noise ({shown}): they are not independent "
+            f"measurements", groups=groups))
+    if ctx["repeated_held_out"]:
+        pairs = ctx["repeated_held_out"]
+        shown = ", ".join(f"{v} = {i}" for v, i in pairs[:4]) + (", ..." if len(pairs) > 4 else "")
+        out.append(_finding(
+            "held-out-repeats-fitted",
+            f"HELD-OUT POSES REPEAT FITTED ONES: {len(pairs)} validation pose(s) coincide with identification poses "
+            f"within the noise ({shown}); they do not test the calibration on poses it was not fitted to.",
+            f"{len(pairs)} held-out pose(s) repeat identification poses ({shown}), so the validation is not held out",
+            pairs=[list(p) for p in pairs]))
+    if flagged or flagged_v:
+        worst = sorted(flagged, key=lambda r: -r["deleted_z"])[:5] + sorted(flagged_v, key=lambda r: -r["deleted_z"])[:3]
+        shown = ", ".join(f"{'held-out ' if r in flagged_v else ''}{_observation_name(r)} (t = {r['deleted_z']:.3g}, "
+                          f"{r['norm']:.4g} mm)" for r in worst)
+        n = len(flagged) + len(flagged_v)
+        out.append(_finding(
+            "outliers",
+            f"OUTLIERS: {n} observation(s) out of line with the others (normalised residual with the observation left "
+            f"out above {np.sqrt(ctx['limit']):.3g}, p < {FAMILY_ALPHA:g} over the campaign): {shown}. They pull the "
+            f"fit; check them, then exclude them with --exclude-outliers (they are never removed otherwise).",
+            f"{n} observation(s) are outliers ({shown}): check them, then exclude them with --exclude-outliers",
+            observations=[{"set": "validation" if r in flagged_v else "identification", "pose": r["pose"],
+                           "target": r["target"], "deleted_z": r["deleted_z"], "norm": r["norm"]}
+                          for r in flagged + flagged_v]))
+    if ctx["unassembled"]:
+        out.append(_finding("validation-not-assembled",
+                            f"{ctx['unassembled']} validation pose(s) did not assemble with the identified model.",
+                            f"{ctx['unassembled']} held-out pose(s) do not assemble with the identified model"))
     if nominal is not None and val_stats is not None and nominal.get("validation") is not None:
         before, after = nominal["validation"]["rms"], val_stats["rms"]
         if after > before:
-            out.append(f"CALIBRATION MAKES HELD-OUT POSES WORSE: validation RMS {after:.4g} mm calibrated against "
-                       f"{before:.4g} mm with the nominal model (only the tracker frame and targets fitted). "
-                       f"Too few poses for the parameters (over-fitting), or data the model does not describe: "
-                       f"keep the nominal model, add poses, or identify fewer parameters (--select-size).")
+            out.append(_finding(
+                "worse-than-nominal",
+                f"CALIBRATION MAKES HELD-OUT POSES WORSE: validation RMS {after:.4g} mm calibrated against "
+                f"{before:.4g} mm with the nominal model (only the tracker frame and targets fitted). Too few poses for "
+                f"the parameters (over-fitting), or data the model does not describe: keep the nominal model, add "
+                f"poses, or identify fewer parameters (--select-size).",
+                f"it predicts the held-out poses worse than the nominal model (validation RMS {after:.4g} mm against "
+                f"{before:.4g} mm with the nominal geometry)"))
+    if ctx["excluded"]:
+        shown = ", ".join(f"{'held-out ' if e['set'] == 'validation' else ''}{_observation_name(e)} "
+                          f"(t = {e['deleted_z']:.3g}, {e['norm']:.4g} mm)" for e in ctx["excluded"][:8])
+        out.append(_finding("outliers-excluded", f"{len(ctx['excluded'])} outlier observation(s) excluded on request "
+                                                 f"(--exclude-outliers): {shown}.",
+                            observations=list(ctx["excluded"])))
     return out

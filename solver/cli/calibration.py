@@ -138,7 +138,8 @@ def _run_identification(args: argparse.Namespace, extra_stages: list[str] | None
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = identify(mech, result, data, validation, kinematics=kin,
-                           select_size=getattr(args, "select_size", "none"))
+                           select_size=getattr(args, "select_size", "none"),
+                           exclude_outliers=bool(getattr(args, "exclude_outliers", False)))
         for name in extra_stages or []:
             progress.next(name)
     return mech, provenance, res
@@ -179,15 +180,20 @@ def _cmd_import_robot(args: argparse.Namespace) -> int:
 
 def _calibrated(args: argparse.Namespace):
     mech, provenance, res = _run_identification(args, ["export"])
-    gate_calibration(res, args)
+    args.forced_reasons = gate_calibration(res, args)
     return mech, res, res.model.defects(res.theta)
 
 
 def _comment(args: argparse.Namespace, res) -> str:
     v = res.validation
     val = f", validation RMS {v['rms']:.4g} mm over {v['n']} points" if v else ""
+    forced = getattr(args, "forced_reasons", [])
+    why = (f"; WRITTEN WITH --force ALTHOUGH " + "; and ".join(forced)) if forced else ""
+    excluded = "; outliers excluded on request: " + ", ".join(
+        f"{e['pose']}{'/' + e['target'] if e['target'] else ''}" for e in res.excluded) if res.excluded else ""
     return (f"calibrated by hyperstat from {args.data}: identification RMS {res.identification['rms']:.4g} mm, "
-            f"sigma {res.sigma:.3g}{val}; units: metres and radians (URDF)")
+            f"sigma {res.sigma:.3g}, fit quality {res.fit_quality}{val}{excluded}{why}; units: metres and radians "
+            f"(URDF)")
 
 
 def _cmd_export_urdf(args: argparse.Namespace) -> int:
@@ -268,6 +274,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("data", help="identification measurements (CSV, see docs/identification.md)")
     _identify_options(p)
     p.add_argument("--residuals", metavar="RES.csv", help="write per-observation residuals with outlier flags (CSV)")
+    p.add_argument("--exclude-outliers", action="store_true",
+                   help="refit without the observations the outlier test flags (named by pose and target), one at a "
+                        "time; they are never removed otherwise")
     common_options(p)
     p.set_defaults(func=_cmd_identify)
     p = sub.add_parser("import-robot", help="turn a DH / modified-DH table (YAML, CSV) or a URDF into a model file")

@@ -96,34 +96,47 @@ def analysis_of(args: argparse.Namespace) -> tuple:
     return mech, provenance, kin, result
 
 
-def gate_calibration(res: Any, args: argparse.Namespace) -> None:
-    """Refuse to export a calibration identify flags as absurd or worse than nominal, unless ``--force``.
+def gate_calibration(res: Any, args: argparse.Namespace) -> list[str]:
+    """Refuse to export a calibration ``identify`` made a refusing finding about, unless ``--force``.
 
-    With ``--force`` the export goes on and a warning on stderr says why it should not have.
+    Every finding is passed on: the notes (refusing nothing) on stderr; with ``--force`` the
+    reasons too, and they are returned so that the written file records them.
+
+    Returns
+    -------
+    list of str
+        The reasons the export goes on despite (empty without ``--force`` or without reasons).
 
     Raises
     ------
     HyperstatError
-        One sentence naming the output and the reason.
+        One sentence naming the output and the reasons.
     """
-    from hyperstat.solver.export.calibration_gate import export_refusal, export_warning
+    from hyperstat.solver.export.calibration_gate import export_notes, export_refusal, refusals
 
+    quiet = getattr(args, "quiet", False)
     why = export_refusal(res)
+    if why is not None and not getattr(args, "force", False):
+        raise HyperstatError(f"{args.out}: not written: {why}; check the inputs, or write it anyway with --force "
+                             f"(the reasons are then recorded in the file).")
+    if not quiet:
+        for note in export_notes(res):
+            sys.stderr.write(f"hyperstat: note: {args.out}: {note}\n")
     if why is None:
-        note = export_warning(res)
-        if note and not getattr(args, "quiet", False):
-            sys.stderr.write(f"hyperstat: warning: {args.out}: {note}.\n")
-        return
-    if not getattr(args, "force", False):
-        raise HyperstatError(f"{args.out}: not written: {why}; check the inputs, or write it anyway with --force.")
+        return []
     sys.stderr.write(f"hyperstat: warning: {args.out} written with --force although {why}.\n")
+    return refusals(res)
 
 
 def force_option(p: argparse.ArgumentParser) -> None:
-    """``--force``: export a calibration identify flags as absurd or worse than nominal on held-out poses."""
+    """``--force`` (export a calibration identify made a refusing finding about) and ``--exclude-outliers``."""
     p.add_argument("--force", action="store_true",
-                   help="write even a calibration identify calls absurd or worse than the nominal model on held-out "
-                        "poses (refused by default)")
+                   help="write even a calibration identify calls untrustworthy (absurd, missing an effect, worse than "
+                        "the nominal model on held-out poses, too few equations, outliers, ...: refused by default); "
+                        "the reasons are recorded in the file")
+    p.add_argument("--exclude-outliers", action="store_true",
+                   help="refit without the observations the outlier test flags (named by pose and target), one at a "
+                        "time; they are never removed otherwise")
 
 
 def common_options(p: argparse.ArgumentParser) -> None:

@@ -50,22 +50,46 @@ def _cmd_export_controller(args: argparse.Namespace) -> int:
                     raise HyperstatError(f"--effect: '{name}' is not a machine effect ({', '.join(MACHINE_EFFECTS)}).")
                 options = {"only": [defect or violated]} if name == "violated-constraint" else {}
                 effects.append(make_effect(name, mech, result, data, **options))
-            res = identify(mech, result, data, validation, effects=tuple(effects), kinematics=kin)
-    gate_calibration(res, args)
+            res = identify(mech, result, data, validation, effects=tuple(effects), kinematics=kin,
+                           exclude_outliers=args.exclude_outliers)
+    forced = gate_calibration(res, args)
     files = [args.data] + ([args.validation] if args.validation else [])
     from hyperstat.solver.tolerances.classification import classify
 
     tolerances = classify(mech, result, kin).to_dict()
-    doc = controller_document(mech, res, tuple(effects), provenance, tuple(files), tolerances)
-    check_admissible(doc, str(args.out))  # what version 2 admits: never a file a reader would refuse
+    doc = controller_document(mech, res, tuple(effects), provenance, tuple(files), tolerances, forced=bool(forced))
+    check_admissible(doc, str(args.out))  # what the version admits: never a file a reader would refuse
     path = write_controller(args.out, doc)
     if not args.quiet:
         v = res.validation or res.identification
         sys.stdout.write(f"{mech.name}: {len(doc['identified'])} identified parameters, effects: "
                          f"{', '.join(e['effect'] for e in doc['effects']) or 'none'}; "
-                         f"{'validation' if res.validation else 'identification'} RMS {1000 * v['rms']:.1f} um\n"
+                         f"{'validation' if res.validation else 'identification'} RMS {1000 * v['rms']:.1f} um"
+                         f"{_noise_words(res)}; fit quality {res.fit_quality}"
+                         f"{' (written with --force)' if forced else ''}\n"
                          f"wrote {path} (sha256 {doc['sha256'][:16]}...)\n")
     return 0
+
+
+def _noise_words(res) -> str:
+    """`` (N x the stated noise)`` for the worst held-out (else fitted) target of a calibration, or nothing."""
+    ratios = res.noise_ratios or {}
+    part = ratios.get("validation") or (ratios.get("identification") if ratios.get("reference") == "stated noise"
+                                        else None)
+    values = [v for v in (part or {}).values() if v is not None]
+    if not values:
+        return ""
+    what = "the stated noise" if ratios.get("reference") == "stated noise" else "the fit's residual scale"
+    return f" ({max(values):.2f} x {what}{' at worst' if len(values) > 1 else ''})"
+
+
+def _region_words(region: dict, ranges) -> str:
+    """The region the calibration poses covered, joint by joint, against the joint ranges."""
+    parts = []
+    for name, unit, lo, hi, (rlo, rhi) in zip(region["joints"], region["units"], region["low"], region["high"], ranges):
+        share = (hi - lo) / (rhi - rlo) if rhi > rlo else 1.0
+        parts.append(f"{name} [{lo:.4g}, {hi:.4g}] {unit} ({100 * share:.0f} % of its range)")
+    return ", ".join(parts)
 
 
 def _geometry(args: argparse.Namespace, what: str):
@@ -134,17 +158,26 @@ def _cmd_check_controller(args: argparse.Namespace) -> int:
         res = check_controller(args.file, reference)
     if args.json:
         write_json(args.json, res)
+    if res["forced"] and not args.quiet:
+        sys.stderr.write(f"hyperstat: warning: {args.file} was written with --force although "
+                         f"{'; and '.join(res['reasons'])}.\n")
     if not args.quiet:
-        sys.stdout.write(f"{args.file}: format, version, schema and SHA-256 valid ('{res['mechanism']}', "
-                         f"sha256 {res['sha256'][:16]}...); {res['count']} test vectors re-evaluated with the "
-                         f"reference model: forward {res['forward_mm']:.2g} mm / {res['forward_rad']:.2g} rad, "
-                         f"inverse {res['inverse_mm']:.2g} mm / {res['inverse_rad']:.2g} rad"
+        sys.stdout.write(f"{args.file}: format, version, schema and SHA-256 valid, consistent with itself "
+                         f"('{res['mechanism']}', sha256 {res['sha256'][:16]}..., fit quality {res['fit_quality']}"
+                         f"{', written with --force' if res['forced'] else ''}); {res['count']} test vectors "
+                         f"re-evaluated with the reference model ({res['corners']} at corners of the ranges): forward "
+                         f"{res['forward_mm']:.2g} mm / {res['forward_rad']:.2g} rad, inverse {res['inverse_mm']:.2g} mm"
+                         f" / {res['inverse_rad']:.2g} rad"
                          + (f" ({res['inverse_other_branch']} on another inverse solution with the same pose)"
                             if res["inverse_other_branch"] else "")
                          + (f"; {res['effect_vectors']} effect vectors (tool point with the machine effects): "
                             f"{res['effects_mm']:.2g} mm" if res.get("effect_vectors") else "")
                          + (f"; model and joint ranges equal to {args.source}'s" if args.source else
                             "; model not compared with a reference (--source)") + "\n")
+        outside = (f"; {res['outside_region']} of the {res['count']} test vectors lie beyond it, where the identified "
+                   f"model is extrapolated" if res["outside_region"] else "")
+        sys.stdout.write(f"{args.file}: the calibration poses cover {_region_words(res['region'], res['ranges'])}"
+                         f"{outside}\n")
     return 0
 
 

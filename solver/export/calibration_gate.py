@@ -1,65 +1,108 @@
-"""Whether a calibration may leave hyperstat: no silent export of a fit ``identify`` calls bad.
+"""Whether a calibration may leave hyperstat: every finding of ``identify`` that makes it untrustworthy stops it.
 
 Units: lengths in mm.
 
 ``export-controller``, ``export-urdf`` and ``export-dh`` write what a controller will run. They
-refuse, unless ``--force``, a calibration that ``identify`` itself flags:
+refuse, unless ``--force``, a calibration for which ``identify`` made a finding that refuses
+(:attr:`~hyperstat.solver.calibration.identify.IdentificationResult.findings`, the same words as
+its warnings, worst first):
 
-* **inputs wrong** (identify's ``fit_quality``): the weighted residuals are in the hundreds of
-  times the noise the data state, or the residual RMS is beyond 1 % of the machine's size (a
-  wrong joint map, wrong units, targets stacked in one column, a moved tracker): the same flag
-  as identify's ``ABSURD FIT`` warning;
-* **worse than nominal**: on held-out poses (``--validation``) the calibrated model predicts worse
-  than the nominal model with only the tracker frame and targets fitted: the same comparison as
-  identify's ``CALIBRATION MAKES HELD-OUT POSES WORSE`` warning.
+* **inputs wrong** (``fit_quality``): residuals in the hundreds of times the noise the data state,
+  on the fitted or the held-out poses of any target, or beyond 1 % of the machine's size (a wrong
+  joint map, wrong units, one target's columns copied from another's, targets stacked in one
+  column, a moved tracker);
+* **the model misses an effect** (``fit_quality``): residuals more than 3 times the stated noise,
+  on the fitted poses or on the held-out poses of any target.  The calibrated model is then not
+  what the data say the machine is: a controller running it would be off by several times what
+  the measurements resolve.  Export it with the effect (``export-controller --diagnose`` or
+  ``--effect``), or with ``--force``, which records why in the file;
+* **worse than nominal** on the held-out poses (``--validation``);
+* **too few equations** (fewer than 2 per identified parameter, a pose counting at most 6 for the
+  machine), **poor conditioning** (condition number above 1e6), a **fragile rank** decision, a fit
+  that **did not converge**;
+* **targets that coincide**, **poses repeated** within the noise, held-out poses that repeat
+  fitted ones, held-out poses that do not assemble;
+* **outliers** still in the data (named by pose and target; ``--exclude-outliers`` takes them out).
 
-A fit identify flags ``"model misses an effect"`` (residuals a few times the noise, a real
-machine with compliance or gear errors) is exported: it is still the best rigid model of the
-machine; :func:`export_warning` says so on stderr and points at ``hyperstat diagnose``.
-Without validation data the second test cannot be made; :func:`export_refusal` then judges on
-the first alone.  This is the one place the exports ask.
+Findings that refuse nothing (the model size chosen on small data, outliers excluded on request)
+are passed on all the same: printed, and recorded in the controller file.  With ``--force`` the
+file is written, stderr says why it should not have been, and the reasons are recorded in it
+(:func:`calibration_record`; a URDF or DH table carries them in its comment).  This is the one
+place the exports ask.
 
 Examples
 --------
 >>> from types import SimpleNamespace as R
->>> ok = R(fit_quality="ok", sigma=1.02, validation={"rms": 0.05}, nominal={"validation": {"rms": 1.3}})
->>> export_refusal(ok) is None
-True
->>> bad = R(fit_quality="ok", sigma=1.02, validation={"rms": 6.7}, nominal={"validation": {"rms": 3.9}})
+>>> ok = R(findings=[{"code": "model-size", "refuses": False, "message": "small data ...", "reason": None}])
+>>> export_refusal(ok) is None, export_notes(ok)
+(True, ['small data ...'])
+>>> bad = R(findings=[{"code": "worse-than-nominal", "refuses": True, "message": "...",
+...                    "reason": "it predicts the held-out poses worse than the nominal model"}])
 >>> export_refusal(bad)
-'it predicts the held-out poses worse than the nominal model (validation RMS 6.7 mm against 3.9 mm with the nominal geometry)'
+'it predicts the held-out poses worse than the nominal model'
 """
 
 from __future__ import annotations
 
-__all__ = ["export_refusal", "export_warning"]
+__all__ = ["refusals", "export_refusal", "export_notes", "calibration_record"]
+
+
+def refusals(identification) -> list[str]:
+    """The reasons, in words, why the calibration ``identification`` (an
+    :class:`~hyperstat.solver.calibration.identify.IdentificationResult`) must not be exported; empty when it may."""
+    return [f["reason"] for f in getattr(identification, "findings", []) or [] if f.get("refuses")]
 
 
 def export_refusal(identification) -> str | None:
-    """Why the calibration ``identification`` (an :class:`~hyperstat.solver.calibration.identify.IdentificationResult`)
-    must not be exported, in words; None when it may."""
-    reasons = []
-    sigma = identification.sigma
-    if getattr(identification, "fit_quality", "ok") == "inputs wrong":
-        reasons.append(f"identify calls the fit absurd: the residuals are {sigma:.3g} times the noise the data state "
-                       f"(the inputs are wrong: a wrong joint map, wrong units, targets stacked in one column or a "
-                       f"moved tracker)")
-    nominal = (identification.nominal or {}).get("validation")
-    validation = identification.validation
-    if nominal is not None and validation is not None and validation["rms"] > nominal["rms"]:
-        reasons.append(f"it predicts the held-out poses worse than the nominal model (validation RMS "
-                       f"{validation['rms']:.4g} mm against {nominal['rms']:.4g} mm with the nominal geometry)")
-    return "; and ".join(reasons) or None
+    """The reasons of :func:`refusals` in one clause (joined by ``; and``), or None when the export may go on."""
+    return "; and ".join(refusals(identification)) or None
 
 
-def export_warning(identification) -> str | None:
-    """A warning for an exported calibration whose rigid model misses an effect (None otherwise).
+def export_notes(identification) -> list[str]:
+    """The findings that stop nothing, passed on with the export (their warning text)."""
+    return [f["message"] for f in getattr(identification, "findings", []) or [] if not f.get("refuses")]
 
-    >>> from types import SimpleNamespace as R
-    >>> print(export_warning(R(fit_quality="model misses an effect", sigma=6.6)))
-    the calibrated rigid model leaves residuals 6.6 times the stated noise: ...(run 'hyperstat diagnose' to find it)
+
+def calibration_record(identification, forced: bool = False) -> dict:
+    """What a controller file records about its calibration: the gate's verdict and the numbers it was made from.
+
+    ``fit_quality``; ``reference`` (``"stated noise"``, or ``"fit"`` with ``reference_rms``, mm, when the
+    data state no noise); ``sigma``; ``targets``: per target the ``identification`` and ``validation``
+    stats of the 3-D residual norms (``mean, max, rms, n``, mm) with the ``noise_rms`` their rows state;
+    ``equations`` (poses, equations, machine equations, parameters, machine parameters); ``region``: the
+    actuated values the identification poses cover; ``repeated_poses``; ``excluded`` (outliers excluded on
+    request); ``findings`` (``code``, ``refuses``, ``message``); ``forced`` and ``reasons`` (the gate's
+    reasons when written with ``--force``; both empty otherwise).
+
+    Raises
+    ------
+    ValueError
+        When the calibration is refused and ``forced`` is false (the command line refuses it before).
     """
-    if getattr(identification, "fit_quality", "ok") != "model misses an effect":
-        return None
-    return (f"the calibrated rigid model leaves residuals {identification.sigma:.3g} times the stated noise: it is the "
-            f"best rigid model of this machine, but an effect it lacks remains (run 'hyperstat diagnose' to find it)")
+    reasons = refusals(identification)
+    if reasons and not forced:
+        raise ValueError("; and ".join(reasons))
+    ratios = identification.noise_ratios or {}
+    counts = identification.equations or {}
+    reference_rms = None
+    if ratios.get("reference") == "fit":
+        reference_rms = float(3.0 ** 0.5 * identification.sigma)
+    return {
+        "fit_quality": identification.fit_quality,
+        "reference": ratios.get("reference", "stated noise"),
+        "reference_rms": reference_rms,
+        "sigma": float(identification.sigma),
+        "targets": {name: {"identification": dict(t["identification"]),
+                           "validation": None if t["validation"] is None else dict(t["validation"])}
+                    for name, t in identification.targets.items()},
+        "equations": {k: int(counts[k]) for k in ("poses", "equations", "machine_equations", "parameters",
+                                                  "machine_parameters")},
+        "region": dict(identification.region),
+        "repeated_poses": [list(g) for g in identification.repeated_poses],
+        "excluded": [{"set": e["set"], "pose": str(e["pose"]), "target": str(e["target"])}
+                     for e in identification.excluded],
+        "findings": [{"code": f["code"], "refuses": bool(f["refuses"]), "message": f["message"]}
+                     for f in identification.findings],
+        "forced": bool(reasons),
+        "reasons": list(reasons),
+    }

@@ -2,20 +2,22 @@
 
 Units: lengths in mm, angles in rad (stated in the file's ``units`` field).
 
-The file (format ``hyperstat-controller``, version 1, JSON Schema
+The file (format ``hyperstat-controller``, version 3, JSON Schema
 ``solver/export/schema/controller.schema.json``, documented in ``docs/controller-format.md``)
 holds the nominal model (the model file, embedded), the complete defect vector of the
 identified machine, the tool-point offset, the identified parameters with their
 standard deviations, the machine effects selected by the diagnosis (measurement
 effects such as tracker scale or drift describe the tracker, not the machine, and are
-left out), identification and validation statistics, provenance (the template and its
-parameters, and the SHA-256 of every data file), test vectors (configurations across the
-workspace with their poses, read both ways, so that a port of the model can be checked
-without hyperstat) and a SHA-256 over the content: the canonical JSON (sorted keys, no
-spaces) of every field but ``sha256``.
+left out), identification and validation statistics, the calibration's record (the gate's verdict
+and the numbers it was made from, the joint-space region the poses covered, the reasons of
+a ``--force``), provenance (the template and its parameters, and the SHA-256 of every data
+file), test vectors (configurations across the workspace and at the corners of the actuated
+ranges with their poses, read both ways, and the controller's joint values where the model
+has a joint map, so that a port of the model can be checked without hyperstat) and a SHA-256
+over the content: the canonical JSON (sorted keys, no spaces) of every field but ``sha256``.
 
 :func:`read_controller` refuses a file whose format, version, schema or hash does not
-match.  :class:`ControllerModel` is the reference forward and inverse geometric model
+match, or whose content contradicts itself (:mod:`hyperstat.solver.export.controller_checks`).  :class:`ControllerModel` is the reference forward and inverse geometric model
 built from the file alone; :func:`check_controller` reads a file and re-evaluates its test
 vectors with it.
 """
@@ -45,8 +47,14 @@ __all__ = ["FORMAT", "VERSION", "controller_document", "write_controller", "read
            "ADMISSIBLE", "check_admissible", "test_vector_draws", "check_reachable_ranges", "compare_model"]
 
 FORMAT = "hyperstat-controller"
-#: version 2 adds the test vectors (version 1 had none)
-VERSION = 2
+#: version 2 added the test vectors (version 1 had none); version 3 the calibration record (fit quality per target
+#: against the stated noise, equations, findings, region covered, reasons of a --force), the number of unknowns, the
+#: corners of the actuated ranges among the test vectors and the controller's joint values in them
+VERSION = 3
+#: why an older version is not read (a file of that version cannot be checked for what this one checks)
+OLDER = {1: "version 1 has no test vectors",
+         2: "version 2 carries no calibration record, no corners and no controller joint values, so its statistics, "
+            "its joint map and its test vectors cannot be checked against one another"}
 MACHINE_EFFECTS = ("compliance", "violated-constraint", "thermal", "screw-pitch", "screw-periodic", "backlash",
                    "backlash-gravity", "angle-scale", "angle-harmonic-1", "angle-harmonic-2")
 #: metadata columns the effect vectors carry, per pose (temperature degC, payload kg, approach direction +-1)
@@ -80,23 +88,29 @@ def content_hash(doc: dict) -> str:
 #: values are wide: poorly determined combinations of defects reach several mm in a sound calibration
 #: (10.4 mm on the identified hexapod of the tests, whose validation RMS is 32 um).
 #: ``offset_mm``: the largest tool point or target offset from the output frame.
-ADMISSIBLE = {2: {"test_vector_tolerance": {"length_mm": 1e-9, "angle_rad": 1e-9},
-                  "test_vectors": {"count": 24, "at_least": 12},
+#: ``corners``: the corners of the actuated ranges are test vectors too (every actuated joint at either end; for
+#: more than :data:`CORNER_JOINTS` actuated joints, each joint at either end with the others mid-range).
+ADMISSIBLE = {3: {"test_vector_tolerance": {"length_mm": 1e-9, "angle_rad": 1e-9},
+                  "test_vectors": {"count": 24, "at_least": 12, "corners": True},
                   "defect_rad": 0.1, "defect_mm": 100.0, "offset_mm": 2000.0}}
+CORNER_JOINTS = 6
 TEST_VECTOR_COUNT = ADMISSIBLE[VERSION]["test_vectors"]["count"]
 TEST_VECTOR_TOLERANCE = dict(ADMISSIBLE[VERSION]["test_vector_tolerance"])
 
 
 def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int = TEST_VECTOR_COUNT,
                  seed: int = 0, targets: dict | None = None) -> dict:
-    """Configurations across the workspace with their poses, for checking a port of the model.
+    """Configurations across the workspace and at the corners of the ranges with their poses, for checking a port.
 
     The actuated values are drawn uniformly in the middle 80 % of every actuated joint's
-    range (seeded, so the same file comes out of the same inputs), assembled on the
+    range (seeded, so the same file comes out of the same inputs), followed by the corners of
+    the actuated ranges (:func:`test_vector_configurations`), all assembled together on the
     identified geometry ``xi`` (rigid: the machine effects need per-pose data and are left
-    out), and kept when they assemble.  Each vector reads both ways: forward, ``actuated``
-    gives ``position`` / ``rotation`` (output frame in the base frame) and ``tool_point``;
-    inverse, the pose gives ``actuated``.
+    out); every one that assembles is kept, in that order.  Each vector reads both ways:
+    forward, ``actuated`` gives ``position`` / ``rotation`` (output frame in the base frame)
+    and ``tool_point``; inverse, the pose gives ``actuated`` (the draws; a corner may be
+    singular).  With a joint map in the model (an imported robot), ``controller`` holds the
+    controller's joint values that the map turns into ``actuated`` (the map's units).
 
     Returns
     -------
@@ -105,11 +119,11 @@ def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int
         ``actuated`` (rad / mm, model order), ``joints`` (every joint, the assembled
         configuration), ``position`` (mm), ``rotation`` (3 x 3, rows) and ``tool_point`` (mm);
         with ``targets`` (name -> offset in the output frame, mm), also ``targets``: name ->
-        the target's position in the base frame (mm).
+        the target's position in the base frame (mm); with a joint map, ``controller``.
     """
     kin = Kinematics(mechanism)
     act = mechanism.actuated
-    qa = test_vector_draws(mechanism, seed, count)
+    qa, _ = test_vector_configurations(mechanism, seed, count)
     res = kin.solve(qa, xi)
     ok = res.converged
     q = res.q[ok]
@@ -121,7 +135,62 @@ def build_test_vectors(mechanism, xi: np.ndarray, target: np.ndarray, count: int
         points = target_points(pose, targets)
         for k, v in enumerate(vectors):
             v["targets"] = {name: p[k].tolist() for name, p in points.items()}
+    controller = controller_values(mechanism, q[:, act])
+    if controller is not None:
+        for k, v in enumerate(vectors):
+            v["controller"] = controller[k].tolist()
     return {"tolerance": dict(TEST_VECTOR_TOLERANCE), "seed": seed, "vectors": vectors}
+
+
+def _square_joint_map(mechanism):
+    """The model's joint map when it is square (controller values recoverable), else None."""
+    from hyperstat.solver.calibration.measurements import mechanism_joint_map
+
+    jm = mechanism_joint_map(mechanism)
+    return jm if jm is not None and jm.matrix.shape[0] == jm.matrix.shape[1] else None
+
+
+def _controller_factors(jm) -> np.ndarray:
+    """Per controller joint, the factor turning its declared unit into rad / mm."""
+    from hyperstat.solver.kinematics.joint_map import ANGLE_UNITS, LENGTH_UNITS
+
+    return np.array([ANGLE_UNITS[jm.units["angle"]] if k == "R" else LENGTH_UNITS[jm.units["length"]]
+                     for k in jm.kinds])
+
+
+def controller_values(mechanism, q_actuated: np.ndarray) -> np.ndarray | None:
+    """The controller's joint values (the map's declared units) giving model actuated values ``q_actuated``
+    through the model's joint map; None without a (square) joint map."""
+    jm = _square_joint_map(mechanism)
+    if jm is None:
+        return None
+    return jm.inverse(np.atleast_2d(q_actuated)) / _controller_factors(jm)
+
+
+def test_vector_configurations(mechanism, seed: int, count: int = TEST_VECTOR_COUNT) -> tuple[np.ndarray, np.ndarray]:
+    """The actuated values test vectors are made at, in order: the seeded draws (:func:`test_vector_draws`), then
+    the corners of the actuated ranges; and a flag per row, True for a corner.
+
+    With up to :data:`CORNER_JOINTS` actuated joints the corners are every combination of range ends
+    (``2^n``, the first joint's end varying slowest); with more, each joint at either end with the others at
+    mid-range (``2n``).
+    """
+    import itertools
+
+    act = mechanism.actuated
+    lo, hi = mechanism.ranges[act].T
+    draws = test_vector_draws(mechanism, seed, count)
+    n = len(act)
+    if n <= CORNER_JOINTS:
+        corners = np.array([[hi[k] if e else lo[k] for k, e in enumerate(ends)]
+                            for ends in itertools.product((0, 1), repeat=n)], dtype=float)
+    else:
+        mid = 0.5 * (lo + hi)
+        corners = np.repeat(mid[None, :], 2 * n, axis=0)
+        for k in range(n):
+            corners[2 * k, k], corners[2 * k + 1, k] = lo[k], hi[k]
+    flags = np.r_[np.zeros(len(draws), dtype=bool), np.ones(len(corners), dtype=bool)]
+    return np.vstack([draws, corners]), flags
 
 
 def test_vector_draws(mechanism, seed: int, count: int = TEST_VECTOR_COUNT) -> np.ndarray:
@@ -184,6 +253,7 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
     vec = tv["vectors"]
     if not vec:
         raise DataError("controller file: 'test_vectors' holds no vector.")
+    corner = _vector_corners(doc, model.mechanism)
     tol = ADMISSIBLE[doc["version"]]["test_vector_tolerance"]  # the version's, never the file's
     tol_mm, tol_rad = tol["length_mm"], tol["angle_rad"]
     qa = np.array([v["actuated"] for v in vec], dtype=float)
@@ -197,18 +267,22 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
     e_pos = np.maximum(np.linalg.norm(pose[:, :3, 3] - pos, axis=1), np.linalg.norm(point - tool, axis=1))
     _check_target_points(doc, model, pose, tol_mm)
     e_rot = np.linalg.norm(so3_log(pose[:, :3, :3] @ np.transpose(rot, (0, 2, 1))), axis=1)
-    wanted = np.tile(np.eye(4), (len(vec), 1, 1))
-    wanted[:, :3, :3], wanted[:, :3, 3] = rot, pos
-    back = model.inverse(wanted)
-    lin = np.array([model.mechanism.joints[i].type == "P" for i in model.mechanism.actuated])
-    e_inv = np.abs(back - qa)
-    tol_inv = np.where(lin, tol_mm, tol_rad)
     for name, err, tol, unit in (("forward position", e_pos, tol_mm, "mm"),
                                   ("forward rotation", e_rot, tol_rad, "rad")):
         k = int(np.argmax(err))
         if not err[k] <= tol:
             raise DataError(f"controller file: test vector {k}: the reference model's {name} is {err[k]:.3g} {unit} "
                             f"from the file's (tolerance {tol:g} {unit}).")
+    # the inverse is read on the draws (a corner of the ranges may be a singular pose); k below is the file's index
+    number = np.flatnonzero(~corner)
+    vec = [vec[k] for k in number]
+    qa, pos, rot, tool = qa[number], pos[number], rot[number], tool[number]
+    wanted = np.tile(np.eye(4), (len(vec), 1, 1))
+    wanted[:, :3, :3], wanted[:, :3, 3] = rot, pos
+    back = model.inverse(wanted)
+    lin = np.array([model.mechanism.joints[i].type == "P" for i in model.mechanism.actuated])
+    e_inv = np.abs(back - qa)
+    tol_inv = np.where(lin, tol_mm, tol_rad)
     off = np.flatnonzero(~np.all(e_inv <= tol_inv, axis=1))
     branch = 0
     if len(off):
@@ -236,8 +310,8 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
             if not (e2[i] <= tol_mm and r2[i] <= tol_rad):
                 j = int(np.argmax(e_inv[k] / tol_inv))
                 unit = "mm" if lin[j] else "rad"
-                raise DataError(f"controller file: test vector {k}: the reference inverse model gives actuated value "
-                                f"{j} {e_inv[k, j]:.3g} {unit} from the file's (tolerance {tol_inv[j]:g} {unit}), and "
+                raise DataError(f"controller file: test vector {number[k]}: the reference inverse model gives actuated "
+                                f"value {j} {e_inv[k, j]:.3g} {unit} from the file's (tolerance {tol_inv[j]:g} {unit}), and "
                                 f"its pose misses the file's by {e2[i]:.3g} mm.")
         off = np.flatnonzero(~np.all(e_inv <= tol_inv, axis=1))  # after the restarts
         branch = len(off)
@@ -260,7 +334,8 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
                             f"effects ({', '.join(e['effect'] for e in doc['effects'])}) is {err_e[k]:.3g} mm from "
                             f"the file's (tolerance {tol_mm:g} mm).")
         e_eff = float(err_e.max())
-    return {"count": len(vec), "forward_mm": float(e_pos.max()), "forward_rad": float(e_rot.max()),
+    return {"count": len(tv["vectors"]), "corners": int(corner.sum()), "forward_mm": float(e_pos.max()),
+            "forward_rad": float(e_rot.max()),
             "effect_vectors": len(ev), "effects_mm": e_eff,
             "inverse_mm": float(e_same[:, lin].max()) if lin.any() else 0.0,
             "inverse_rad": float(e_same[:, ~lin].max()) if (~lin).any() else 0.0,
@@ -268,7 +343,7 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
 
 
 def controller_document(mechanism, identification, effects: tuple = (), source: dict | None = None,
-                        data_files: tuple = (), tolerances: dict | None = None) -> dict:
+                        data_files: tuple = (), tolerances: dict | None = None, forced: bool = False) -> dict:
     """Controller file content from an identification (and the effects fitted with it).
 
     Parameters
@@ -287,7 +362,22 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
         :meth:`~hyperstat.solver.tolerances.classification.Classification.to_dict` of the model: its
         counts per class and the class and tolerance id of every parameter are recorded (the same
         vocabulary as ``analyze`` and the report).
+    forced : bool
+        Write a calibration the export gate refuses (:mod:`~hyperstat.solver.export.calibration_gate`); its
+        reasons are recorded in ``calibration``.
+
+    Raises
+    ------
+    DataError
+        When the gate refuses the calibration and ``forced`` is false.
     """
+    from hyperstat.solver.export.calibration_gate import calibration_record
+
+    try:
+        record = calibration_record(identification, forced)
+    except ValueError as exc:
+        raise DataError(f"'{mechanism.name}': the calibration is not exported: {exc} (force=True writes it with the "
+                        f"reasons recorded).") from None
     model = identification.model
     theta = identification.theta
     xi = model.defects(theta)
@@ -311,7 +401,7 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
                   for p in identification.parameters if p["identifiable"]]
     stats = {"identification": identification.identification, "validation": identification.validation,
              "noise_rms": identification.noise_rms, "rank": identification.rank,
-             "condition_number": identification.condition_number}
+             "unknowns": identification.n_unknowns, "condition_number": identification.condition_number}
     doc = {
         "format": FORMAT,
         "version": VERSION,
@@ -323,6 +413,7 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
         "identified": identified,
         "effects": exported,
         "statistics": json.loads(dumps_json(stats)),
+        "calibration": json.loads(dumps_json(record)),
         "provenance": {"source": dict(source or {}),
                        "data": [{"file": Path(f).name, "sha256": file_sha256(f)} for f in data_files]},
         "test_vectors": build_test_vectors(mechanism, xi, tool_point, targets=targets),
@@ -368,8 +459,9 @@ def read_controller(path: str | os.PathLike) -> dict:
     if doc.get("format") != FORMAT:
         raise DataError(f"{path}: field 'format' must be \"{FORMAT}\", got {json.dumps(doc.get('format'))}.")
     if doc.get("version") != VERSION:
+        why = f" ({OLDER[doc['version']]}: export it again)" if doc.get("version") in OLDER else ""
         raise DataError(f"{path}: field 'version' is {json.dumps(doc.get('version'))}, but this hyperstat reads "
-                        f"version {VERSION}.")
+                        f"version {VERSION}{why}.")
     errors = list(jsonschema.Draft202012Validator(controller_schema()).iter_errors(doc))
     if errors:
         raise DataError(f"{path}: {_schema_message(jsonschema.exceptions.best_match(errors))}.")
@@ -388,9 +480,12 @@ def check_admissible(doc: dict, source: str = "controller file") -> None:
 
     The test-vector tolerance is the version's; ``defects`` holds exactly the model's defects, each
     within the version's magnitude; the tool point and targets are within the version's offset; the
-    test vectors are the version's draws from the model's joint ranges (so that a changed range, which
-    becomes a controller's joint limit, cannot pass with the old vectors), their number at least the
-    version's, every value inside the ranges.
+    test vectors are the version's configurations (the draws from the model's joint ranges, then the
+    corners of the ranges: a changed range, which becomes a controller's joint limit, cannot pass with
+    the old vectors), every one that assembles on the file's geometry and no other, at least the
+    version's number of draws; the model's joint map turns the vectors' controller values into their
+    actuated ones; and the file is consistent with itself
+    (:func:`~hyperstat.solver.export.controller_checks.check_consistency`).
 
     Raises
     ------
@@ -418,7 +513,11 @@ def check_admissible(doc: dict, source: str = "controller file") -> None:
         if not float(np.linalg.norm(v)) <= rules["offset_mm"]:
             raise DataError(f"{source}: field '{field}' is {float(np.linalg.norm(v)):g} mm from the output frame, "
                             f"beyond the {rules['offset_mm']:g} mm version {doc['version']} admits.")
-    _check_vector_draws(doc, mech, rules, source)
+    xi = np.array([doc["defects"][p.name] for p in mech.parameters], dtype=float)
+    _check_vector_draws(doc, mech, xi, rules, source)
+    from hyperstat.solver.export.controller_checks import check_consistency
+
+    check_consistency(doc, mech, Kinematics(mech).length_scale, source)
 
 
 def _same_names(given: dict, names: list, unknown: str, missing: str) -> None:
@@ -429,35 +528,106 @@ def _same_names(given: dict, names: list, unknown: str, missing: str) -> None:
             raise DataError(message.format(extra[0]))
 
 
-def _check_vector_draws(doc: dict, mech, rules: dict, source: str) -> None:
-    """The test vectors are the seeded draws from the model's joint ranges, in order (some may be missing:
-    those that did not assemble), at least ``at_least`` of them, with every joint inside its range."""
+def _match_vectors(doc: dict, mech, rules: dict, source: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Match the file's test vectors, in order, to the version's configurations (:func:`test_vector_configurations`).
+
+    Returns the configurations, their corner flags, and the index of each vector among them.
+
+    Raises
+    ------
+    DataError
+        For a vector that is not one of the configurations (in order), or of the wrong size.
+    """
     tv = doc["test_vectors"]
     vec = tv["vectors"]
     act = mech.actuated
-    if len(vec) < rules["test_vectors"]["at_least"]:
-        raise DataError(f"{source}: field 'test_vectors.vectors' holds {len(vec)} vectors; version {doc['version']} "
-                        f"draws {rules['test_vectors']['count']} and needs at least {rules['test_vectors']['at_least']}.")
     for k, v in enumerate(vec):
         if len(v["actuated"]) != len(act) or len(v["joints"]) != len(mech.joints):
             raise DataError(f"{source}: test vector {k} has {len(v['actuated'])} actuated and {len(v['joints'])} "
                             f"joint values; the model has {len(act)} and {len(mech.joints)}.")
-    draws = test_vector_draws(mech, tv["seed"], rules["test_vectors"]["count"])
-    scale = np.maximum(np.abs(draws).max(axis=0), 1.0)
+    configs, corner = test_vector_configurations(mech, tv["seed"], rules["test_vectors"]["count"])
+    scale = np.maximum(np.abs(configs).max(axis=0), 1.0)
+    index = np.zeros(len(vec), dtype=int)
     d = 0
     for k, v in enumerate(vec):
         qa = np.asarray(v["actuated"], dtype=float)
-        while d < len(draws) and not np.all(np.abs(draws[d] - qa) <= 1e-12 * scale):
+        while d < len(configs) and not np.all(np.abs(configs[d] - qa) <= 1e-12 * scale):
             d += 1
-        if d == len(draws):
+        if d == len(configs):
             lo, hi = mech.ranges[act].T
-            out = np.flatnonzero((qa < lo + 0.1 * (hi - lo) - 1e-9) | (qa > hi - 0.1 * (hi - lo) + 1e-9))
-            why = (f"its value {qa[out[0]]:g} of joint '{mech.joints[act[out[0]]].name}' lies outside the middle 80 % "
-                   f"of the range [{lo[out[0]]:g}, {hi[out[0]]:g}]" if len(out) else
-                   "its actuated values are not the version's draws from the file's joint ranges with its seed")
+            out = np.flatnonzero((qa < lo - 1e-9) | (qa > hi + 1e-9))
+            why = (f"its value {qa[out[0]]:g} of joint '{mech.joints[act[out[0]]].name}' lies outside the range "
+                   f"[{lo[out[0]]:g}, {hi[out[0]]:g}]" if len(out) else
+                   "its actuated values are not one of the version's configurations (the draws from the file's "
+                   "joint ranges with its seed, then the corners of the ranges), in order")
             why += " (were the joint ranges or the vectors changed after export?)"
             raise DataError(f"{source}: test vector {k}: {why}.")
+        index[k] = d
         d += 1
+    return configs, corner, index
+
+
+def _vector_corners(doc: dict, mech) -> np.ndarray:
+    """Per test vector of ``doc``, whether it is a corner of the actuated ranges."""
+    _, corner, index = _match_vectors(doc, mech, ADMISSIBLE[doc["version"]], "controller file")
+    return corner[index]
+
+
+def _check_vector_draws(doc: dict, mech, xi: np.ndarray, rules: dict, source: str) -> None:
+    """The test vectors are exactly the version's configurations that assemble on the file's geometry, in order:
+    the seeded draws from the model's joint ranges (at least ``at_least`` of them) and the corners of the ranges.
+
+    Every configuration is assembled again (together, as the writer did): one that assembles and is missing,
+    or one present that does not assemble, is refused.
+    """
+    vec = doc["test_vectors"]["vectors"]
+    configs, corner, index = _match_vectors(doc, mech, rules, source)
+    draws = int(np.sum(~corner[index]))
+    if draws < rules["test_vectors"]["at_least"]:
+        raise DataError(f"{source}: field 'test_vectors.vectors' holds {draws} drawn vectors; version {doc['version']} "
+                        f"draws {rules['test_vectors']['count']} and needs at least {rules['test_vectors']['at_least']}.")
+    assembles = Kinematics(mech).solve(configs, xi).converged
+    present = np.zeros(len(configs), dtype=bool)
+    present[index] = True
+    missing = np.flatnonzero(assembles & ~present)
+    if len(missing):
+        d = int(missing[0])
+        what = f"corner {d - int(np.sum(~corner))}" if corner[d] else f"draw {d}"
+        raise DataError(f"{source}: field 'test_vectors.vectors' lacks {len(missing)} of the version's configurations "
+                        f"that assemble on the file's geometry ({what} first: {' '.join(f'{v:.6g}' for v in configs[d])}"
+                        f"); version {doc['version']} keeps every one: were vectors dropped?")
+    extra = np.flatnonzero(present & ~assembles)
+    if len(extra):
+        k = int(np.flatnonzero(index == extra[0])[0])
+        raise DataError(f"{source}: test vector {k} does not assemble on the file's geometry.")
+    _check_controller_values(vec, mech, source)
+
+
+def _check_controller_values(vec: list, mech, source: str) -> None:
+    """The model's joint map turns every vector's ``controller`` values into its ``actuated`` ones (1e-9 rad / mm)."""
+    jm = _square_joint_map(mech)
+    has = ["controller" in v for v in vec]
+    if jm is None:
+        if any(has):
+            raise DataError(f"{source}: test vectors give controller joint values, but the model has no joint map.")
+        return
+    if not all(has):
+        raise DataError(f"{source}: test vector {has.index(False)} gives no controller joint values, though the model "
+                        f"has a joint map (version {VERSION} records them to check the map).")
+    values = np.array([v["controller"] for v in vec], dtype=float)
+    if values.shape[1] != len(jm.controller):
+        raise DataError(f"{source}: test vectors give {values.shape[1]} controller joint values; the joint map has "
+                        f"{len(jm.controller)} controller joints.")
+    got = jm.apply(values * _controller_factors(jm))
+    qa = np.array([v["actuated"] for v in vec], dtype=float)
+    err = np.abs(got - qa)
+    k, j = np.unravel_index(int(np.argmax(err)), err.shape)
+    if not err[k, j] <= 1e-9 * max(1.0, float(np.abs(qa[k, j]))):
+        joint = jm.model[j]
+        raise DataError(f"{source}: test vector {k}: the model's joint map turns its controller values "
+                        f"({', '.join(f'{c} {v:.6g}' for c, v in zip(jm.controller, values[k]))}, "
+                        f"{jm.units['angle']} / {jm.units['length']}) into {got[k, j]:.9g} for model joint '{joint}', "
+                        f"not the vector's {qa[k, j]:.9g}: the joint map was changed after export.")
 
 
 class ControllerModel:
@@ -684,8 +854,10 @@ def check_controller(path: str | os.PathLike, reference: "Mechanism | None" = No
     Returns
     -------
     dict
-        ``mechanism``, ``sha256``, ``reference`` (whether the model was compared with one) and the
-        largest errors of :func:`check_test_vectors`.
+        ``mechanism``, ``sha256``, ``reference`` (whether the model was compared with one), the
+        largest errors of :func:`check_test_vectors`, the calibration's ``fit_quality``, ``forced``
+        and ``reasons``, its ``region`` (the actuated values its poses covered), the joint
+        ``ranges`` and ``outside_region`` (test vectors beyond the region).
 
     Raises
     ------
@@ -708,7 +880,15 @@ def check_controller(path: str | os.PathLike, reference: "Mechanism | None" = No
         check_reachable_ranges(model)
     except DataError as exc:
         raise DataError(f"{path}: {str(exc).removeprefix('controller file: ')}") from None
-    return {"mechanism": doc["mechanism"], "sha256": doc["sha256"], "reference": reference is not None, **result}
+    rec = doc["calibration"]
+    region = rec["region"]
+    qa = np.array([v["actuated"] for v in doc["test_vectors"]["vectors"]], dtype=float)
+    outside = int(np.sum(np.any((qa < np.array(region["low"]) - 1e-9) | (qa > np.array(region["high"]) + 1e-9),
+                                axis=1)))
+    ranges = model.mechanism.ranges[model.mechanism.actuated].tolist()
+    return {"mechanism": doc["mechanism"], "sha256": doc["sha256"], "reference": reference is not None, **result,
+            "fit_quality": rec["fit_quality"], "forced": rec["forced"], "reasons": list(rec["reasons"]),
+            "region": region, "ranges": ranges, "outside_region": outside}
 
 
 def check_reachable_ranges(model: "ControllerModel", samples: int = 32, seed: int = 0) -> None:

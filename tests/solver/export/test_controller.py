@@ -54,7 +54,7 @@ def test_round_trip_and_determinism(exported, tripteor, tripteor_analysis):
 
 @pytest.mark.parametrize("tamper, message", [
     (lambda d: d["defects"].__setitem__("db21", d["defects"]["db21"] + 1e-9), "SHA-256 does not match"),
-    (lambda d: d.__setitem__("version", 1), "reads version 2"),
+    (lambda d: d.__setitem__("version", 1), "reads version 3"),
     (lambda d: d.__setitem__("format", "other"), "field 'format'"),
     (lambda d: d.pop("target"), "field 'target' is missing"),
     (lambda d: d["effects"].append({"effect": "gravity", "parameters": {}, "options": {}}), "effects"),
@@ -148,11 +148,14 @@ def test_check_controller_re_evaluates_the_vectors(exported, tmp_path, capsys):
     """A defect changed with the hash recomputed passes the hash, not the test vectors."""
     path, _, _ = exported
     doc = json.loads(path.read_text())
-    doc["defects"]["db21"] += 1e-4
+    # a defect the file does not list as identified (one it lists must equal its estimate: refused before)
+    name = next(n for n in sorted(doc["defects"]) if n not in {p["name"] for p in doc["identified"]}
+                and n.startswith("dc"))
+    doc["defects"][name] += 1e-4
     doc["sha256"] = content_hash(doc)
     bad = tmp_path / "machine.json"
     bad.write_text(json.dumps(doc))
-    read_controller(bad)  # format, schema and hash are fine
+    read_controller(bad)  # format, schema, hash and self-consistency are fine
     assert main(["check-controller", str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "test vector" in err and "tolerance" in err
@@ -173,13 +176,14 @@ def exported_serial(tmp_path_factory):
     names = ("angle-scale", "angle-harmonic-1", "angle-harmonic-2", "backlash-gravity", "compliance")
     truth = tuple(make_effect(n, mech, analysis).draw_truth(np.random.default_rng(i)) for i, n in enumerate(names))
     vm = VirtualMachine.random(mech, analysis, seed=0, effects=truth)
-    q = vm.poses(50, seed=1)
-    meta = workshop_metadata(mech, 50, seed=2)
+    q = vm.poses(80, seed=1)
+    meta = workshop_metadata(mech, 80, seed=2)
     # noise-free identification poses: with the tracker's noise, 40 poses left the wrist's harmonics and
     # gravity-side backlash (joints with little load) beyond their plausible magnitudes or physical domain,
-    # and the controller file rightly refuses such estimates (tested in test_what_the_version_admits)
-    data = vm.measure(q[:40], seed=3, metadata={k: v[:40] for k, v in meta.items()}, noise=False)
-    val = vm.measure(q[40:], seed=4, prefix="V", metadata={k: v[40:] for k, v in meta.items()})
+    # and the controller file rightly refuses such estimates (tested in test_what_the_version_admits); 70 poses
+    # give the 2 equations per parameter the export gate asks (66 parameters with the five effects)
+    data = vm.measure(q[:70], seed=3, metadata={k: v[:70] for k, v in meta.items()}, noise=False)
+    val = vm.measure(q[70:], seed=4, prefix="V", metadata={k: v[70:] for k, v in meta.items()})
     effects = tuple(make_effect(n, mech, analysis, data) for n in names)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -216,6 +220,9 @@ def test_check_controller_re_evaluates_the_effect_vectors(exported_serial, tmp_p
     eff = next(e for e in doc["effects"] if e["effect"] == "angle-harmonic-1")
     name = next(iter(eff["parameters"]))
     eff["parameters"][name] += 1e-5  # rad: about 10 um at a 1 m reach
+    for p in doc["identified"]:  # changed consistently (the identified list must agree with the effect)
+        if p["name"] == name:
+            p["estimate"] = eff["parameters"][name]
     doc["sha256"] = content_hash(doc)
     bad = tmp_path / "arm.json"
     bad.write_text(json.dumps(doc))
@@ -306,14 +313,19 @@ def test_what_the_version_admits(exported, tmp_path, capsys):
         (lambda d: d["effects"][0]["parameters"].__setitem__("backlash_X", 0.0), "'backlash_X' is not a parameter"),
         (lambda d: d["statistics"].__setitem__("trust_me", True), "statistics.trust_me' is not part of the format"),
         (lambda d: d["test_vectors"].__setitem__("vectors", d["test_vectors"]["vectors"][:5]),
-         "holds 5 vectors; version 2 draws 24 and needs at least 12"),
+         "holds 5 drawn vectors; version 3 draws 24 and needs at least 12"),
     ]
     for change, needle in cases:
         _refused(_rehashed(path, tmp_path, change), capsys, needle)
     doc = json.loads(path.read_text())
     name = next(iter(doc["effects"][0]["parameters"]))
-    _refused(_rehashed(path, tmp_path, lambda d: d["effects"][0]["parameters"].__setitem__(name, 1e3)), capsys,
-             f"parameter '{name}' = 1000", "physical domain or beyond its plausible magnitude")
+
+    def beyond(d):  # changed consistently in the identified list, which must agree with the effect
+        d["effects"][0]["parameters"][name] = 1e3
+        next(p for p in d["identified"] if p["name"] == name)["estimate"] = 1e3
+
+    _refused(_rehashed(path, tmp_path, beyond), capsys, f"parameter '{name}' = 1000",
+             "physical domain or beyond its plausible magnitude")
 
 
 def test_a_key_declared_twice_is_refused(exported, tmp_path, capsys):
