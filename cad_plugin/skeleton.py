@@ -87,9 +87,12 @@ class Skeleton(MechanismBuilder):
                 raise TemplateError(f"material '{name}' has no known density; give density_kg_m3 or one of "
                                     f"{', '.join(MATERIALS)}.")
             density_kg_m3 = MATERIALS[name]
-        if not float(density_kg_m3) > 0.0:
-            raise TemplateError(f"material '{name}': density_kg_m3 must be > 0, got {density_kg_m3}.")
-        self.material_name, self.material_density = name, float(density_kg_m3)
+        from hyperstat.solver.kinematics.masses import check_material_density
+
+        if isinstance(density_kg_m3, bool) or not isinstance(density_kg_m3, (int, float)):
+            raise TemplateError(f"material '{name}': density_kg_m3 must be a number (kg/m^3), got {density_kg_m3!r}.")
+        rho = check_material_density(name, density_kg_m3, "sk.material", TemplateError)  # finite, plausible
+        self.material_name, self.material_density = name, rho
 
     def point(self, ref: Any) -> np.ndarray:
         """World position of a joint, fixed transform or frame name, or of a coordinate triple."""

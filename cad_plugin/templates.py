@@ -116,6 +116,10 @@ def build_template(path: str | Path, overrides: list[str] | dict[str, Any] | Non
             apply_link_masses(skeleton)
         except HyperstatError as exc:
             raise TemplateError(f"{path}: {exc}") from None
+    if skeleton.metadata.get("masses"):  # computed or declared: finite, plausible for each body, none left out
+        from hyperstat.solver.kinematics.masses import check_declared_masses
+
+        check_declared_masses(skeleton.mechanism(), str(path), TemplateError)
     declared = getattr(module, "TOLERANCING", None)
     if declared is not None:  # task, measurements, spec, clearances (hyperstat.solver.tolerances.declaration)
         from hyperstat.solver.tolerances.declaration import parse_declaration

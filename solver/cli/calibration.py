@@ -170,6 +170,14 @@ def _cmd_import_robot(args: argparse.Namespace) -> int:
 
     mech = import_robot(args.robot, tip=args.tip)
     path = save_model(mech, args.out)
+    unknown = mech.metadata.get("masses_unknown")
+    if unknown and not args.quiet:
+        bodies = "; ".join(f"joint {u['joint']}" + (f" (link{'s' if len(u['links']) > 1 else ''} "
+                                                     f"{', '.join(u['links'])} without <inertial>)" if u["links"] else
+                                                     " (no link with <inertial>)") for u in unknown)
+        sys.stderr.write(f"hyperstat: warning: {args.robot}: the body moved by {bodies} has no declared mass, so its "
+                         f"mass is unknown: no link masses are recorded (gravity effects cannot be sized; never "
+                         f"computed as if a body were massless); add the <inertial> to use them.\n")
     if not args.quiet:
         c = mech.count()
         jm = "with" if "joint_map" in mech.metadata else "without"

@@ -250,18 +250,32 @@ def _cmd_check_move(args: argparse.Namespace) -> int:
     from hyperstat.solver.export.linuxcnc_kins import world_layout
     from hyperstat.solver.export.straight_moves import STEP_DEG, STEP_MM, check_straight_move
 
-    mech, xi, _doc = _geometry(args, "check-move")
+    mech, xi, doc = _geometry(args, "check-move")
     layout = world_layout(mech)
     letters = layout["coordinates"]
     start = _world_point(args.start, "--from", letters)
     end = _world_point(args.end, "--to", letters)
-    r = check_straight_move(mech, xi, start, end, layout=layout)
+    region = doc["calibration"]["region"] if doc else None
+    r = check_straight_move(mech, xi, start, end, layout=layout, region=region)
     units = {mech.joints[i].name: ("rad" if mech.joints[i].type == "R" else "mm") for i in mech.actuated}
     if args.json:
         write_json(args.json, jsonable({"mechanism": mech.name, "coordinates": letters, "from": start, "to": end,
                                         "units": {"world": "mm, degrees", "joints": units}, **r}))
     if args.quiet:
         return 0 if r["inside"] else 1
+    cal = r.get("calibrated")
+    if cal is not None:
+        if cal["inside"]:
+            sys.stdout.write(f"the straight move stays inside the region the calibration's poses covered "
+                             f"({_region_words(region, mech.ranges[mech.actuated].tolist())})\n")
+        else:
+            where = " ".join(f"{a}{v:.6g}" for a, v in zip(letters, cal["world"]))
+            unit = units[cal["joint"]]
+            sys.stdout.write(f"the straight move leaves the region the calibration's poses covered at "
+                             f"{100 * cal['fraction']:.3g} % of its length (near {where}): joint '{cal['joint']}' "
+                             f"reaches {cal['value']:.6g} {unit}, the poses covered [{cal['low']:.6g}, "
+                             f"{cal['high']:.6g}] {unit}; beyond, the identified model is extrapolated (its accuracy "
+                             f"there was not measured)\n")
     if r["inside"]:
         sys.stdout.write(f"the straight move stays inside every joint range of '{mech.name}' ({r['samples']} points "
                          f"checked, every {STEP_MM:g} mm and {STEP_DEG:g} degree)\n")
@@ -321,7 +335,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_export_linuxcnc_kins, known_outputs=("machine.ini", "machine.hal"))
     p = sub.add_parser("check-move",
                        help="check that a straight G1 move in LinuxCNC's world coordinates keeps every joint in range "
-                            "(exit 1 when it does not)")
+                            "(exit 1 when it does not), and with --controller say where it leaves the region the "
+                            "calibration's poses covered")
     p.add_argument("source", nargs="?", help="template or model file (nominal geometry)")
     p.add_argument("--controller", metavar="MACHINE.json", help="take the identified geometry from a controller file")
     p.add_argument("-p", "--param", action="append", metavar="NAME=VALUE", help="template parameter override")

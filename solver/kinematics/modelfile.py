@@ -177,10 +177,14 @@ def mechanism_from_dict(doc: Any, source: str = "model") -> Mechanism:
     if "tolerancing" in doc:  # optional, checked by the schema: task, measurements, spec, clearances
         metadata["tolerancing"] = doc["tolerancing"]
     try:
-        return Mechanism(doc["name"], doc["base"], doc["output"], tuple(chains), doc.get("description", ""),
+        mech = Mechanism(doc["name"], doc["base"], doc["output"], tuple(chains), doc.get("description", ""),
                          metadata)
     except ModelError as exc:
         raise ModelError(f"{source}: {exc}") from None
+    from hyperstat.solver.kinematics.masses import check_declared_masses
+
+    check_declared_masses(mech, source, ModelError)  # finite, plausible for each body's size, none left out
+    return mech
 
 
 def dumps_model(m: Mechanism) -> str:

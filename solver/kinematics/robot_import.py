@@ -432,6 +432,48 @@ def _urdf_numbers(text: str | None, count: int, where: str) -> list[float]:
     return values
 
 
+#: largest plausible mass of one URDF link before its size is known (kg): beyond, a typing error whatever the link
+URDF_MASS_LIMIT_KG = 1e6
+
+
+def _check_inertial(link, where: str) -> None:
+    """A link's ``<inertial>``: at most one, with at most one ``<mass>``, ``<origin>`` and ``<inertia>`` each,
+    every value finite, the mass >= 0 (and below :data:`URDF_MASS_LIMIT_KG`), the origin within 100 m.
+
+    A URDF reader keeps one of two ``<inertial>`` elements (or of two masses) silently; the other one's mass
+    would be lost without a word.
+    """
+    inertials = link.findall("inertial")
+    if len(inertials) > 1:
+        raise ModelError(f"{where} declares <inertial> {len(inertials)} times; a link has one (a URDF reader keeps "
+                         f"one silently): merge them into one with the link's whole mass.")
+    if not inertials:
+        return
+    inertial = inertials[0]
+    for tag in ("mass", "origin", "inertia"):
+        if len(inertial.findall(tag)) > 1:
+            raise ModelError(f"{where}: its <inertial> declares <{tag}> {len(inertial.findall(tag))} times.")
+    mass = inertial.find("mass")
+    if mass is not None:
+        m = _urdf_numbers(mass.get("value"), 1, f"{where}: <inertial> mass value")[0]
+        if not 0.0 <= m <= URDF_MASS_LIMIT_KG:
+            raise ModelError(f"{where}: <inertial> mass value {m:g} kg is not a plausible link mass (a mass is >= 0 "
+                             f"and no robot link weighs {URDF_MASS_LIMIT_KG:g} kg).")
+    origin = inertial.find("origin")
+    if origin is not None:
+        for v, axis in zip(_urdf_numbers(origin.get("xyz", "0 0 0"), 3, f"{where}: <inertial> origin xyz"), "xyz"):
+            if abs(v) > 100.0:  # URDF lengths are metres; a centre of mass 100 m out is no link's
+                raise ModelError(f"{where}: <inertial> origin {axis} = {v:g} m puts the centre of mass beyond 100 m "
+                                 f"from the link's frame: not a plausible link.")
+        for v, axis in zip(_urdf_numbers(origin.get("rpy", "0 0 0"), 3, f"{where}: <inertial> origin rpy"),
+                           ("roll", "pitch", "yaw")):
+            plausible_angle(v, "rad", f"{where}: <inertial> origin {axis}", error=ModelError)
+    inertia = inertial.find("inertia")
+    if inertia is not None:
+        for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+            _urdf_numbers(inertia.get(key, "0"), 1, f"{where}: <inertial> inertia {key}")
+
+
 def check_urdf(path: str | Path) -> None:
     """Refuse a malformed URDF before it is read: one sentence naming the joint or link at fault.
 
@@ -442,7 +484,9 @@ def check_urdf(path: str | Path) -> None:
     finite and within 100 m, roll-pitch-yaw within a turn (more "looks like degrees"); a
     moving joint's axis a finite, non-zero direction; limits finite and plausible (a revolute
     joint within two turns, a prismatic one within 100 m), lower < upper; a mimic joint names
-    an existing joint.  Mimic joints on the imported chain are refused by :func:`read_urdf`.
+    an existing joint; a link's ``<inertial>`` declared once, its values finite, its mass >= 0
+    and its origin within 100 m (:func:`_check_inertial`).  Mimic joints on the imported chain are
+    refused by :func:`read_urdf`; masses against the links' sizes are checked by :func:`_urdf_masses`.
 
     Raises
     ------
@@ -462,6 +506,8 @@ def check_urdf(path: str | Path) -> None:
             raise ModelError(f"{path}: link {i + 1} has no name.")
         if links.count(lk) > 1:
             raise ModelError(f"{path}: link '{lk}' is declared twice.")
+    for lk in root.findall("link"):
+        _check_inertial(lk, f"{path}: link '{lk.get('name')}'")
     joints = root.findall("joint")
     names = [j.get("name") for j in joints]
     parent_of: dict[str, str] = {}
@@ -628,14 +674,16 @@ def read_urdf(path: str | Path, tip: str | None = None, name: str | None = None)
     metadata = {"imported_from": {"kind": "urdf", "source": str(path), "root": roots[0], "tip": tip}}
     mech = _chain_mechanism(name or robot.robot.name or path.stem, elements, pending,
                             f"serial robot imported from URDF {path.name}", metadata)
-    masses = _urdf_masses(robot.robot, roots[0], [j.name for j in path_joints if j.type != "fixed"],
-                          {j.name: j.home for j in mech.joints if hasattr(j, "home")}, path)
+    masses, unknown = _urdf_masses(robot.robot, roots[0], [j.name for j in path_joints if j.type != "fixed"],
+                                   {j.name: j.home for j in mech.joints if hasattr(j, "home")}, path)
     if masses:
         metadata["masses"] = masses
+    if unknown:  # a moving body without a mass: unknown, so no masses at all (never massless)
+        metadata["masses_unknown"] = unknown
     return mech
 
 
-def _urdf_masses(robot, root: str, chain_joints: list, home: dict, path: Path) -> dict:
+def _urdf_masses(robot, root: str, chain_joints: list, home: dict, path: Path) -> tuple[dict, list]:
     """The link masses of a URDF as ``metadata.masses``: per moving joint of the chain, the body it moves.
 
     Every link with an ``<inertial>`` belongs to the body of the last chain joint on its path
@@ -644,11 +692,27 @@ def _urdf_masses(robot, root: str, chain_joints: list, home: dict, path: Path) -
     The body's mass is the sum of its links' masses and its centre of mass their
     mass-weighted centres, in the base (root link) frame at the home configuration, in mm.
 
+    Each link's mass and centre of mass are checked against its extent
+    (:func:`hyperstat.solver.kinematics.masses.check_body_mass`: its frame origin, the origins of
+    the joints it carries and its visual and collision geometry, widened by a fifth of the chain's
+    reach).  A moving body is *unknown* when none of its links has an ``<inertial>`` or one of them
+    has geometry (it is a real part) but no ``<inertial>``: then no masses are returned at all (a
+    partial set would make that body massless), and the unknown bodies are listed.
+
+    Returns
+    -------
+    masses : dict
+        Joint -> ``{"mass", "com", "source"}`` (empty when a body is unknown).
+    unknown : list of dict
+        ``joint`` and ``links`` (those without ``<inertial>``) of every unknown body.
+
     Raises
     ------
     DataError
-        If an inertial states a negative or non-finite mass.
+        If a link's mass or centre of mass is implausible for its extent.
     """
+    from hyperstat.solver.kinematics.masses import check_body_mass, chain_reach
+
     by_child = {j.child: j for j in robot.joints}
     frames: dict = {root: np.eye(4)}
 
@@ -676,27 +740,87 @@ def _urdf_masses(robot, root: str, chain_joints: list, home: dict, path: Path) -
             link = j.parent
         return None
 
+    children: dict = {}
+    for j in robot.joints:
+        children.setdefault(j.parent, []).append(j)
+
+    def extent(lk) -> list:
+        """Points (mm, base frame at home) link ``lk`` spans: its origin, its child joints, its geometry."""
+        f = frame(lk.name)
+        pts = [f[:3, 3]]
+        for j in children.get(lk.name, []):
+            t = np.array(j.origin if j.origin is not None else np.eye(4), dtype=float)
+            pts.append((f @ t)[:3, 3])
+        for shape in list(getattr(lk, "visuals", None) or []) + list(getattr(lk, "collisions", None) or []):
+            g = getattr(shape, "geometry", None)
+            if g is None:
+                continue
+            o = np.array(shape.origin if getattr(shape, "origin", None) is not None else np.eye(4), dtype=float)
+            centre = (f @ o)[:3, 3]
+            r = 0.0
+            if getattr(g, "box", None) is not None:
+                r = 0.5 * float(np.linalg.norm(np.asarray(g.box.size, dtype=float)))
+            elif getattr(g, "cylinder", None) is not None:
+                r = math.hypot(float(g.cylinder.radius), 0.5 * float(g.cylinder.length))
+            elif getattr(g, "sphere", None) is not None:
+                r = float(g.sphere.radius)
+            if not (math.isfinite(r) and r <= 100.0):
+                continue  # a geometry size beyond 100 m says nothing about the link
+            pts += [centre + r * d for d in np.vstack([np.eye(3), -np.eye(3)])]
+        return [p * 1000.0 for p in pts]
+
+    # the chain's reach: its link frames from the root to the last moving joint's child and the fixed tail after it
+    tail = by_child_link(robot, chain_joints[-1])
+    while len(children.get(tail, [])) == 1 and children[tail][0].type == "fixed":
+        tail = children[tail][0].child
+    path_links = []
+    while tail in by_child:
+        path_links.append(tail)
+        tail = by_child[tail].parent
+    reach = chain_reach([frame(root)[:3, 3] * 1000.0] + [frame(lk)[:3, 3] * 1000.0 for lk in reversed(path_links)])
     sums: dict = {}
+    unknown: dict = {}
     for lk in robot.links:
+        body = body_of(lk.name)
         inertial = getattr(lk, "inertial", None)
-        if inertial is None or inertial.mass is None:
+        has_mass = inertial is not None and inertial.mass is not None
+        if body is None:
+            continue
+        if not has_mass:
+            real = bool(getattr(lk, "visuals", None) or getattr(lk, "collisions", None))
+            unknown.setdefault(body, {"links": [], "real": False})
+            unknown[body]["links"].append(lk.name)
+            unknown[body]["real"] |= real
             continue
         m = float(inertial.mass)
         if not (math.isfinite(m) and m >= 0.0):
             raise DataError(f"{path}: link '{lk.name}' has an <inertial> mass of {inertial.mass!r}; a mass is a "
                             f"finite number >= 0 (kg).")
-        body = body_of(lk.name)
-        if body is None or m == 0.0:
-            continue
         origin = np.array(inertial.origin if inertial.origin is not None else np.eye(4), dtype=float)
         com = (frame(lk.name) @ origin)[:3, 3] * 1000.0  # m -> mm, base frame at home
+        check_body_mass(m, com, extent(lk), reach, f"{path}: link '{lk.name}' (<inertial>)")
         entry = sums.setdefault(body, {"mass": 0.0, "moment": np.zeros(3), "links": []})
         entry["mass"] += m
         entry["moment"] += m * com
         entry["links"].append(lk.name)
-    return {b: {"mass": e["mass"], "com": (e["moment"] / e["mass"]).tolist(),
-                "source": f"URDF <inertial> of link{'s' if len(e['links']) > 1 else ''} {', '.join(e['links'])}"}
-            for b, e in sums.items() if e["mass"] > 0.0}
+    missing = [{"joint": b, "links": sorted(u["links"])} for b, u in unknown.items() if u["real"] or b not in sums]
+    missing += [{"joint": b, "links": []} for b in chain_joints if b not in sums and b not in unknown]
+    masses = {b: {"mass": e["mass"], "com": (e["moment"] / e["mass"]).tolist(),
+                  "source": f"URDF <inertial> of link{'s' if len(e['links']) > 1 else ''} {', '.join(e['links'])}"}
+              for b, e in sums.items() if e["mass"] > 0.0}
+    if not sums:
+        return {}, []  # no <inertial> at all: nothing declared, nothing to report
+    if missing:
+        return {}, sorted(missing, key=lambda u: chain_joints.index(u["joint"]))
+    zero = [b for b in chain_joints if b in sums and sums[b]["mass"] == 0.0]
+    masses.update({b: {"mass": 0.0, "com": (frame(by_child_link(robot, b))[:3, 3] * 1000.0).tolist(),
+                       "source": f"URDF <inertial> of links {', '.join(sums[b]['links'])} (mass 0)"} for b in zero})
+    return masses, []
+
+
+def by_child_link(robot, joint_name: str) -> str:
+    """The child link of the URDF joint ``joint_name``."""
+    return next(j.child for j in robot.joints if j.name == joint_name)
 
 
 def import_robot(path: str | Path, tip: str | None = None) -> Mechanism:

@@ -159,10 +159,16 @@ def test_controller_file_with_three_targets(workflow, tmp_path, capsys):
     assert max(errors) < 0.1, max(errors)
     assert np.median(errors) < 0.05
     assert np.median(nominal_errors) > 10 * np.median(errors)  # the nominal geometry is far off
-    # an offset edited after export, hash recomputed: the test vectors no longer match, named
+    # an offset edited after export, hash recomputed: it no longer equals its identified estimate (the file
+    # contradicts itself); edited there too, the test vectors no longer match; named both times
     doc["targets"]["SMR2"][0] += 0.01
     doc["sha256"] = content_hash(doc)
     bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    assert main(["check-controller", str(bad)]) == 2
+    assert "differs from 'targets.SMR2[0]'" in capsys.readouterr().err
+    next(p for p in doc["identified"] if p["name"] == "target_SMR2_x")["estimate"] = doc["targets"]["SMR2"][0]
+    doc["sha256"] = content_hash(doc)
     bad.write_text(json.dumps(doc))
     assert main(["check-controller", str(bad)]) == 2
     err = capsys.readouterr().err

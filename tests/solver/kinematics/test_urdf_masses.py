@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hyperstat.solver.diagnosis.effects import gravity_loads
-from hyperstat.solver.errors import DataError
+from hyperstat.solver.errors import ModelError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.robot_import import read_urdf
 
@@ -59,5 +59,6 @@ def test_urdf_inertials_become_link_masses(tmp_path):
 def test_a_negative_urdf_mass_is_refused(tmp_path):
     path = tmp_path / "bad.urdf"
     path.write_text(URDF.format(m1=-2.0))
-    with pytest.raises(DataError, match=r"link 'upper' has an <inertial> mass of -2"):
+    with pytest.raises(ModelError, match=r"link 'upper': <inertial> mass value -2 kg is not a plausible link mass "
+                                         r"\(a mass is >= 0"):
         read_urdf(path)
