@@ -53,12 +53,43 @@ def _json_edit(src: Path, dst: Path, change: Callable[[dict], None]) -> Path:
 
 
 def _rehashed_defect_change(doc: dict) -> None:
-    """Move the first defect by 1e-4 (mm or rad) and recompute the hash: only the test vectors can tell."""
+    """Move the first defect the file does not list as identified by 1e-4 (mm or rad) and recompute the hash: only
+    the test vectors can tell (an identified one must equal its estimate, refused before)."""
     from hyperstat.solver.export.controller import content_hash
 
-    name = sorted(doc["defects"])[0]
+    identified = {p["name"] for p in doc["identified"]}
+    name = next(n for n in sorted(doc["defects"]) if n not in identified)
     doc["defects"][name] += 1e-4
     doc["sha256"] = content_hash(doc)
+
+
+def _jittered_copies(good: Path, dst: Path) -> Path:
+    """Every pose of a measurement file repeated with a 1e-9 rad jitter of its first joint (a copied campaign)."""
+    lines = good.read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("pose,"))
+    copies = []
+    for line in lines[head + 1:]:
+        row = line.split(",")
+        row[0] += "b"
+        row[1] = repr(float(row[1]) + 1e-9)
+        copies.append(",".join(row))
+    return _write(dst, "\n".join(lines + copies) + "\n")
+
+
+def _serial_model(tmp: Path, masses: dict) -> Path:
+    """The robot-import tests' DH table as a model file, with ``metadata.masses`` set to ``masses``."""
+    from hyperstat.solver.kinematics.modelfile import save_model
+    from hyperstat.solver.kinematics.robot_import import import_robot
+
+    path = save_model(import_robot(_robot(tmp, "r.yaml", "angle: deg}", "angle: deg}")), tmp / "serial.skel.json")
+    doc = json.loads(path.read_text())
+    doc["metadata"]["masses"] = masses
+    return _write(tmp / "m.json", json.dumps(doc))
+
+
+def _link_inertial(tmp: Path, inertial: str) -> Path:
+    """The robot-import tests' URDF with link l2 given ``inertial`` (XML)."""
+    return _robot(tmp, "r.urdf", '<link name="l2"/>', f'<link name="l2">{inertial}</link>')
 
 
 def _analyze(path: Path, tmp: Path, *extra: str) -> list:
@@ -307,7 +338,30 @@ CASES = [
                                                           _rehashed(_widen_first_range)))], "joint ranges"),
     Case("controller-magnitude", "controller file", "a defect beyond what the version admits, hash recomputed",
          lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
-             lambda d: d["defects"].update({sorted(d["defects"])[0]: 0.5}))))], "version 2 admits"),
+             lambda d: d["defects"].update({sorted(d["defects"])[0]: 0.5}))))], "version 3 admits"),
+    # controller files that contradict themselves (issue 37; hash recomputed)
+    Case("controller-name", "controller file", "another mechanism's name, hash recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: d.update(mechanism="tripteor_x7"))))], "the embedded model is 'hexapod'"),
+    Case("controller-identified", "controller file", "an identified estimate moved 0.5 mm from its defect, hash "
+         "recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: next(p for p in d["identified"] if p["unit"] == "mm").update(
+                 estimate=next(p for p in d["identified"] if p["unit"] == "mm")["estimate"] + 0.5))))],
+         "the file contradicts itself"),
+    Case("controller-negative-rms", "controller file", "a negative RMS, hash recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: d["statistics"]["identification"].update(rms=-0.01))))], "at least 0"),
+    Case("controller-rank", "controller file", "a rank above the unknowns, hash recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: d["statistics"].update(rank=99))))], "statistics.rank"),
+    Case("controller-condition", "controller file", "condition number 1e308 in a file not written with --force, hash "
+         "recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: d["statistics"].update(condition_number=1e308))))], "--force"),
+    Case("controller-vectors-dropped", "controller file", "test vectors dropped, hash recomputed",
+         lambda t, g: ["check-controller", str(_json_edit(g["controller"], t / "c.json", _rehashed(
+             lambda d: d["test_vectors"].update(vectors=d["test_vectors"]["vectors"][:20]))))], "were vectors dropped"),
     # outputs: checked before the work
     Case("output-is-a-directory", "output", "--out names an existing directory",
          lambda t, g: ["export-controller", str(SC), str(g["data"]), "--out", str(_mkdir(t / "dir.json"))],
@@ -319,6 +373,39 @@ CASES = [
     Case("export-absurd", "calibration", "export of a fit identify calls absurd (z in m, values in mm)",
          lambda t, g: ["export-controller", str(SC), str(_edit(g["data"], t / "d.csv", "z[mm]", "z[m]")), "--out",
                        str(t / "out.json")], "--force"),
+    Case("export-repeated", "calibration", "every pose repeated with a 1e-9 rad jitter",
+         lambda t, g: ["export-controller", str(SC), str(_jittered_copies(g["data"], t / "d.csv")), "--out",
+                       str(t / "out.json")], "repeat others within the noise"),
+    Case("export-outlier", "calibration", "one coordinate 50 mm off",
+         lambda t, g: ["export-controller", str(SC), str(_cell(g["data"], t / "d.csv", "z[mm]", "50")), "--out",
+                       str(t / "out.json")], "--exclude-outliers"),
+    Case("export-few-poses", "calibration", "5 poses for 9 identified parameters",
+         lambda t, g: ["export-controller", str(SC), str(_measurement_rows(g["data"], t / "d.csv", 5)), "--out",
+                       str(t / "out.json")], "equations per identified parameter"),
+    # masses (issue 37)
+    Case("urdf-inertial-twice", "URDF", "a link with two <inertial>",
+         lambda t, g: _import(_link_inertial(t, '<inertial><mass value="3"/></inertial>'
+                                                '<inertial><mass value="4"/></inertial>'), t), "<inertial> 2 times"),
+    Case("urdf-inertial-nan", "URDF", "an inertial origin xyz=\"nan 0 0\"",
+         lambda t, g: _import(_link_inertial(t, '<inertial><mass value="3"/><origin xyz="nan 0 0"/></inertial>'), t),
+         "finite"),
+    Case("urdf-mass-grams", "URDF", "a link mass in grams (3000 for 3 kg)",
+         lambda t, g: _import(_link_inertial(t, '<inertial><mass value="3000"/><origin xyz="0.15 0 0"/></inertial>'),
+                              t), "in grams"),
+    Case("urdf-com-far", "URDF", "a centre of mass 10 m from its link",
+         lambda t, g: _import(_link_inertial(t, '<inertial><mass value="3"/><origin xyz="10 0 0"/></inertial>'), t),
+         "outside the link"),
+    Case("model-mass-absurd", "model file", "metadata.masses with a 1e30 kg body",
+         lambda t, g: _analyze(_serial_model(t, {"1": {"mass": 1e30, "com": [150, 0, 600]},
+                                                 "2": {"mass": 20.0, "com": [800, 0, 670]}}), t),
+         "not plausible for its size"),
+    Case("model-mass-missing", "model file", "metadata.masses leaving a moving joint out",
+         lambda t, g: _analyze(_serial_model(t, {"1": {"mass": 20.0, "com": [0, 0, 600]}}), t),
+         "gives no mass for joint"),
+    Case("template-density", "template", "a material density in g/cm^3 (7.85)",
+         lambda t, g: _analyze(_template(t, "dense.py", GOOD_TEMPLATE_TAIL + "def build(**p):\n    sk = Skeleton('d')\n"
+                                         "    sk.material('steel', density_kg_m3=7.85)\n    return sk\n"), t),
+         "g/cm^3"),
     # command-line values
     Case("option-noise", "option", "noise model that cannot be read",
          lambda t, g: ["simulate", str(SC), "--noise", "5 um", "--out", str(t / "out.csv")], "--noise"),

@@ -466,9 +466,36 @@ class IdentificationResult:
         Whether the fit converged (cost not increased, iteration limit not hit).
     fit_quality : str
         Machine-readable severity of the fit (:func:`fit_quality`): ``"ok"``, ``"model misses
-        an effect"`` (sigma a few times the stated noise: run the diagnosis) or ``"inputs
-        wrong"`` (sigma in the hundreds or residuals of a link's size: joint map, units,
-        targets); export commands refuse the last two without ``--force``.
+        an effect"`` (sigma, or the residuals of a target on the fitted or held-out poses, a few
+        times the stated noise: run the diagnosis) or ``"inputs wrong"`` (in the hundreds, or
+        residuals of a link's size: joint map, units, targets copied or stacked); export
+        commands refuse the last two without ``--force``.
+    findings : list of dict
+        What the numbers say, worst first: ``code``, ``message`` (the warning), ``refuses`` and
+        ``reason`` (what the export gate says when it refuses); notes (``refuses`` false) are
+        passed on all the same.  ``warnings`` holds the messages.
+    targets : dict
+        Per target (``"target"`` for a single unnamed one): ``identification`` and ``validation``
+        stats of its 3-D residual norms with the ``noise_rms`` its rows state (mm).
+    noise_ratios : dict
+        ``identification`` and ``validation``: per target, RMS residual over RMS noise;
+        ``reference``: ``"stated noise"`` or ``"fit"`` (no noise stated: the fit's residual scale).
+    equations : dict
+        :func:`~hyperstat.solver.calibration.fit_checks.equation_count` of the fit.
+    distinct_poses : int
+        Poses once repeats within the noise are counted once.
+    repeated_poses : list of list of str
+        Groups of poses that repeat one another within the noise.
+    region : dict
+        :func:`~hyperstat.solver.calibration.fit_checks.joint_region` of the identification poses.
+    excluded : list of dict
+        Observations excluded as outliers on request (``set, pose, target, deleted_z, norm``).
+    outlier_scale : float
+        Robust scale of the outlier test (weighted units).
+    without_outliers : dict or None
+        When outliers are flagged: the fit without them, as ``--exclude-outliers`` makes it
+        (``excluded``, ``fit_quality``, ``sigma``, ``identification_rms`` and ``validation_rms`` in mm);
+        the outliers named are those it takes out, one at a time, the worst first.
     """
 
     rank: int
@@ -512,6 +539,7 @@ class IdentificationResult:
     region: dict | None = None
     excluded: list = field(default_factory=list)
     outlier_scale: float | None = None
+    without_outliers: dict | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (units: mm, rad)."""
@@ -538,6 +566,7 @@ class IdentificationResult:
             "repeated_poses": self.repeated_poses,
             "region": self.region,
             "excluded": self.excluded,
+            "without_outliers": self.without_outliers,
             "findings": [{k: v for k, v in f.items()} for f in self.findings],
             "converged": self.converged,
             "nominal": self.nominal,
@@ -716,6 +745,7 @@ def gauss_newton(evaluate, x0: np.ndarray, column_scale: np.ndarray, max_iter: i
     return x
 
 
+HELD_OUT_NOTE = 1.5  #: held-out noise ratio above which an "ok" fit gets a note (not a refusal) pointing at diagnose
 MAX_EXCLUDED = 20  #: most observations --exclude-outliers takes out (beyond, the campaign itself is suspect)
 OUTLIER_Z = 3.5  #: modified z-score (Iglewicz and Hoaglin) reported per observation as ``robust_z`` (informative)
 
@@ -1081,6 +1111,7 @@ def identify(
         for i in rows:
             table[i]["deleted_z"] = float(np.sqrt(t2[b]))
             table[i]["outlier"] = bool(flagged[b])
+    _systematic_not_outliers(table)
     val_stats = None
     val_res = None
     val_table: list = []
@@ -1105,7 +1136,10 @@ def identify(
         limit_v = threshold(3, len(vw))
         for i, r in enumerate(val_table):
             r["deleted_z"] = float(vw[i] / val_scale)
-            r["outlier"] = bool(vw[i] ** 2 / val_scale ** 2 > limit_v)
+            # held-out poses are judged against a fit free of identification outliers: one that pulls the fit also
+            # spoils the prediction at nearby held-out poses (they are judged again once it is excluded)
+            r["outlier"] = bool(vw[i] ** 2 / val_scale ** 2 > limit_v) and not any(t["outlier"] for t in table)
+        _systematic_not_outliers(val_table)
         if twists is not None:
             repeated_held_out = coincident_across(data, validation, twists, sigma_axis, width, model.kin.length_scale)
     orientation = None
@@ -1139,6 +1173,25 @@ def identify(
                "coinciding": coinciding_targets(offsets, offset_cov) if len(offsets) > 1 else [],
                "unassembled": 0 if vp is None else int((~vp.converged).sum()), "limit": limit,
                "excluded": list(_excluded or [])}
+    if not exclude_outliers and any(r["outlier"] for r in table + val_table):
+        # A gross error pulls a weakly conditioned fit far from the linear regime, and observations near it then look
+        # out of line too (swamping).  Which ones are outliers is decided the way --exclude-outliers takes them out:
+        # the worst first, the fit redone without it (nonlinear), the others judged again; only those taken out are
+        # named (the calibration itself is left as fitted: nothing is removed without --exclude-outliers).
+        drop, drop_v, gone = _exclusion_step(table, val_table, list(_excluded or []))
+        probe = identify(mechanism, analysis, data.subset(~drop),
+                         None if drop_v is None else validation.subset(~drop_v), effects=effects,
+                         kinematics=kinematics, rank_tol=rank_tol, max_nfev=max_nfev, base=imposed, nominal=False,
+                         max_rounds=max_rounds, select_size=select_size, folds=folds, exclude_outliers=True,
+                         _excluded=gone)
+        named = {(e["set"], str(e["pose"]), str(e["target"])) for e in probe.excluded}
+        for name, rows in (("identification", table), ("validation", val_table)):
+            for r in rows:
+                r["outlier"] = (name, str(r["pose"]), str(r["target"])) in named
+        context["without_outliers"] = {
+            "excluded": probe.excluded, "fit_quality": probe.fit_quality, "sigma": probe.sigma,
+            "identification_rms": probe.identification["rms"],
+            "validation_rms": None if probe.validation is None else probe.validation["rms"]}
     findings = early + _findings(context)
     result = IdentificationResult(
         rank=rank,
@@ -1186,25 +1239,46 @@ def identify(
         region=joint_region(model.mechanism, data),
         excluded=list(_excluded or []),
         outlier_scale=out_scale,
+        without_outliers=context.get("without_outliers"),
     )
-    if exclude_outliers and len(result.excluded) < MAX_EXCLUDED:
-        # one identification observation at a time, the worst first (a gross error pulls the fit and can make its
-        # neighbours look out of line: they are judged again without it); held-out ones, which pull nothing, at once
-        worst = max((r["deleted_z"] for r in table if r["outlier"]), default=None)
-        drop = [r["outlier"] and r["deleted_z"] == worst for r in table] if worst is not None else [False] * len(table)
-        drop_v = [r["outlier"] for r in val_table] if worst is None else [False] * len(val_table)
-        if any(drop) or any(drop_v):
-            gone = result.excluded + [
-                {"set": name, "pose": r["pose"], "target": r["target"], "deleted_z": r["deleted_z"], "norm": r["norm"]}
-                for name, rows, flags in (("identification", table, drop), ("validation", val_table, drop_v))
-                for r, f in zip(rows, flags) if f]
-            keep_v = None if not val_table else ~np.array(drop_v, dtype=bool)
-            return identify(mechanism, analysis, data.subset(~np.array(drop, dtype=bool)),
-                            None if keep_v is None else validation.subset(keep_v), effects=effects,
-                            kinematics=kinematics, rank_tol=rank_tol, max_nfev=max_nfev, base=imposed,
-                            nominal=nominal, max_rounds=max_rounds, select_size=select_size, folds=folds,
-                            exclude_outliers=True, _excluded=gone)
+    if exclude_outliers and len(result.excluded) < MAX_EXCLUDED and any(r["outlier"] for r in table + val_table):
+        drop, drop_v, gone = _exclusion_step(table, val_table, result.excluded)
+        return identify(mechanism, analysis, data.subset(~drop),
+                        None if drop_v is None else validation.subset(~drop_v), effects=effects,
+                        kinematics=kinematics, rank_tol=rank_tol, max_nfev=max_nfev, base=imposed,
+                        nominal=nominal, max_rounds=max_rounds, select_size=select_size, folds=folds,
+                        exclude_outliers=True, _excluded=gone)
     return result
+
+
+def _exclusion_step(table: list, val_table: list, excluded: list) -> tuple:
+    """What ``--exclude-outliers`` takes out next: the worst flagged identification observation (one at a time: a
+    gross error pulls the fit and can make its neighbours look out of line; they are judged again without it), or,
+    when none is, every flagged held-out one (they pull nothing).  Returns the masks of rows to drop from the
+    identification and held-out sets (None without held-out data) and the excluded list so far."""
+    worst = max((r["deleted_z"] for r in table if r["outlier"]), default=None)
+    drop = np.array([bool(r["outlier"] and r["deleted_z"] == worst) for r in table], dtype=bool)
+    drop_v = None if not val_table else np.array([bool(r["outlier"] and worst is None) for r in val_table],
+                                                 dtype=bool)
+    gone = list(excluded) + [
+        {"set": name, "pose": r["pose"], "target": r["target"], "deleted_z": r["deleted_z"], "norm": r["norm"]}
+        for name, rows, flags in (("identification", table, drop), ("validation", val_table, drop_v))
+        if flags is not None for r, f in zip(rows, flags) if f]
+    return drop, drop_v, gone
+
+
+def _systematic_not_outliers(table: list, share: float = 0.25) -> None:
+    """Unflag a target whose flagged observations are more than ``share`` of its own (at least 3): a whole target
+    off is not a few gross errors but a target's data at fault (copied or stacked columns), which its noise ratio
+    reports; excluding it observation by observation would hide that."""
+    by_target: dict = {}
+    for r in table:
+        by_target.setdefault(r["target"], []).append(r)
+    for rows in by_target.values():
+        n = sum(r["outlier"] for r in rows)
+        if n >= 3 and n > share * len(rows):
+            for r in rows:
+                r["outlier"] = False
 
 
 def _observation_blocks(data: MeasurementSet, groups: list, oriented: bool) -> tuple[list, list]:
@@ -1381,6 +1455,21 @@ def _worst(ratios: dict | None) -> tuple[str, float] | None:
     return max(items, key=lambda kv: kv[1]) if items else None
 
 
+def _shown_worst(worst: tuple | None) -> tuple | None:
+    """``(name, ratio)`` with the target named for a sentence: "the target" for a single unnamed one."""
+    if worst is None:
+        return None
+    return ("the target" if worst[0] == "target" else f"target {worst[0]}", worst[1])
+
+
+def _without(probe: dict | None) -> str:
+    """`` (without them: ...)`` from the fit without the outliers, or nothing."""
+    if not probe:
+        return ""
+    val = f", held-out RMS {probe['validation_rms']:.4g} mm" if probe["validation_rms"] is not None else ""
+    return f" (without them: sigma {probe['sigma']:.3g}, fit quality {probe['fit_quality']}{val})"
+
+
 def _findings(ctx: dict) -> list:
     """What the fit's numbers say about it, worst first (the words of :func:`fit_quality` and the gate's reasons).
 
@@ -1403,8 +1492,8 @@ def _findings(ctx: dict) -> list:
         out.append(_finding("not-converged", "THE FIT DID NOT CONVERGE (the cost rose or the iteration limit was hit): "
                             "the estimates are not a least-squares solution; check the joint map, the units and the "
                             "targets.", "the fit did not converge (its estimates are not a least-squares solution)"))
-    worst_val = _worst(ratios["validation"])
-    worst_id = _worst(ratios["identification"]) if stated else None
+    worst_val = _shown_worst(_worst(ratios["validation"]))
+    worst_id = _shown_worst(_worst(ratios["identification"]) if stated else None)
     inputs = "a wrong joint map, wrong units, targets stacked in one column or a moved tracker"
     if quality == "inputs wrong":
         if rms > SIZE_INPUTS * ctx["length_scale"] or (stated and sigma >= SIGMA_INPUTS):
@@ -1427,8 +1516,9 @@ def _findings(ctx: dict) -> list:
             detail = f"the {which} residuals of {name} are {r:.3g} times {noise_words}"
             inputs = ("one target's columns copied from another's, targets stacked in one column, a wrong joint map, "
                       "wrong units or a moved tracker")
-        out.append(_finding("inputs-wrong", message, f"identify calls the fit absurd: {detail} (the inputs are wrong: "
-                                                     f"{inputs})"))
+        with_outliers = " with the outliers in" if pulled else ""
+        out.append(_finding("inputs-wrong", message, f"identify calls the fit absurd{with_outliers}: {detail} (the "
+                                                     f"inputs are wrong: {inputs})"))
     elif quality == "model misses an effect":
         gain = ""
         if nominal is not None and val_stats is not None and nominal.get("validation") is not None:
@@ -1460,9 +1550,16 @@ def _findings(ctx: dict) -> list:
             detail = f"the {'held-out ' if worst_val and worst_val[1] > SIGMA_WARN else ''}residuals of {name} are " \
                      f"{r:.3g} times {noise_words}"
         out.append(_finding("effect-missing", message,
-                            f"{detail}: the calibrated model is not what the data say the machine is (an effect it "
+                            f"{detail}{' with the outliers in' if pulled else ''}: the calibrated model is not what "
+                            f"the data say the machine is (an effect it "
                             f"lacks: run 'hyperstat diagnose' and export with --diagnose or --effect; or too few poses; "
                             f"or the noise understated)"))
+    if quality == "ok" and worst_val is not None and worst_val[1] > HELD_OUT_NOTE:
+        out.append(_finding(
+            "held-out-above-noise",
+            f"the held-out residuals of {worst_val[0]} are {worst_val[1]:.3g} times {noise_words} (a calibration that "
+            f"describes the machine gives about 1.0-1.3 on held-out poses): an effect the rigid model lacks may remain; "
+            f"`hyperstat diagnose` on the same files tells."))
     counts = ctx["counts"]
     if not counts["enough"]:
         out.append(_finding(
@@ -1517,11 +1614,12 @@ def _findings(ctx: dict) -> list:
         shown = ", ".join(f"{'held-out ' if r in flagged_v else ''}{_observation_name(r)} (t = {r['deleted_z']:.3g}, "
                           f"{r['norm']:.4g} mm)" for r in worst)
         n = len(flagged) + len(flagged_v)
-        out.append(_finding(
+        out.insert(0, _finding(  # first: an outlier also makes the findings above (it pulls the fit)
             "outliers",
             f"OUTLIERS: {n} observation(s) out of line with the others (normalised residual with the observation left "
             f"out above {np.sqrt(ctx['limit']):.3g}, p < {FAMILY_ALPHA:g} over the campaign): {shown}. They pull the "
-            f"fit; check them, then exclude them with --exclude-outliers (they are never removed otherwise).",
+            f"fit{_without(ctx.get('without_outliers'))}; check them, then exclude them with --exclude-outliers (they "
+            f"are never removed otherwise).",
             f"{n} observation(s) are outliers ({shown}): check them, then exclude them with --exclude-outliers",
             observations=[{"set": "validation" if r in flagged_v else "identification", "pose": r["pose"],
                            "target": r["target"], "deleted_z": r["deleted_z"], "norm": r["norm"]}

@@ -60,62 +60,99 @@ def threshold(k: int, n_observations: int) -> float:
     return float(chi2.isf(FAMILY_ALPHA / max(n_observations, 1), k))
 
 
+def _deleted(r: np.ndarray, j: np.ndarray, blocks: list, active: np.ndarray) -> np.ndarray:
+    """``r_B^T (I - H_BB)^-1 r_B`` of every block, with the hat matrix of the active blocks' rows (0 for the others'
+    own leverage: a block already out is judged by its residual against the fit without it)."""
+    rows = np.concatenate([blocks[i] for i in np.flatnonzero(active)]) if active.any() else np.zeros(0, dtype=int)
+    q = np.zeros(len(blocks))
+    if j is not None and j.shape[1] and len(rows):
+        qa, _ = np.linalg.qr(j[rows])
+        where = np.full(len(r), -1)
+        where[rows] = np.arange(len(rows))
+    else:
+        qa, where = None, None
+    for i, b in enumerate(blocks):
+        rb = r[b]
+        if qa is None or not active[i]:
+            q[i] = float(rb @ rb)
+            continue
+        qb = qa[where[b]]
+        try:
+            q[i] = float(rb @ np.linalg.solve(np.eye(len(b)) - qb @ qb.T, rb))
+        except np.linalg.LinAlgError:  # an observation that alone fixes a parameter: it cannot be judged
+            q[i] = 0.0
+        if not np.isfinite(q[i]) or q[i] < 0:
+            q[i] = 0.0
+    return q
+
+
 def deleted_residual_test(r: np.ndarray, j: np.ndarray, blocks: list, noise_stated: bool,
-                          scale: float | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+                          scale: float | None = None, max_flagged: int = 20) -> tuple[np.ndarray, float, np.ndarray]:
     """Normalised deleted residuals ``t^2`` of observation blocks, the robust scale, and the outlier flags.
+
+    A gross error pulls the fit and can lift its neighbours' statistics above the limit (swamping),
+    and two of them can hide each other (masking).  The test therefore steps backwards: the worst
+    flagged block is set aside, the linearised fit is redone without it (``r <- r + J delta``,
+    ``delta`` the least-squares step on the remaining rows), and the others are judged again,
+    until none is flagged (at most ``max_flagged`` blocks set aside).  The flagged blocks are those
+    set aside; each keeps the ``t^2`` it had when it was.
 
     Parameters
     ----------
     r : ndarray, (N,)
-        Weighted residuals at the solution.
+        Weighted residuals at the solution (prediction minus measurement).
     j : ndarray, (N, p)
-        Weighted Jacobian of the fitted (base) parameters at the solution.
+        Weighted Jacobian of the fitted (base) parameters at the solution (None for held-out data).
     blocks : list of ndarray of int
         Rows of each observation (one block per observation; repeated poses of one target merged).
     noise_stated : bool
         Whether ``r`` is weighted by a stated noise (the scale is then at least 1).
     scale : float, optional
         Impose the scale ``s`` (e.g. the identification's, for held-out data); robust estimate otherwise.
+    max_flagged : int
+        Most blocks set aside.
 
     Returns
     -------
     t2 : ndarray, (n_blocks,)
         ``r_B^T (I - H_BB)^-1 r_B / s^2``.
     s : float
-        The scale used.
+        The scale of the last round.
     flagged : ndarray of bool
-        p-value below :data:`FAMILY_ALPHA` / n_blocks.
+        p-value below :data:`FAMILY_ALPHA` / n_blocks when set aside.
     """
     from scipy.stats import chi2
 
-    r = np.asarray(r, dtype=float)
-    q = np.zeros(len(blocks))
+    r = np.asarray(r, dtype=float).copy()
     k = np.array([len(b) for b in blocks], dtype=int)
-    if j is not None and j.shape[1]:
-        qr_q, _ = np.linalg.qr(j)
-    else:
-        qr_q = np.zeros((len(r), 0))
-    for i, b in enumerate(blocks):
-        qb = qr_q[b]
-        h = qb @ qb.T
-        m = np.eye(len(b)) - h
-        try:
-            q[i] = float(r[b] @ np.linalg.solve(m, r[b]))
-        except np.linalg.LinAlgError:  # an observation that alone fixes a parameter: it cannot be judged
-            q[i] = 0.0
-        if not np.isfinite(q[i]) or q[i] < 0:
-            q[i] = 0.0
-    if scale is None:
-        med = chi2.ppf(0.5, k)
-        s2 = float(np.median(q / med)) if len(q) else 1.0
-        if noise_stated:
-            s2 = max(s2, 1.0)
-        s2 = max(s2, 1e-300)
-    else:
-        s2 = max(float(scale) ** 2, 1e-300)
-    t2 = q / s2
     limit = chi2.isf(FAMILY_ALPHA / max(len(blocks), 1), k)
-    return t2, float(np.sqrt(s2)), t2 > limit
+    active = np.ones(len(blocks), dtype=bool)
+    flagged = np.zeros(len(blocks), dtype=bool)
+    t2_out = np.zeros(len(blocks))
+    s2 = 1.0
+    while True:
+        q = _deleted(r, j, blocks, active)
+        if scale is None:
+            med = chi2.ppf(0.5, k[active]) if active.any() else np.ones(1)
+            s2 = float(np.median(q[active] / med)) if active.any() else 1.0
+            if noise_stated:
+                s2 = max(s2, 1.0)
+            s2 = max(s2, 1e-300)
+        else:
+            s2 = max(float(scale) ** 2, 1e-300)
+        t2 = q / s2
+        t2_out[active] = t2[active]
+        over = active & (t2 > limit)
+        if not over.any() or flagged.sum() >= max_flagged or active.sum() <= 1:
+            break
+        worst = int(np.argmax(np.where(over, t2, -np.inf)))
+        flagged[worst] = True
+        active[worst] = False
+        if j is not None and j.shape[1]:
+            rows = np.concatenate([blocks[i] for i in np.flatnonzero(active)])
+            delta = np.linalg.lstsq(j[rows], -r[rows], rcond=None)[0]
+            r = r + j @ delta
+    return t2_out, float(np.sqrt(s2)), flagged
 
 
 def _pose_table(data) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -161,7 +161,8 @@ def check_declared_masses(mechanism, source: str, error: type = DataError) -> No
         if not isinstance(com, (list, tuple)) or len(com) != 3 or any(
                 isinstance(v, bool) or not isinstance(v, (int, float)) for v in com):
             raise error(f"{where}.com must be [x, y, z] (mm, base frame at home), got {com!r}.")
-        finite(spec["mass"], f"{where}.mass", "kg", error)
+        if finite(spec["mass"], f"{where}.mass", "kg", error) < 0.0:
+            raise error(f"{where}: a mass of {spec['mass']:g} kg is negative; a mass is >= 0 (kg).")
         for v in com:
             finite(v, f"{where}.com", "mm", error)
     if len(mechanism.chains) != 1:
