@@ -513,11 +513,12 @@ def check_admissible(doc: dict, source: str = "controller file") -> None:
         if not float(np.linalg.norm(v)) <= rules["offset_mm"]:
             raise DataError(f"{source}: field '{field}' is {float(np.linalg.norm(v)):g} mm from the output frame, "
                             f"beyond the {rules['offset_mm']:g} mm version {doc['version']} admits.")
-    xi = np.array([doc["defects"][p.name] for p in mech.parameters], dtype=float)
-    _check_vector_draws(doc, mech, xi, rules, source)
     from hyperstat.solver.export.controller_checks import check_consistency
 
-    check_consistency(doc, mech, Kinematics(mech).length_scale, source)
+    kin = Kinematics(mech)
+    check_consistency(doc, mech, kin.length_scale, source)  # cheap: before the vectors are assembled again
+    xi = np.array([doc["defects"][p.name] for p in mech.parameters], dtype=float)
+    _check_vector_draws(doc, mech, xi, rules, source)
 
 
 def _same_names(given: dict, names: list, unknown: str, missing: str) -> None:

@@ -355,3 +355,124 @@ def test_an_unreachable_range_is_refused():
     _leg(doc, j.name)["range"][0] -= 0.25 * (j.range[1] - j.range[0])
     with pytest.raises(DataError, match=f"low end .* of actuated joint '{j.name}' is not reachable"):
         check_reachable_ranges(ControllerModel(doc))
+
+
+# ---------------------------------------------------------------- a file consistent with itself (issue 37)
+@pytest.fixture(scope="module")
+def exported_fanuc(tmp_path_factory):
+    """A FANUC-like 6R with its joint map (J2 sign, J3 = q3 - J2 coupling, J6 offset), three reflectors, 50 + 30
+    poses of the independent generator: the controller file ``export-controller`` writes."""
+    from tests.solver.calibration.fanuc_like import DH_YAML, Campaign
+
+    tmp = tmp_path_factory.mktemp("ctlfanuc")
+    (tmp / "f.dh.yaml").write_text(DH_YAML)
+    assert main(["import-robot", str(tmp / "f.dh.yaml"), "--out", str(tmp / "f.skel.json"), "--quiet"]) == 0
+    c = Campaign(21)
+    (tmp / "d.csv").write_text(c.csv(c.poses(50), "P"))
+    (tmp / "v.csv").write_text(c.csv(c.poses(30), "V"))
+    out = tmp / "machine.json"
+    assert main(["export-controller", str(tmp / "f.skel.json"), str(tmp / "d.csv"), "--validation", str(tmp / "v.csv"),
+                 "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def _identified_mm(doc: dict) -> dict:
+    return next(p for p in doc["identified"] if p["kind"] == "geometry" and p["unit"] == "mm")
+
+
+def _swap_map(doc: dict) -> None:
+    joints = doc["model"]["metadata"]["joint_map"]["joints"]
+    joints["2"], joints["3"] = joints["3"], joints["2"]
+
+
+ISSUE_CONTRADICTIONS = [
+    ("fanuc", "joint map entries 2 and 3 swapped", _swap_map, "the joint map was changed after export"),
+    ("fanuc", "joint map angle unit deg -> rad",
+     lambda d: d["model"]["metadata"]["joint_map"]["units"].__setitem__("angle", "rad"),
+     "the joint map was changed after export"),
+    ("tripteor", "mechanism 'hexapod' on a Tripteor", lambda d: d.__setitem__("mechanism", "hexapod"),
+     "field 'mechanism' is 'hexapod', but the embedded model is 'tripteor_x7'"),
+    ("tripteor", "12 of 24 test vectors dropped",
+     lambda d: d["test_vectors"].__setitem__("vectors", d["test_vectors"]["vectors"][:12]), "were vectors dropped?"),
+    ("tripteor", "an identified estimate moved 0.5 mm", lambda d: _identified_mm(d).__setitem__(
+        "estimate", _identified_mm(d)["estimate"] + 0.5), "the file contradicts itself"),
+    ("tripteor", "a negative RMS", lambda d: d["statistics"]["identification"].__setitem__("rms", -0.01),
+     "'statistics.identification.rms' is -0.01 mm"),
+    ("tripteor", "rank 99 for its unknowns", lambda d: d["statistics"].__setitem__("rank", 99),
+     "'statistics.rank' is 99"),
+    ("tripteor", "condition number 1e308", lambda d: d["statistics"].__setitem__("condition_number", 1e308),
+     "not marked as written with --force"),
+]
+
+
+@pytest.mark.parametrize("which, what, change, needle", ISSUE_CONTRADICTIONS, ids=[c[1] for c in ISSUE_CONTRADICTIONS])
+def test_the_issues_contradictions_are_refused(exported, exported_fanuc, tmp_path, capsys, which, what, change,
+                                               needle):
+    """The eight controller files of issue 37 (hash recomputed after the change): refused without --source, in one
+    sentence naming the field; the untouched files pass."""
+    path = exported_fanuc if which == "fanuc" else exported[0]
+    _refused(_rehashed(path, tmp_path, change), capsys, needle)
+
+
+def test_the_vectors_are_every_draw_and_corner_that_assembles(exported, exported_fanuc, tripteor):
+    """A serial 6R assembles everywhere: its file holds the 24 draws and all 2^6 corners of the ranges; the
+    Tripteor's corners (every actuated joint at one end of its range) and draws (middle 80 %) are read off the model's
+    ranges, independently of how the file was written."""
+    fan = read_controller(exported_fanuc)
+    assert len(fan["test_vectors"]["vectors"]) == 24 + 2 ** 6
+    doc = read_controller(exported[0])
+    act = tripteor.actuated
+    lo, hi = tripteor.ranges[act].T
+    corners = draws = 0
+    for v in doc["test_vectors"]["vectors"]:
+        qa = np.array(v["actuated"])
+        at_end = np.isclose(qa, lo, rtol=0, atol=1e-12) | np.isclose(qa, hi, rtol=0, atol=1e-12)
+        inside = (qa >= lo + 0.1 * (hi - lo) - 1e-9) & (qa <= hi - 0.1 * (hi - lo) + 1e-9)
+        assert at_end.all() or inside.all()
+        corners += bool(at_end.all())
+        draws += bool(inside.all())
+    assert draws >= 12 and corners >= 1 and corners + draws == len(doc["test_vectors"]["vectors"])
+    assert check_controller(exported[0])["corners"] == corners
+
+
+def test_controller_values_are_the_generators_readings(exported_fanuc):
+    """Each vector's controller values are what the independent generator's own FANUC convention (its
+    ``controller``: J2 sign, J3 = q3 - J2, J4 sign, J6 offset) reads at the vector's model joints."""
+    from tests.solver.calibration.fanuc_like import Campaign
+
+    doc = read_controller(exported_fanuc)
+    for v in doc["test_vectors"]["vectors"]:
+        np.testing.assert_allclose(v["controller"], Campaign.controller(np.array(v["actuated"])), rtol=0, atol=1e-9)
+
+
+def test_check_controller_and_check_move_name_the_calibrated_region(exported, tmp_path, capsys):
+    """The region the poses covered is the file's; check-controller counts the vectors beyond it, and check-move
+    says where a move of the wrist joint 6 (world C, in degrees) leaves it: where the line crosses the region's end
+    (C moves alone, so that point is known beforehand)."""
+    from hyperstat.solver.calibration.measurements import read_measurements
+
+    path, res, _ = exported
+    doc = read_controller(path)
+    region = doc["calibration"]["region"]
+    commanded = read_measurements(path.parent / "d.csv", res.model.mechanism).q  # the poses' actuated values
+    np.testing.assert_allclose(region["low"], commanded.min(axis=0), rtol=1e-11)  # the file keeps 12 digits
+    np.testing.assert_allclose(region["high"], commanded.max(axis=0), rtol=1e-11)
+    qa = np.array([v["actuated"] for v in doc["test_vectors"]["vectors"]])
+    beyond = int(np.sum(np.any((qa < np.array(region["low"])) | (qa > np.array(region["high"])), axis=1)))
+    assert main(["check-controller", str(path), "--json", str(tmp_path / "check.json")]) == 0
+    assert json.loads((tmp_path / "check.json").read_text())["outside_region"] == beyond and beyond > 0
+    assert f"{beyond} of the {len(qa)} test vectors lie beyond it" in capsys.readouterr().out
+    k = region["joints"].index("6")
+    top = np.degrees(region["high"][k])
+    c0, c1 = top - 10.0, top + 10.0  # joint 6's range is +-180 degrees, the poses cover less
+    out = tmp_path / "move.json"
+    code = main(["check-move", "--controller", str(path), "--from", f"X100 Y0 Z-1100 B0 C{c0:.6f}",
+                 "--to", f"X100 Y0 Z-1100 B0 C{c1:.6f}", "--json", str(out)])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    cal = json.loads(out.read_text())["calibrated"]
+    assert not cal["inside"] and cal["joint"] == "6" and cal["value"] > region["high"][k]
+    samples = json.loads(out.read_text())["samples"]
+    first = next(i for i in range(1, samples + 1) if c0 + i / samples * (c1 - c0) > top + np.degrees(1e-6))
+    assert cal["fraction"] == pytest.approx(first / samples)
+    assert "leaves the region the calibration's poses covered" in text and "joint '6'" in text
