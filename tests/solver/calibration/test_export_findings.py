@@ -175,6 +175,15 @@ def test_held_out_six_times_the_noise_is_never_ok(fanuc, tmp_path):
     assert code == 0 and "written with --force although" in err
     rec = json.loads(out.read_text())["calibration"]
     assert rec["forced"] and rec["fit_quality"] == "model misses an effect" and "held-out" in rec["reasons"][0]
+    # the record cannot be quietly dropped: unmarked (hash recomputed), the file contradicts its own statistics
+    from hyperstat.solver.export.controller import content_hash
+
+    doc = json.loads(out.read_text())
+    doc["calibration"].update(forced=False, reasons=[], findings=[], fit_quality="ok")
+    doc["sha256"] = content_hash(doc)
+    (tmp_path / "unmarked.json").write_text(json.dumps(doc))
+    code, _, err = run_cli(["check-controller", tmp_path / "unmarked.json"])
+    assert code == 2 and "its residual and noise RMS make it 'model misses an effect'" in err, err
     # the same calibration with an honest held-out file is a good one, and is written
     ok = tmp_path / "ok.json"
     code, _, err = run_cli(["export-controller", fanuc, tmp_path / "d.csv", "--validation", tmp_path / "v_ok.csv",
