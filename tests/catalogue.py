@@ -514,17 +514,31 @@ twice; an axis through the same point twice, or through two points that coincide
 run by every reader of the file after the hash): a test-vector tolerance other than the version's;
 a defect the model does not have, or one missing; a defect beyond 0.1 rad or 100 mm, a tool point or
 target beyond 2000 mm; an effect option, parameter or value the effect does not admit; keys the
-format does not hold (schema); test vectors that are not the version's draws from the file's
-joint ranges (a range changed after export); fewer than 12 vectors.  `check-controller` also
-refuses an actuated range a parallel mechanism cannot reach, and, with `--source`, a model (ranges
-included) that differs from the trusted one.
+format does not hold (schema); test vectors that are not the version's configurations from the file's
+joint ranges (a range changed after export), one missing that assembles, fewer than 12 draws;
+controller joint values the joint map does not turn into the vectors' actuated values.  Nor can it
+contradict itself (`solver/export/controller_checks.py`): another mechanism's name, an identified
+estimate other than the value applied, implausible statistics (a negative RMS, a rank above the
+unknowns, a condition number that is not finite), a calibration record whose numbers the export gate
+refuses in a file not marked as written with `--force`.  `check-controller` also refuses an actuated
+range a parallel mechanism cannot reach, and, with `--source`, a model (ranges included) that differs
+from the trusted one.
 Tests: `tests/solver/export/test_controller.py`.
 
 **A calibration that must not be exported**: `export-controller`, `export-urdf` and `export-dh` refuse
-a fit identify calls absurd or one worse than the nominal model on held-out poses, unless `--force`
-(`... not written: it predicts the held-out poses worse than the nominal model (validation RMS A mm
-against B mm with the nominal geometry); check the inputs, or write it anyway with --force.`).
-Tests: `tests/solver/export/test_calibration_gate.py`.
+every refusing finding of identify unless `--force`, which records the reasons in the file: residuals
+(fitted or held-out, per target) more than 3 times the stated noise or absurd, worse than the nominal
+model on held-out poses, fewer than 2 equations per parameter, poor conditioning, targets that
+coincide, poses repeated within the noise, outliers still in (`... not written: it predicts the held-out
+poses worse than the nominal model (validation RMS A mm against B mm with the nominal geometry); check
+the inputs, or write it anyway with --force (the reasons are then recorded in the file).`).
+Tests: `tests/solver/export/test_calibration_gate.py`, `tests/solver/calibration/test_export_findings.py`.
+
+**Masses** (`solver/kinematics/masses.py`): a URDF `<inertial>` declared twice or with a value that
+is not finite, a mass beyond a ball of solid copper around its link, a centre of mass outside its link
+widened by a fifth of the chain's reach (`import-robot`); the same for `metadata.masses`, and a moving
+joint of a serial chain left out of it; a material density outside 100-22590 kg/m^3 (`sk.material`).
+Tests: `tests/solver/kinematics/test_mass_plausibility.py`.
 
 **Outputs**: refused before the work (the table's examples, and an output folder that cannot be
 written: `TMP/locked: the directory cannot be written (Operation not permitted), so ... cannot be
