@@ -229,6 +229,18 @@ def format_identification(result) -> str:
     lines.append(f"sigma {result.sigma:.3g} " + ("(weighted residuals: 1 when the noise model holds)" if weighted
                                                  else "mm (no noise model in the file: residual std per axis)"))
     lines.append(f"fit quality: {getattr(result, 'fit_quality', 'ok')}")
+    ratios = getattr(result, "noise_ratios", None) or {}
+    for part in ("identification", "validation"):
+        per = ratios.get(part)
+        if per and (part == "validation" or ratios.get("reference") == "stated noise"):
+            ref = "the stated noise" if ratios.get("reference") == "stated noise" else "the fit's residual scale"
+            lines.append(f"  {part} RMS / {ref}, per target: " + ", ".join(
+                f"{name} {v:.3g}" for name, v in per.items() if v is not None))
+    counts = getattr(result, "equations", None)
+    if counts:
+        lines.append(f"equations: {counts['equations']} for {counts['parameters']} parameters "
+                     f"({counts['per_parameter']:.3g} per parameter, a pose counting at most 6 for the machine; "
+                     f"{counts['poses']} distinct poses)")
     rounds = getattr(result, "base_rounds", [])
     if len(rounds) > 1:
         lines.append(f"identifiable set decided at the solution: rank by round {rounds}")
@@ -245,7 +257,9 @@ def format_identification(result) -> str:
     table = getattr(result, "residual_table", [])
     flagged = [r for r in table if r["outlier"]]
     if table:
-        lines.append(f"outliers (robust z > 3.5 on weighted residual norms): {len(flagged)} of {len(table)}")
+        lines.append(f"outliers (normalised residual with the observation left out, p < 0.001 over the campaign): "
+                     f"{len(flagged)} of {len(table)}" + (f"; excluded on request: {len(result.excluded)}"
+                                                          if getattr(result, "excluded", None) else ""))
     lines += [f"warning: {w}" for w in result.warnings]
     return "\n".join(lines) + "\n"
 
