@@ -224,6 +224,11 @@ def _cmd_export_linuxcnc_kins(args: argparse.Namespace) -> int:
                          f"world coordinates {' '.join(layout['coordinates'])}, {len(mech.actuated)} joints\n"
                          f"wrote {comp}\nwrote {ini} and {ini.with_suffix('.hal')}\n"
                          f"build: halcompile --install {comp}   run: linuxcnc {ini}\n")
+        if doc:  # the joint limits are the ranges; the calibration was measured over less
+            covered = _region_words(doc["calibration"]["region"], mech.ranges[mech.actuated].tolist())
+            sys.stdout.write(f"the calibration's poses cover {covered}; "
+                             f"beyond, the identified model is extrapolated (check-move --controller says where a "
+                             f"move leaves that region)\n")
     return 0
 
 

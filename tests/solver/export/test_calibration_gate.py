@@ -77,6 +77,8 @@ def test_force_writes_it_with_a_warning_and_the_urdf_carries_the_joint_map(robot
     assert yaml.safe_load(side.read_text())["joint_map"] == declared
     head = urdf.read_text().split("<robot", 1)[0]
     assert "They are NOT the controller's" in head and "q3 = J3 + J2" in head and side.name in head
+    # the reasons it should not have been written are recorded in the file itself
+    assert "WRITTEN WITH - -force ALTHOUGH " in head and "it predicts the held-out poses worse" in head
     # the side file is a joint map identify reads, and it maps like the model's own
     from hyperstat.solver.kinematics.joint_map import joint_map_from_dict
 
