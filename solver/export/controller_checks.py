@@ -207,9 +207,14 @@ def _record(doc: dict, mechanism, length_scale: float, source: str) -> None:
                         f"{[j.name for j in act]}.")
     lo, hi = mechanism.ranges[mechanism.actuated].T
     low, high = np.asarray(region["low"], float), np.asarray(region["high"], float)
-    if low.shape != lo.shape or high.shape != hi.shape or not (
-            np.all(low <= high) and np.all(low >= lo - 1e-9) and np.all(high <= hi + 1e-9)):
-        raise DataError(f"{where}.region' is not inside the actuated joint ranges (low <= high within each range).")
+    if low.shape != lo.shape or high.shape != hi.shape or not np.all(low <= high):
+        raise DataError(f"{where}.region' is not a region (one low <= high per actuated joint).")
+    out = np.flatnonzero((low < lo - 1e-9) | (high > hi + 1e-9))
+    if len(out):
+        k = int(out[0])
+        raise DataError(f"{where}.region': the poses covered [{low[k]:g}, {high[k]:g}] {region['units'][k]} of joint "
+                        f"'{region['joints'][k]}', outside its range [{lo[k]:g}, {hi[k]:g}] (were the joint ranges "
+                        f"changed after export?).")
     must = []
     if judged != "ok":
         must.append(f"its fit quality is {judged!r}")
