@@ -222,7 +222,7 @@ def gravity_plane(mechanism) -> np.ndarray:
     if np.linalg.norm(e1) < 1e-6:
         e1 = np.eye(3)[1] - g[1] * g
     e1 /= np.linalg.norm(e1)
-    return np.stack([e1, np.cross(-g, e1)])
+    return np.stack([e1, np.cross(-g, e1)]) + 0.0  # + 0.0: no negative zeros
 
 
 class BaseDeformation(Effect):
