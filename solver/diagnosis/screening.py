@@ -32,7 +32,8 @@ from hyperstat.solver.diagnosis.observations import oriented, stack_rows
 from hyperstat.solver.errors import DataError
 
 __all__ = ["Screen", "folds", "region_blocks", "cv_rms", "absorbed", "effect_columns", "bounded_fit", "name_violated",
-           "black_box_ceiling", "screen_candidates", "select_effects", "plugin_guard", "UnitActuators",
+           "black_box_ceiling", "screen_candidates", "select_effects", "plugin_guard", "UnitActuators", "score_entry",
+           "atom_key", "split_key", "make_atom",
            "PRIOR_LENGTH", "PRIOR_ANGLE", "DOMAIN_SIGMAS", "AMBIGUOUS_SHARE"]
 
 PRIOR_LENGTH = 0.5  # mm, prior std of a geometric length parameter in the screening refits
@@ -355,16 +356,67 @@ def name_violated(mech, analysis, kin, rigid, data, screen: Screen, base_cv: flo
             "ambiguous_with": [e["defect"] for e in tied if e is not named]}
 
 
+def score_entry(screen: Screen, name: str, effect: Effect, jac_e: np.ndarray, prior_e: np.ndarray, rank: int,
+                base_bic: float) -> dict:
+    """The screening entry of one candidate (its columns given): CV RMS, delta BIC, estimates, std, the domain check.
+
+    ``rank`` is the rigid fit's; ``entry["rejected"]`` is set (with ``bounded_estimates``) when the
+    unconstrained estimate leaves the effect's domain or prior by more than :data:`DOMAIN_SIGMAS`.
+    """
+    params = effect.parameter_names(None)
+    free = absorbed(screen, jac_e)
+    cv, bic, _, est, cov, chi = cv_rms(screen, jac_e, prior_e, with_cov=True)
+    dof = max(3 * len(screen.w) - rank - len(prior_e), 1)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None) * max(1.0, chi / dof))
+    entry = {"effect": name, "cv_rms": cv, "criterion": bic - base_bic, "criterion_name": "delta BIC",
+             "parameters": len(prior_e), "unexplained_by_geometry": free,
+             "estimates": dict(zip(params, map(float, est))), "std": dict(zip(params, map(float, std)))}
+    if free < 1e-3:
+        entry["note"] = "absorbed by the geometric parameters: not identifiable against them"
+    elif free < 0.1:
+        entry["absorbed_share"] = 1.0 - free
+    why = effect.plausibility(est, std, DOMAIN_SIGMAS) if free >= 1e-3 else None
+    if why is not None:
+        entry["rejected"] = why
+        entry["bounded_estimates"] = dict(zip(params, map(float, bounded_fit(screen, jac_e, prior_e, effect))))
+    return entry
+
+
+def atom_key(name: str, joint: str) -> str:
+    """Key of a per-joint candidate: ``angle-harmonic-1@2`` is ``angle-harmonic-1`` on joint 2 alone.
+
+    >>> atom_key("angle-scale", "3")
+    'angle-scale@3'
+    """
+    return f"{name}@{joint}"
+
+
+def split_key(key: str) -> tuple[str, str | None]:
+    """The effect name and the joint of a candidate key (None for a whole effect).
+
+    >>> split_key("angle-harmonic-1.5@1"), split_key("compliance")
+    (('angle-harmonic-1.5', '1'), ('compliance', None))
+    """
+    name, _, joint = key.partition("@")
+    return name, (joint or None)
+
+
 def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac: np.ndarray, base_cv: float,
                       base_bic: float, names: list, not_applicable: dict, options: dict | None = None) -> dict:
-    """Linearise, score and check every candidate: ``ranking`` (sorted), ``columns``, ``rejected``, ``effects``.
+    """Linearise, score and check every candidate: ``ranking`` (sorted), ``columns``, ``rejected``, ``effects``,
+    and the per-joint candidates ``atoms``.
 
     ``options`` gives per-name keyword arguments of :func:`make_effect` (e.g. the joints of
     an ``angle-harmonic-<k>`` from the spectrum).  A candidate whose unconstrained estimate
     leaves its domain or its magnitude prior is kept in the ranking with ``rejected`` set.
+    An effect with parameters per actuated joint (:func:`~.effects.is_jointwise`) is also
+    screened on each joint alone (``atoms``: key ``name@joint`` -> ``{"entry", "columns",
+    "effect", "name", "joint"}``; its columns are the whole effect's columns of that joint).
     """
+    from hyperstat.solver.diagnosis.effects import is_jointwise
+
     options = options or {}
-    columns, effects, ranking, rejected = {}, {}, [], []
+    columns, effects, ranking, rejected, atoms = {}, {}, [], [], {}
     violated = None
     for name in names:
         if name in not_applicable:
@@ -378,7 +430,7 @@ def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac:
             effect = make_effect(name, mech, analysis, data, only=[violated["defect"]])
         else:
             kw = dict(options.get(name, {}))
-            if name == "link-bending":
+            if name in ("link-bending", "guide-straightness", "base-deformation"):
                 kw["kin"] = kin
             effect = make_effect(name, mech, analysis, data, **kw)
         params = effect.parameter_names(None)
@@ -389,29 +441,34 @@ def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac:
         if not np.any(jac_e):
             not_applicable[name] = "its signature is zero on these poses (e.g. no gravity moment on its joints)"
             continue
-        free = absorbed(screen, jac_e)
-        cv, bic, _, est, cov, chi = cv_rms(screen, jac_e, prior_e, with_cov=True)
         columns[name] = (jac_e, prior_e)
         effects[name] = effect
-        dof = max(3 * len(screen.w) - rigid.rank - len(prior_e), 1)
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None) * max(1.0, chi / dof))
-        entry = {"effect": name, "cv_rms": cv, "criterion": bic - base_bic, "criterion_name": "delta BIC",
-                 "parameters": len(prior_e), "unexplained_by_geometry": free,
-                 "estimates": dict(zip(params, map(float, est))), "std": dict(zip(params, map(float, std)))}
+        entry = score_entry(screen, name, effect, jac_e, prior_e, rigid.rank, base_bic)
         if name == "violated-constraint":
             entry["defect"] = violated["defect"]
-        if free < 1e-3:
-            entry["note"] = "absorbed by the geometric parameters: not identifiable against them"
-        elif free < 0.1:
-            entry["absorbed_share"] = 1.0 - free
-        why = effect.plausibility(est, std, DOMAIN_SIGMAS) if free >= 1e-3 else None
-        if why is not None:
-            entry["rejected"] = why
-            entry["bounded_estimates"] = dict(zip(params, map(float, bounded_fit(screen, jac_e, prior_e, effect))))
-            rejected.append({"effect": name, "stage": "screening", "reason": why})
+        if "rejected" in entry:
+            rejected.append({"effect": name, "stage": "screening", "reason": entry["rejected"]})
         ranking.append(entry)
+        if is_library_effect(name) and is_jointwise(name) and hasattr(effect, "param_joints"):
+            joints = list(dict.fromkeys(effect.param_joints))
+            if len(joints) > 1:
+                for joint in joints:
+                    atoms[atom_key(name, joint)] = make_atom(screen, mech, analysis, data, name, effect, columns[name],
+                                                             joint, kw, rigid.rank, base_bic)
     ranking.sort(key=lambda e: (e.get("note") is not None, e["cv_rms"]))
-    return {"ranking": ranking, "columns": columns, "effects": effects, "rejected": rejected, "violated": violated}
+    return {"ranking": ranking, "columns": columns, "effects": effects, "rejected": rejected, "violated": violated,
+            "atoms": atoms}
+
+
+def make_atom(screen: Screen, mech, analysis, data, name: str, effect: Effect, whole: tuple, joint: str, kw: dict,
+              rank: int, base_bic: float) -> dict:
+    """The per-joint candidate ``name@joint``: the effect on that joint alone, its columns cut from the whole's."""
+    idx = [i for i, j in enumerate(effect.param_joints) if j == joint]
+    cols, prior = whole[0][:, :, idx], whole[1][idx]
+    kw = {k: v for k, v in kw.items() if k != "joints"}
+    atom = make_effect(name, mech, analysis, data, joints=[joint], **kw)
+    entry = score_entry(screen, atom_key(name, joint), atom, cols, prior, rank, base_bic)
+    return {"entry": entry, "columns": (cols, prior), "effect": atom, "name": name, "joint": joint}
 
 
 def select_effects(screen: Screen, ranking: list, columns: dict, base_cv: float, base_bic: float,

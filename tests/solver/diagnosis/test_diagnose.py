@@ -87,7 +87,8 @@ def test_diagnose_command_json_contract(tmp_path, capsys):
     assert [s["members"][0] for s in doc["equivalence_sets"]] == doc["named_effects"]
     assert all(set(s) == {"members", "separating_measurement"} for s in doc["equivalence_sets"])
     # the SCARA template declares no mass: the gravity-driven effects are listed, none is assumed
-    assert {c["effect"] for c in doc["cannot_size"]} == {"compliance", "link-bending", "backlash-gravity"}
+    assert {c["effect"] for c in doc["cannot_size"]} == {"compliance", "link-bending", "backlash-gravity",
+                                                          "base-deformation"}
     assert all(set(c) == {"effect", "reason", "field"} for c in doc["cannot_size"])
     revolutes = {f"{j}" for j in ("1", "2", "4")}
     assert set(doc["spectrum_peaks"]) == revolutes
