@@ -263,6 +263,13 @@ def _rigid_rows(mechanism, analysis, kin, rigid: IdentificationResult, data: Mea
     return resid, w, jac[:, :, base_idx], full, act_jac, target_jac, base_idx
 
 
+def _at_rigid(kin, rigid: IdentificationResult, full) -> dict:
+    """The rigid solution's configurations, state, target points (base frame) and tracker rotation."""
+    state = kin.evaluate(full.q, rigid.model.defects(rigid.theta), jacobians=False)
+    r_trk, _ = rigid.model.tracker_pose(rigid.theta)
+    return {"q": full.q, "state": state, "world": full.world, "r_trk": r_trk}
+
+
 class _Run:
     """What the steps of one diagnosis share (filled step by step)."""
 
@@ -326,8 +333,12 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
             lambda d, v: _diagnose(mechanism, analysis, d, v, candidates, run.kin, n_blocks, seed, max_effects, None,
                                    per_target=False), checks)
         whole = {"outcome": diag.outcome, "named_effects": diag.named_effects,
-                 "equivalence_sets": diag.equivalence_sets}
+                 "equivalence_sets": diag.equivalence_sets, "effect_joints": diag.effect_joints}
         diag.targets_agree, diag.targets_evidence = targets_agree(whole, diag.per_target)
+        if not diag.targets_agree and "evidence" in diag.verdict:  # another story: the answer says so
+            diag.verdict["targets_disagree"] = diag.targets_evidence
+            diag.verdict["evidence"] += (f"; {diag.targets_evidence} (confidence low: check the targets' offsets and "
+                                         f"measure again before acting on this answer)")
     diag.elapsed = time.perf_counter() - t0
     return diag
 
@@ -341,6 +352,7 @@ def _rows_and_screen(run: _Run) -> None:
     schemes = folds(run.rows, run.n_blocks, run.seed)
     resid, w, base_jac, full, run.act_jac, run.target_jac, base_idx = _rigid_rows(run.mechanism, run.analysis,
                                                                                    run.kin, rigid, data)
+    run.at_rigid = _at_rigid(run.kin, rigid, full)
     units, kinds = rigid.model.units, rigid.model.kinds
     prior = np.array([(PRIOR_ANGLE if units[j] == "rad" else PRIOR_LENGTH) if kinds[j] == "geometry" else 1e3
                       for j in base_idx])
@@ -360,7 +372,8 @@ def _screen_candidates(run: _Run, names: list, options: dict) -> None:
     run.not_applicable = {k: v for k, v in applicable_effects(run.mechanism, run.analysis, data).items()
                           if k in names}
     scr = screen_candidates(run.mechanism, run.analysis, run.kin, run.rigid, data, screen, run.act_jac, run.base_cv,
-                            run.base_bic, names, run.not_applicable, options)
+                            run.base_bic, names, run.not_applicable, options, with_atoms=False,
+                            at_rigid=run.at_rigid)
     run.ranking, run.columns, run.effects = scr["ranking"], scr["columns"], scr["effects"]
     run.rejected, run.violated, run.atoms = scr["rejected"], scr["violated"], scr["atoms"]
     run.options = options
@@ -388,6 +401,19 @@ def _select(run: _Run, max_effects: int) -> None:
         pool[e["effect"]] = {"entry": e, "columns": run.columns[e["effect"]], "effect": eff,
                              "joints": list(eff.param_joints) if is_jointwise(e["effect"]) and
                              hasattr(eff, "param_joints") else None}
+    if run.significant:  # the per-joint candidates (only a gap needs them)
+        from hyperstat.solver.diagnosis.screening import make_atom
+
+        for e in run.ranking:
+            eff, name = run.effects[e["effect"]], e["effect"]
+            if not (is_library_effect(name) and is_jointwise(name) and hasattr(eff, "param_joints")):
+                continue
+            joints = list(dict.fromkeys(eff.param_joints))
+            kw = dict(run.options.get(name, {}))
+            for joint in joints if len(joints) > 1 else []:
+                run.atoms[atom_key(name, joint)] = make_atom(run.screen, run.mechanism, run.analysis, run.data, name,
+                                                             eff, run.columns[name], joint, kw, run.rigid.rank,
+                                                             run.base_bic)
     for key, atom in run.atoms.items():
         pool[key] = {"entry": atom["entry"], "columns": atom["columns"], "effect": atom["effect"], "joints": None}
     run.pool = pool
@@ -497,7 +523,7 @@ def _add_atom(run: _Run, name: str, joint: str) -> str | None:
     except DataError:
         return None
     cols, prior = effect_columns(run.mechanism, run.analysis, run.kin, run.rigid, run.data, effect, run.screen.q,
-                                 run.act_jac)
+                                 run.act_jac, run.at_rigid)
     if not np.any(cols):
         return None
     entry = score_entry(run.screen, key, effect, cols, prior, run.rigid.rank, run.base_bic)
@@ -511,7 +537,8 @@ def _shrink(run: _Run) -> None:
     """Step 4: the nonlinear fit with the selected effects, their estimates, how far the gap shrinks."""
     rigid, screen, columns = run.rigid, run.screen, run.columns
     run.final, run.selected = _nonlinear_fit(run.mechanism, run.analysis, run.kin, run.data, run.validation,
-                                             run.selected, run.effects, rigid.validation, run.rejected, run.ranking)
+                                             run.selected, run.effects, rigid.validation, run.rejected, run.ranking,
+                                             rigid)
     current_cv = run.base_cv
     if run.selected:
         chosen = run.selected_columns
@@ -578,7 +605,7 @@ def _answer(run: _Run) -> Diagnosis:
 
 
 def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, effects: dict, before: dict | None,
-                   rejected: list, ranking: list) -> tuple:
+                   rejected: list, ranking: list, rigid: IdentificationResult) -> tuple:
     """Identify the selected effects with the geometry (full nonlinear fit); an effect whose estimate leaves its
     domain or prior there, or whose addition makes the validation RMS worse, is removed again (with the reason)."""
     selected = list(selected)
@@ -586,7 +613,14 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
     while selected:
         chosen = tuple(effects[n] for n in selected)
         with plugin_guard(next((n for n in selected if not is_library_effect(n)), selected[0]), "fit"):
-            final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin)
+            # started from the rigid solution (the effects at zero): the same minimum, found in a fraction of the
+            # time a start from the nominal model takes (7.7 s against 0.8 s on a Tripteor campaign)
+            model = MeasurementModel(mechanism, analysis, kin, chosen, targets=list(data.target_names),
+                                     orientation=rigid.model.orientation)
+            theta0 = model.initial(data.tracker, data.target_priors if data.n_targets > 1 else data.target)
+            theta0[: rigid.model.n] = rigid.theta
+            final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, theta0=theta0,
+                             model=model)
         dropped = None
         for eff, sl in zip(final.model.effects, final.model._effect_slices):
             est = final.theta[sl]

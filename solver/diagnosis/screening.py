@@ -228,6 +228,14 @@ def _only_actuator(effect: Effect) -> bool:
             and cls.actuator_correction is not Effect.actuator_correction)
 
 
+def _only_output(effect: Effect) -> bool:
+    """Whether the effect moves the target point in the base frame alone (``output_correction``)."""
+    cls = type(effect)
+    return (cls.output_correction is not Effect.output_correction and cls.defect_directions is Effect.defect_directions
+            and cls.measurement_correction is Effect.measurement_correction
+            and cls.actuator_correction is Effect.actuator_correction)
+
+
 class UnitActuators(Effect):
     """Helper effect ``dq = theta`` (one parameter per actuator): its columns are ``d position / d q_a``."""
 
@@ -243,13 +251,17 @@ class UnitActuators(Effect):
 
 
 def effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effect,
-                   q_start: np.ndarray | None = None, act_jac: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   q_start: np.ndarray | None = None, act_jac: np.ndarray | None = None,
+                   at_rigid: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unweighted Jacobian columns (R, 3, n_e) of ``effect`` on the rows at the rigid solution, and their prior std.
 
     The rows are the position rows of ``data``, then its orientation rows for a 6-D rigid
     model (:mod:`.observations`).  An effect entering through the actuated values alone is
     ``d row / d q_a`` times its ``d dq / d theta`` (``act_jac`` given, on the same rows):
-    no new evaluation of the model.
+    no new evaluation of the model.  An effect that moves the target point in the base frame
+    alone (``output_correction``) is its ``d dp / d theta`` turned into the tracker frame, at the
+    rigid solution's configurations, state and target points (``at_rigid``: ``q``, ``state``,
+    ``world``, ``r_trk``); it turns no orientation.
     """
     prior = 1000.0 * np.maximum(effect.magnitude, 1e-12)
     six_d = oriented(rigid.model, data)
@@ -260,6 +272,16 @@ def effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effec
             _, dt = effect.actuator_correction(model, theta0, data)
             dt = np.asarray(dt, float)
             return np.einsum("kia,kae->kie", act_jac, stack_rows(dt, dt if six_d else None)), prior
+        if at_rigid is not None and _only_output(effect):
+            model = MeasurementModel(mech, analysis, kin)
+            theta0 = np.zeros(len(effect.parameter_names(None)))
+            _, dp = effect.output_correction(model, theta0, data, at_rigid["q"], at_rigid["state"], at_rigid["world"],
+                                             True)
+            cols = np.einsum("ij,kia->kja", at_rigid["r_trk"], np.asarray(dp, float))
+            cols = stack_rows(cols, np.zeros_like(cols) if six_d else None)
+            if not np.all(np.isfinite(cols)):
+                raise DataError(f"the effect '{effect.name}' gives non-finite derivatives on these poses.")
+            return cols, prior
         model = MeasurementModel(mech, analysis, kin, effects=(effect,), targets=list(data.target_names),
                                  orientation=six_d)
         theta = model.initial()
@@ -402,7 +424,8 @@ def split_key(key: str) -> tuple[str, str | None]:
 
 
 def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac: np.ndarray, base_cv: float,
-                      base_bic: float, names: list, not_applicable: dict, options: dict | None = None) -> dict:
+                      base_bic: float, names: list, not_applicable: dict, options: dict | None = None,
+                      with_atoms: bool = True, at_rigid: dict | None = None) -> dict:
     """Linearise, score and check every candidate: ``ranking`` (sorted), ``columns``, ``rejected``, ``effects``,
     and the per-joint candidates ``atoms``.
 
@@ -410,7 +433,7 @@ def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac:
     an ``angle-harmonic-<k>`` from the spectrum).  A candidate whose unconstrained estimate
     leaves its domain or its magnitude prior is kept in the ranking with ``rejected`` set.
     An effect with parameters per actuated joint (:func:`~.effects.is_jointwise`) is also
-    screened on each joint alone (``atoms``: key ``name@joint`` -> ``{"entry", "columns",
+    screened on each joint alone (with ``with_atoms``) (``atoms``: key ``name@joint`` -> ``{"entry", "columns",
     "effect", "name", "joint"}``; its columns are the whole effect's columns of that joint).
     """
     from hyperstat.solver.diagnosis.effects import is_jointwise
@@ -437,7 +460,7 @@ def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac:
         if not params:
             not_applicable[name] = "no parameter applies to this mechanism and data"
             continue
-        jac_e, prior_e = effect_columns(mech, analysis, kin, rigid, data, effect, screen.q, act_jac)
+        jac_e, prior_e = effect_columns(mech, analysis, kin, rigid, data, effect, screen.q, act_jac, at_rigid)
         if not np.any(jac_e):
             not_applicable[name] = "its signature is zero on these poses (e.g. no gravity moment on its joints)"
             continue
@@ -449,7 +472,7 @@ def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac:
         if "rejected" in entry:
             rejected.append({"effect": name, "stage": "screening", "reason": entry["rejected"]})
         ranking.append(entry)
-        if is_library_effect(name) and is_jointwise(name) and hasattr(effect, "param_joints"):
+        if with_atoms and is_library_effect(name) and is_jointwise(name) and hasattr(effect, "param_joints"):
             joints = list(dict.fromkeys(effect.param_joints))
             if len(joints) > 1:
                 for joint in joints:
@@ -466,6 +489,8 @@ def make_atom(screen: Screen, mech, analysis, data, name: str, effect: Effect, w
     idx = [i for i, j in enumerate(effect.param_joints) if j == joint]
     cols, prior = whole[0][:, :, idx], whole[1][idx]
     kw = {k: v for k, v in kw.items() if k != "joints"}
+    if name in ("guide-straightness",):
+        kw["kin"] = getattr(effect, "kin", None)
     atom = make_effect(name, mech, analysis, data, joints=[joint], **kw)
     entry = score_entry(screen, atom_key(name, joint), atom, cols, prior, rank, base_bic)
     return {"entry": entry, "columns": (cols, prior), "effect": atom, "name": name, "joint": joint}

@@ -174,6 +174,8 @@ def applicable_effects(mechanism, analysis, data) -> dict:
             reasons[name] = "no prismatic (screw-driven) actuator"
     if len(mechanism.chains) == 1 or not mechanism.closures:
         reasons.setdefault("joint-clearance", "the clearance of the platform joints needs a parallel mechanism (legs)")
+        reasons.setdefault("leg-thermal", "the thermal growth of legs needs a parallel mechanism (legs); a serial "
+                                          "axis's growth is 'thermal' or 'screw-pitch'")
     if not any(mechanism.joints[i].type == "R" for i in mechanism.actuated):
         reasons["angle-scale"] = reasons["angle-harmonic-1"] = reasons["angle-harmonic-2"] = "no revolute actuator"
     if len(mechanism.chains) != 1:

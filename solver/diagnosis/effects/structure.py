@@ -93,6 +93,9 @@ class GuideStraightness(Effect):
         """
         if not self._dirs:
             return []
+        seen = self.kin.__dict__.setdefault("_straightness_seen", {})  # one evaluation per model and joint
+        if all(d[1] in seen for d in self._dirs):
+            return [d for d in self._dirs if (d[1], d[5]) in seen[d[1]]]
         rng = np.random.default_rng(0)
         lo, hi = mechanism.ranges[mechanism.actuated].T
         qa = np.vstack([mechanism.home[mechanism.actuated], lo + (hi - lo) * rng.uniform(0.3, 0.7, (2, len(lo)))])
@@ -101,6 +104,10 @@ class GuideStraightness(Effect):
         size = np.linalg.norm(twist[:, 3:, :], axis=1) + self.kin.length_scale * np.linalg.norm(twist[:, :3, :], axis=1)
         keep = size.max(axis=0) > 1e-6
         self._cache = {}
+        for d, k in zip(self._dirs, keep):
+            seen.setdefault(d[1], set())
+            if k:
+                seen[d[1]].add((d[1], d[5]))
         return [d for d, k in zip(self._dirs, keep) if k]
 
     @staticmethod
