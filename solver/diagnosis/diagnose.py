@@ -41,7 +41,7 @@ from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MA
                                                 is_jointwise, is_known_effect, is_library_effect, make_effect)
 from hyperstat.solver.diagnosis.equivalence import bending_alternatives, equivalence_sets, gravity_family
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
-from hyperstat.solver.diagnosis.periodic import periodic_gate, refined_order, spectral_candidates
+from hyperstat.solver.diagnosis.periodic import periodic_gate, refined_order, screw_period, spectral_candidates
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
                                                   black_box_ceiling, cv_rms, folds, plugin_guard, region_blocks,
                                                   score_entry, screen_candidates, split_key)
@@ -318,6 +318,10 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         for name, spec in spectral_candidates(run.plain, run.rows, run.act_jac).items():
             names.append(name)
             options[name] = {"joints": spec["joints"]}
+    if "screw-periodic" in names and run.plain["spectra"]:  # a screw's period from its spectrum, not the lead
+        period = screw_period(run.plain, run.rows, run.act_jac, float(mechanism.metadata.get("screw_lead", 10.0)))
+        if period is not None:
+            options["screw-periodic"] = {"lead": period}
     step("candidates")
     _screen_candidates(run, names, options)
     step("selection")
@@ -449,8 +453,8 @@ def _select(run: _Run, max_effects: int) -> None:
         order, _ = refined_order(field_after(list(chosen)) or run.plain["field"], run.act_jac[:, :, a],
                                  run.rows.q[:, a], why["peak_cycles_per_revolution"])
         spec = next((sp for sp in run.plain["revolute_spectra"] if sp["joint"] == joint), None)
-        if spec is None or order < spec["resolution_cycles_per_revolution"] or order <= 0:
-            return None
+        if spec is None or order <= 0 or (order not in (1.0, 2.0) and order < spec["resolution_cycles_per_revolution"]):
+            return None  # 1 and 2 always (the library's orders); another below the resolution is a trend
         name = harmonic_name(order)
         new = atom_key(name, joint)
         if new == key or new in pool:
@@ -613,14 +617,17 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
     while selected:
         chosen = tuple(effects[n] for n in selected)
         with plugin_guard(next((n for n in selected if not is_library_effect(n)), selected[0]), "fit"):
-            # started from the rigid solution (the effects at zero): the same minimum, found in a fraction of the
-            # time a start from the nominal model takes (7.7 s against 0.8 s on a Tripteor campaign)
+            # first from the rigid solution (the effects at zero): the same minimum in a fraction of the time a start
+            # from the nominal model takes (0.8 s against 7.7 s on a Tripteor campaign); a fit that does not converge
+            # from there, or ends worse than the rigid one, is done again from the nominal model
             model = MeasurementModel(mechanism, analysis, kin, chosen, targets=list(data.target_names),
                                      orientation=rigid.model.orientation)
             theta0 = model.initial(data.tracker, data.target_priors if data.n_targets > 1 else data.target)
             theta0[: rigid.model.n] = rigid.theta
             final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, theta0=theta0,
                              model=model)
+            if not final.converged or not final.sigma <= 1.05 * rigid.sigma:
+                final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin)
         dropped = None
         for eff, sl in zip(final.model.effects, final.model._effect_slices):
             est = final.theta[sl]

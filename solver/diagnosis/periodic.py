@@ -29,7 +29,7 @@ import numpy as np
 from hyperstat.solver.diagnosis.effects import harmonic_name, harmonic_order
 from hyperstat.solver.diagnosis.where import SPECTRUM_ORDERS, ResidualField
 
-__all__ = ["spectral_candidates", "periodic_gate", "refined_order", "simplest_order", "EQUIVALENT_CHI2"]
+__all__ = ["spectral_candidates", "screw_period", "periodic_gate", "refined_order", "simplest_order", "EQUIVALENT_CHI2"]
 
 EQUIVALENT_CHI2 = 10.0  #: chi-square difference below which the data cannot tell two fits apart (Kass-Raftery 'strong')
 
@@ -104,6 +104,34 @@ def _spectrum_of(spec: dict, field: ResidualField | None, col: np.ndarray, qv: n
     orders = np.asarray(SPECTRUM_ORDERS)
     total = max(field.total, 1e-300)
     return orders, np.array([field.harmonic(col, qv, float(k)) / total for k in orders])
+
+
+def screw_period(structure: dict, data, act_jac: np.ndarray, lead: float) -> float | None:
+    """The period (mm) of the screws' periodic error when their spectra show another than the declared ``lead``.
+
+    For the strongest significant peak of the screw spectra, the period is refined (steps of 1 %
+    within a grid step) and returned when it explains clearly more (:data:`EQUIVALENT_CHI2`) than a
+    periodic error at the declared lead on that screw; None otherwise (the lead stands).
+    """
+    field: ResidualField = structure["field"]
+    peaks = [sp for sp in structure["spectra"] if sp["peak_p_value"] < structure["threshold"]]
+    if not peaks:
+        return None
+    sp = min(peaks, key=lambda x: x["peak_p_value"])
+    a = data.joints.index(sp["joint"])
+    col, qv = act_jac[:, :, a], data.q[:, a]
+
+    def explained(period: float) -> float:
+        g = np.column_stack([np.sin(2 * np.pi * qv / period), np.cos(2 * np.pi * qv / period)])
+        return field.fit(col[:, :, None] * g[:, None, :])[4]
+
+    p0 = sp["peak_period_mm"]
+    grid = p0 * np.linspace(0.9, 1.1, 21)
+    e = np.array([explained(p) for p in grid])
+    best = float(grid[int(np.argmax(e))])
+    if (e.max() - explained(lead)) / field.scale() <= EQUIVALENT_CHI2:
+        return None
+    return float(f"{best:.3g}")
 
 
 def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: np.ndarray,

@@ -86,13 +86,15 @@ class ScrewPeriodic(Effect):
     name = "screw-periodic"
 
     def __init__(self, mechanism, lead: float | None = None, magnitude: float = 0.01, joints: list | None = None) -> None:
-        self.lead = float(lead or mechanism.metadata.get("screw_lead", 10.0))
+        declared = float(mechanism.metadata.get("screw_lead", 10.0))
+        self.lead = float(lead or declared)
         if not (np.isfinite(self.lead) and self.lead > 0):
             raise DataError(f"screw-periodic: the screw lead must be a positive length in mm, got {lead!r}.")
         acts = _actuators(mechanism, prismatic_only=True, joints=joints, name=self.name)
         self.axes = [a for a, _ in acts]
         self.joints = [j.name for _, j in acts]
-        names = [f"periodic_{j.name}_{t}" for _, j in acts for t in ("sin", "cos")]
+        tag = "" if self.lead == declared else f"_p{self.lead:g}"  # another period than the lead: its name says it
+        names = [f"periodic_{j.name}{tag}_{t}" for _, j in acts for t in ("sin", "cos")]
         p = PRIORS["screw-periodic"]
         super().__init__(names, ["mm"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
                          source=p.source, groups=[[2 * e, 2 * e + 1] for e in range(len(acts))])

@@ -16,6 +16,9 @@ laser tracker and three reflectors on the flange, and its own effects:
     ``(1 + s) q_j`` on one joint (a gear-ratio error);
 ``compliance``
     ``q + C tau`` (joint stiffness of each joint, gravity torques of the link masses and the payload);
+``loose-reflector``
+    the nest of one reflector (``SMR3``) is loose on the flange: it slides along the flange's x axis by
+    ``0.04 mm sin(q_6 + 0.3)`` as the wrist turns (a cable pulling it); the other reflectors are right;
 ``none`` / ``understated-noise``
     geometric errors only, the tracker as stated or 1.6 times noisier than the header says.
 
@@ -97,6 +100,7 @@ class KukaLike:
             self.delta.append(d)
         self.reflectors = {k: np.array(v) + rng.uniform(-0.3, 0.3, 3) for k, v in REFLECTORS.items()}
         self.tracker_r = _rotvec([0.02, -0.05, 0.8 + rng.uniform(-0.2, 0.2)])
+        self.loose: dict = {}  # reflector -> amplitude (mm) of its loose nest
         self.tracker_t = np.array([3500.0, -1800.0, -200.0]) + rng.uniform(-100, 100, 3)
 
     # ------------------------------------------------------------------ kinematics
@@ -138,14 +142,18 @@ class KukaLike:
 
     def poses(self, n: int, narrow: dict | None = None) -> np.ndarray:
         """Random joint values (rad) within 85 % of the limits (``narrow``: joint index -> (lo, hi) deg instead)."""
-        lims = np.radians(np.array([(narrow or {}).get(j, lim) for j, lim in enumerate(LIMITS_DEG)], float))
+        narrow = {int(k): v for k, v in (narrow or {}).items()}
+        lims = np.radians(np.array([narrow.get(j, lim) for j, lim in enumerate(LIMITS_DEG)], float))
         lo, hi = lims.T
         mid, half = (lo + hi) / 2, (hi - lo) / 2
         return mid + 0.85 * half * (2 * self.rng.random((n, 6)) - 1)
 
     def measure(self, q_true, reflector: str) -> np.ndarray:
         f = self.frames(q_true)[-1]
-        world = f[:3, :3] @ self.reflectors[reflector] + f[:3, 3]
+        point = self.reflectors[reflector].copy()
+        if reflector in self.loose:
+            point[0] += self.loose[reflector] * math.sin(q_true[5] + 0.3)
+        world = f[:3, :3] @ point + f[:3, 3]
         p = self.tracker_r.T @ (world - self.tracker_t)
         sigma = (NOISE[0] + NOISE[1] * np.linalg.norm(p) / 1000.0) * self.noise_factor
         return p + self.rng.normal(0.0, sigma, 3)
@@ -172,6 +180,9 @@ def _effects(robot: KukaLike, case: str, q: np.ndarray, payload: np.ndarray, tru
             tau = np.array([robot.gravity_torques(qq, p) for qq, p in zip(q, payload)])
             q_true += tau * c
             truth.update(compliance=c.tolist())
+        elif part == "loose-reflector":
+            robot.loose["SMR3"] = options.get("loose", 0.04)
+            truth.update(reflector="SMR3", loose=robot.loose["SMR3"])
         elif part == "understated-noise":
             robot.noise_factor = 1.6
             truth.update(noise_factor=1.6)

@@ -286,12 +286,16 @@ def _bow(machine: Machine, joint: str, q: np.ndarray, c: np.ndarray) -> np.ndarr
     return out
 
 
-def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30, size: float = 1.0
-             ) -> tuple[str, str, dict]:
+def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30, size: float = 1.0,
+             lead: float | None = None) -> tuple[str, str, dict]:
     """Identification and validation files (CSV text, two targets) of one campaign, and its truth.
 
-    ``size`` scales the effect (1: the realistic magnitude of ``docs/diagnosis.md``'s table, drawn in
-    [0.7, 1] with a random sign where the physics allows one).
+    ``size`` scales the effect (1: the magnitudes below, drawn in [0.7, 1] with a random sign where the
+    physics allows one); ``lead``: the screw lead of a ``screw-periodic`` case (mm; default the model's
+    ``metadata.screw_lead``, else 10 mm).  Magnitudes: leg expansion 1.2e-5 /degC, periodic screw error
+    0.01 mm, leg stiffness 10 N/um, clearance 0.05 mm, backlash 0.03 mm, guide bow 0.02 mm, frame tilt
+    stiffness 1.25e6 N m/rad (the structural effects near the upper end of their plausible range, so that
+    the campaigns show them).
     """
     rng = np.random.default_rng(104729 * seed + sum(map(ord, case)))
     mach = Machine(model, rng)
@@ -320,7 +324,7 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
             q_true[:, a] = qa[:, a] * (1.0 + al * (temp - 20.0))
         truth.update(value=alpha.tolist(), joints=[names[a] for a in prismatic])
     elif case == "screw-periodic":
-        lead = float(mach.meta.get("screw_lead", 10.0))
+        lead = float(lead or mach.meta.get("screw_lead", 10.0))
         a = int(legs[0])
         amp = 0.01 * amount
         q_true[:, a] += amp * np.sin(2 * np.pi * qa[:, a] / lead + rng.uniform(0, 2 * np.pi))
@@ -332,7 +336,7 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         truth.update(value=c)
     elif case == "joint-clearance":
         f = mach.forces(mach.solve(qa, true=False), payload)
-        beta = 0.02 * amount
+        beta = 0.05 * amount
         truth.update(value=beta, joints=[names[a] for a in prismatic])
     elif case == "backlash":
         beta = 0.03 * amount
@@ -360,18 +364,37 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
             mach.extra[joint] = shift
         q = mach.assemble(q)
     if case == "guide-straightness":
+        # a bow the loops cannot close without straining the machine (an over-constrained one) is left out: this
+        # generator does not model elastic deformation, so it bows a guide only where the machine still assembles
+        # each leg bowed in the direction (x or y of its joint frame) that moves the tool most among those the
+        # loops close with
+        kept = []
+        base = mach.tool(q)[:, :3, 3]
         for a in legs:
-            c = 0.005 * amount * rng.uniform(-1, 1, 2)
-            c *= 0.005 * amount / max(np.linalg.norm(c), 1e-12)
+            moves = []
+            for d in (0, 1):
+                unit = np.zeros(2)
+                unit[d] = 0.02
+                mach.extra = {names[a]: _bow(mach, names[a], q[:, act[a]], unit)}
+                qq = mach.assemble(q)
+                closed = np.abs(mach._closure(qq, True)).max() <= 1e-6
+                moves.append(np.abs(mach.tool(qq)[:, :3, 3] - base).max() if closed else -1.0)
+            mach.extra = {}
+            d = int(np.argmax(moves))
+            if moves[d] > 1e-4:
+                c = np.zeros(2)
+                c[d] = 0.02 * amount * rng.choice([-1.0, 1.0])
+                kept.append((a, c))
+        for a, c in kept:
             mach.extra[names[a]] = _bow(mach, names[a], q[:, act[a]], c)
-        truth.update(value=0.005 * amount, joints=[names[a] for a in legs])
+        truth.update(value=0.02 * amount, joints=[names[a] for a, _ in kept])
         q = mach.assemble(q)
     if case == "base-deformation":
         mass = float(mach.meta.get("moving_mass", 0.0)) + payload
         com = np.r_[np.asarray(mach.meta.get("com", (0.0, 0.0, 0.0)), float), 1.0]
         p = np.einsum("kij,j->ki", mach.tool(q), com)[:, :3]
         moment = np.cross(p, mass[:, None] * G[None, :])
-        c = 2e-11 * amount * 5.0  # rad/(N mm): a frame of 1e7 N m/rad
+        c = 8e-10 * amount  # rad/(N mm): a light frame of 1.25e6 N m/rad
         tilt = c * moment * np.array([1.0, 1.0, 0.0])
         truth.update(value=c)
     # tracker: twice the reach away, turned about a near-vertical axis
