@@ -617,17 +617,16 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
     while selected:
         chosen = tuple(effects[n] for n in selected)
         with plugin_guard(next((n for n in selected if not is_library_effect(n)), selected[0]), "fit"):
-            # first from the rigid solution (the effects at zero): the same minimum in a fraction of the time a start
-            # from the nominal model takes (0.8 s against 7.7 s on a Tripteor campaign); a fit that does not converge
-            # from there, or ends worse than the rigid one, is done again from the nominal model
-            model = MeasurementModel(mechanism, analysis, kin, chosen, targets=list(data.target_names),
-                                     orientation=rigid.model.orientation)
-            theta0 = model.initial(data.tracker, data.target_priors if data.n_targets > 1 else data.target)
-            theta0[: rigid.model.n] = rigid.theta
-            final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, theta0=theta0,
-                             model=model)
-            if not final.converged or not final.sigma <= 1.05 * rigid.sigma:
-                final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin)
+            final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin)
+            if not final.converged:  # again from the rigid solution (the effects at zero)
+                model = MeasurementModel(mechanism, analysis, kin, chosen, targets=list(data.target_names),
+                                         orientation=rigid.model.orientation)
+                theta0 = model.initial(data.tracker, data.target_priors if data.n_targets > 1 else data.target)
+                theta0[: rigid.model.n] = rigid.theta
+                warm = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, theta0=theta0,
+                                model=model)
+                if warm.converged:
+                    final = warm
         dropped = None
         for eff, sl in zip(final.model.effects, final.model._effect_slices):
             est = final.theta[sl]

@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from hyperstat.solver.diagnosis.screening import AMBIGUOUS_SHARE, Screen, cv_rms, split_key
+from hyperstat.solver.diagnosis.screening import AMBIGUOUS_SHARE, Screen, bic_of, cv_rms, split_key
 
 __all__ = ["forward_selection", "CV_DROP", "BIC_DROP", "MAX_STEPS"]
 
 CV_DROP = 0.95  #: an added effect must bring the cross-validated RMS below this times the current one
 BIC_DROP = 10.0  #: ... and the BIC down by this much (Kass-Raftery "strong evidence")
 MAX_STEPS = 8  #: most candidates added (joints of one effect counted apart)
+PRESELECT = 12  #: candidates cross-validated at each step: those with the lowest BIC
 
 
 def _stack(cols: list, priors: list):
@@ -68,7 +69,7 @@ def forward_selection(screen: Screen, pool: dict, base_cv: float, base_bic: floa
     cols, priors = [], []
     for _ in range(MAX_STEPS):
         names = {split_key(k)[0] for k in chosen}
-        trials = []
+        trials, looks = [], []
         for key, cand in pool.items():
             name, joint = split_key(key)
             entry = cand["entry"]
@@ -79,6 +80,11 @@ def forward_selection(screen: Screen, pool: dict, base_cv: float, base_bic: floa
             if _covered(key, chosen, pool):
                 continue
             ex, pr = _stack(cols + [cand["columns"][0]], priors + [cand["columns"][1]])
+            looks.append((bic_of(screen, ex, pr), key, ex, pr))
+        # the cross-validation (a refit per fold) for the candidates the BIC finds best; one that lowers the BIC by
+        # less than the step's threshold cannot be added anyway
+        looks.sort(key=lambda t: t[0])
+        for bic0, key, ex, pr in looks[:PRESELECT]:
             cv, bic, _, _ = cv_rms(screen, ex, pr)
             trials.append((cv, bic, key))
         trials.sort(key=lambda t: t[0])
