@@ -96,6 +96,9 @@ def test_diagnose_command_json_contract(tmp_path, capsys):
                for p in doc["spectrum_peaks"].values())
     assert doc["noise_factor"] is None and doc["validation_factor"] > 0 and doc["identification_factor"] > 0
     assert doc["per_target"] == [] and doc["targets_agree"] is None
+    # issue 40: the joints of each named per-joint effect, and the confidence
+    assert doc["effect_joints"] == {"backlash": ["1", "2", "3", "4"]} or set(doc["effect_joints"]) == {"backlash"}
+    assert doc["confidence"] in ("high", "low") and isinstance(doc["selection_steps"], list)
     assert all(set(r) >= {"effect", "stage", "reason"} for r in doc["rejected"])
     assert all({"effect", "validation_rms", "criterion"} <= set(e) for e in doc["ranking"])
     for key in ("validation_before", "validation_after"):

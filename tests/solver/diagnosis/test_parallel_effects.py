@@ -34,7 +34,7 @@ def tripteor_model():
 
 def _diagnose(model, case: str, seed: int):
     mech, analysis, kin = model
-    id_text, val_text, truth = gen.campaign(gen.MODELS[mech.name], case, seed, n_id=80, n_val=24)
+    id_text, val_text, truth = gen.campaign(gen.MODELS[mech.name], case, seed, n_id=60, n_val=20)
     data = parse_measurements(id_text, mech, "id.csv")
     val = parse_measurements(val_text, mech, "val.csv")
     with warnings.catch_warnings():
