@@ -463,7 +463,8 @@ def _select(run: _Run, max_effects: int) -> None:
 
     run.pool_add = lambda name, joint: _add_atom(run, name, joint)
     if run.significant:
-        sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace)
+        peaks = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < run.plain["threshold"])
+        sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks)
     else:
         sel = {"selected": [], "joints": {}, "columns": {}, "keys": [], "steps": [], "refused": [], "ties": [],
                "pruned": []}

@@ -10,7 +10,9 @@ RMS most is added when it lowers it by 5 % **and** lowers the BIC by 10 (the gua
 over-fitting at every step: held-out blocks and an information criterion), and when its own
 checks pass (a periodic effect's spectrum, ``refuse``).  A periodic candidate the spectrum
 refuses because it peaks elsewhere on that joint is replaced by the order at the peak
-(``replace``), which is tried at once.  The joints that need the same effect are then grouped
+(``replace``), which is tried at once; and when no candidate passes the guard, the best
+periodic ones on a joint whose spectrum has a significant peak at another order are
+replaced the same way.  The joints that need the same effect are then grouped
 into one named effect, and a joint whose parameters do not pay for themselves (the BIC or the
 cross-validated RMS is no worse without them) is dropped from its group again.
 """
@@ -36,7 +38,7 @@ def _stack(cols: list, priors: list):
 
 
 def forward_selection(screen: Screen, pool: dict, base_cv: float, base_bic: float, max_effects: int,
-                      refuse=None, replace=None) -> dict:
+                      refuse=None, replace=None, peaks: tuple = ()) -> dict:
     """Forward selection over ``pool`` (see the module docstring).
 
     Parameters
@@ -51,6 +53,10 @@ def forward_selection(screen: Screen, pool: dict, base_cv: float, base_bic: floa
         ``refuse(key, chosen) -> dict | None``: why the candidate must not be added now, given the
         candidates ``chosen`` so far (``{"effect", "stage", "reason", ...}``); it is then marked
         rejected.
+    peaks : tuple of str
+        Joints whose residual spectrum has a significant peak: when no candidate passes the guard,
+        the periodic candidates on those joints are checked against their spectrum (and replaced
+        by the order at the peak).
     replace : callable, optional
         ``replace(key, refusal, chosen) -> str | None``: a candidate key to try instead (added to
         ``pool`` by the caller), e.g. the order at the spectrum's peak.
@@ -106,6 +112,10 @@ def forward_selection(screen: Screen, pool: dict, base_cv: float, base_bic: floa
                 ex, pr = _stack(cols + [pool[new]["columns"][0]], priors + [pool[new]["columns"][1]])
                 cv2, bic2, _, _ = cv_rms(screen, ex, pr)
                 queue.insert(0, (cv2, bic2, new))  # tried at once, in the refused one's place
+        if pick is None and refuse is not None and replace is not None:
+            on_peaks = [t for t in trials if split_key(t[2])[1] in peaks][:3]
+            pick = _at_the_peak(screen, pool, on_peaks, chosen, cols, priors, current_cv, current_bic, refuse,
+                                replace, refused)
         if pick is None:
             break
         cv, bic, key = pick
@@ -132,6 +142,27 @@ def forward_selection(screen: Screen, pool: dict, base_cv: float, base_bic: floa
     return {"selected": list(groups), "joints": {n: g["joints"] for n, g in groups.items()},
             "columns": {n: (g["cols"], g["prior"]) for n, g in groups.items()}, "keys": chosen, "steps": steps,
             "refused": refused, "ties": ties, "pruned": pruned}
+
+
+def _at_the_peak(screen: Screen, pool: dict, best: list, chosen: list, cols: list, priors: list, current_cv: float,
+                 current_bic: float, refuse, replace, refused: list):
+    """When no candidate passes the step's guard: the best periodic candidates whose spectrum peaks at another order
+    on their joint are replaced by the order at the peak, which is added if it passes the guard and its own gate."""
+    for _, _, key in best:
+        why = refuse(key, chosen)
+        if why is None or why.get("alias") is not None:
+            continue
+        new = replace(key, why, chosen)
+        if new is None or new not in pool or new in chosen or pool[new]["entry"].get("rejected") \
+                or pool[new]["entry"].get("note"):
+            continue
+        refused.append(why)
+        pool[key]["entry"]["rejected"] = why["reason"]
+        ex, pr = _stack(cols + [pool[new]["columns"][0]], priors + [pool[new]["columns"][1]])
+        cv, bic, _, _ = cv_rms(screen, ex, pr)
+        if cv < CV_DROP * current_cv and bic < current_bic - BIC_DROP and refuse(new, chosen) is None:
+            return cv, bic, new
+    return None
 
 
 def _covered(key: str, chosen: list, pool: dict) -> bool:

@@ -172,8 +172,8 @@ def per_target_check(run, checks: list) -> list:
 
     Returns ``[{"target", "outcome", "named_effects", "effect_joints", "refused", "validation_before",
     "validation_after"}]`` (RMS in mm; ``refused``: the periodic effects and scale errors its own spectrum refused,
-    ``alias`` set when the order was only not established); a target with too few rows to fit alone is reported as ``over-fitting`` (fewer
-    equations than parameters) with the ``reason``.
+    ``alias`` set when the order was only not established); a target with too few rows to fit alone is reported as
+    ``over-fitting`` (fewer equations than parameters) with the ``reason``.
     """
     out = []
     for t, d_t, v_t in checks:
