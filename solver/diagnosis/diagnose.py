@@ -503,9 +503,8 @@ def _select(run: _Run, max_effects: int) -> None:
     for entry in run.ranking:  # the per-joint candidates, beside their whole effect
         parts = [a["entry"] for k, a in pool.items() if split_key(k)[0] == entry["effect"] and split_key(k)[1]]
         if parts:
-            entry["per_joint"] = [{"joint": split_key(p["effect"])[1], "cv_rms": p["cv_rms"],
-                                   "criterion": p["criterion"], **({"rejected": p["rejected"]} if p.get("rejected")
-                                                                   else {})} for p in parts]
+            entry["per_joint"] = [{"joint": split_key(p["effect"])[1], "criterion": p["criterion"],
+                                   **({"rejected": p["rejected"]} if p.get("rejected") else {})} for p in parts]
 
 
 def _effect_on(run: _Run, name: str, joints: list):
@@ -531,7 +530,7 @@ def _add_atom(run: _Run, name: str, joint: str) -> str | None:
                                  run.act_jac, run.at_rigid)
     if not np.any(cols):
         return None
-    entry = score_entry(run.screen, key, effect, cols, prior, run.rigid.rank, run.base_bic)
+    entry = score_entry(run.screen, key, effect, cols, prior, run.rigid.rank, run.base_bic, cross_validate=False)
     if entry.get("rejected"):
         run.rejected.append({"effect": name, "stage": "screening", "reason": entry["rejected"], "candidate": key})
     run.pool[key] = {"entry": entry, "columns": (cols, prior), "effect": effect, "joints": None}

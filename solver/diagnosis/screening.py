@@ -217,6 +217,21 @@ def bic_of(screen: Screen, extra: np.ndarray, extra_prior: np.ndarray) -> float:
     return chi + rank * np.log(len(rw))
 
 
+def _refit(screen: Screen, extra: np.ndarray, extra_prior: np.ndarray) -> tuple:
+    """BIC, estimates, covariance and chi-square of the refit of :func:`cv_rms` on all the data (no folds)."""
+    pre = screen.prepared()
+    jb, rw = pre["jw"], pre["rw"]
+    nb = jb.shape[1]
+    ew = screen.weighted(extra)
+    gram = np.block([[pre["gram"], jb.T @ ew], [ew.T @ jb, ew.T @ ew]])
+    rhs = np.r_[pre["rhs"], ew.T @ rw]
+    inv = np.linalg.inv(gram + np.diag(1.0 / np.r_[screen.base_prior, extra_prior] ** 2))
+    delta = -inv @ rhs
+    chi = float(np.sum((rw + np.concatenate([jb, ew], axis=1) @ delta) ** 2))
+    rank = nb + _extra_rank(pre["qb"], ew)
+    return chi + rank * np.log(len(rw)), delta[nb:], inv[nb:, nb:], chi
+
+
 def _extra_rank(qb: np.ndarray, ew: np.ndarray) -> int:
     """Number of independent directions the extra columns add to the base columns."""
     norms = np.linalg.norm(ew, axis=0)
@@ -399,15 +414,21 @@ def name_violated(mech, analysis, kin, rigid, data, screen: Screen, base_cv: flo
 
 
 def score_entry(screen: Screen, name: str, effect: Effect, jac_e: np.ndarray, prior_e: np.ndarray, rank: int,
-                base_bic: float) -> dict:
+                base_bic: float, cross_validate: bool = True) -> dict:
     """The screening entry of one candidate (its columns given): CV RMS, delta BIC, estimates, std, the domain check.
 
     ``rank`` is the rigid fit's; ``entry["rejected"]`` is set (with ``bounded_estimates``) when the
     unconstrained estimate leaves the effect's domain or prior by more than :data:`DOMAIN_SIGMAS`.
+    Without ``cross_validate`` (a per-joint candidate: the selection cross-validates it when it
+    competes) the CV RMS is left out (None).
     """
     params = effect.parameter_names(None)
     free = absorbed(screen, jac_e)
-    cv, bic, _, est, cov, chi = cv_rms(screen, jac_e, prior_e, with_cov=True)
+    if cross_validate:
+        cv, bic, _, est, cov, chi = cv_rms(screen, jac_e, prior_e, with_cov=True)
+    else:
+        cv = None
+        bic, est, cov, chi = _refit(screen, jac_e, prior_e)
     dof = max(3 * len(screen.w) - rank - len(prior_e), 1)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None) * max(1.0, chi / dof))
     entry = {"effect": name, "cv_rms": cv, "criterion": bic - base_bic, "criterion_name": "delta BIC",
@@ -512,7 +533,7 @@ def make_atom(screen: Screen, mech, analysis, data, name: str, effect: Effect, w
     if name in ("guide-straightness",):
         kw["kin"] = getattr(effect, "kin", None)
     atom = make_effect(name, mech, analysis, data, joints=[joint], **kw)
-    entry = score_entry(screen, atom_key(name, joint), atom, cols, prior, rank, base_bic)
+    entry = score_entry(screen, atom_key(name, joint), atom, cols, prior, rank, base_bic, cross_validate=False)
     return {"entry": entry, "columns": (cols, prior), "effect": atom, "name": name, "joint": joint}
 
 

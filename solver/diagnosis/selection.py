@@ -28,7 +28,7 @@ __all__ = ["forward_selection", "CV_DROP", "BIC_DROP", "MAX_STEPS"]
 CV_DROP = 0.95  #: an added effect must bring the cross-validated RMS below this times the current one
 BIC_DROP = 10.0  #: ... and the BIC down by this much (Kass-Raftery "strong evidence")
 MAX_STEPS = 8  #: most candidates added (joints of one effect counted apart)
-PRESELECT = 12  #: candidates cross-validated at each step: those with the lowest BIC
+PRESELECT = 8  #: candidates cross-validated at each step: those with the lowest BIC
 
 
 def _stack(cols: list, priors: list):
