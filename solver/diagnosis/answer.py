@@ -200,11 +200,16 @@ def format_outcome(diag) -> str:
     o = diag.outcome
     v = diag.verdict
     if o in ("explained", "partly explained"):
-        lines.append(f"  {o} by {' + '.join(v['effects'])}: " + v["evidence"])
+        joints = getattr(diag, "effect_joints", {}) or {}
+        named = [e + (f" (joint{'s' if len(joints[e]) > 1 else ''} {', '.join(joints[e])})" if joints.get(e) else "")
+                 for e in v["effects"]]
+        lines.append(f"  {o} by {' + '.join(named)}: " + v["evidence"])
     elif o == "understated noise":
         lines.append("  consistent with an understated noise model: " + v["evidence"])
     else:
         lines.append(f"  {o}: " + v["evidence"])
+    if getattr(diag, "confidence", "high") == "low":
+        lines.append("  confidence: low (see the words above)")
     for s in diag.equivalence_sets:
         if len(s["members"]) > 1:
             lines.append(f"  equivalence set of {s['effect']}: {', '.join(s['members'])}; separated by "

@@ -37,17 +37,19 @@ from hyperstat.solver.calibration.identify import IdentificationResult, Measurem
 from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
 from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MASS_FIELD, MASS_FIELD_SHORT, applicable_effects,
-                                                available_effects, gravity_source, harmonic_order, is_known_effect,
-                                                is_library_effect)
+                                                available_effects, gravity_source, harmonic_name, harmonic_order,
+                                                is_jointwise, is_known_effect, is_library_effect, make_effect)
 from hyperstat.solver.diagnosis.equivalence import bending_alternatives, equivalence_sets, gravity_family
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
-from hyperstat.solver.diagnosis.periodic import periodic_gate, spectral_candidates
-from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, black_box_ceiling,
-                                                  cv_rms, folds, plugin_guard, region_blocks, screen_candidates,
-                                                  select_effects)
+from hyperstat.solver.diagnosis.periodic import periodic_gate, refined_order, screw_period, spectral_candidates
+from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
+                                                  black_box_ceiling, cv_rms, folds, plugin_guard, region_blocks,
+                                                  score_entry, screen_candidates, split_key)
+from hyperstat.solver.diagnosis.selection import forward_selection
 from hyperstat.solver.diagnosis.observations import oriented, residual_rows, row_view, stack_rows
 from hyperstat.solver.diagnosis.targets import per_target_check, targets_to_check, targets_agree
-from hyperstat.solver.diagnosis.where import describe_where, spectrum_peaks, structure_tests, where_summary
+from hyperstat.solver.diagnosis.where import (ResidualField, describe_where, spectrum_peaks, structure_tests,
+                                             where_summary)
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
@@ -94,6 +96,9 @@ class Diagnosis:
     per_target: list = field(default_factory=list)
     targets_agree: bool | None = None
     targets_evidence: str = ""
+    effect_joints: dict = field(default_factory=dict)
+    selection_steps: list = field(default_factory=list)
+    pruned: list = field(default_factory=list)
 
     @property
     def named_effects(self) -> list:
@@ -104,6 +109,14 @@ class Diagnosis:
     def ambiguous(self) -> bool:
         """Whether some equivalence set has more than one member."""
         return any(len(s["members"]) > 1 for s in self.equivalence_sets)
+
+    @property
+    def confidence(self) -> str:
+        """``"low"`` when the targets tell different stories or the named effects could not be compared with the
+        gravity-driven effects (no masses); ``"high"`` otherwise."""
+        if self.targets_agree is False or self.verdict.get("unchecked_against"):
+            return "low"
+        return "high"
 
     @property
     def noise_factor(self) -> float | None:
@@ -128,6 +141,8 @@ class Diagnosis:
             "units": {"length": "mm", "angle": "rad"},
             "outcome": self.outcome,
             "named_effects": self.named_effects,
+            "effect_joints": {n: j for n, j in self.effect_joints.items() if n in self.named_effects},
+            "confidence": self.confidence,
             "equivalence_sets": [{"members": s["members"], "separating_measurement": s["separating_measurement"]}
                                  for s in self.equivalence_sets],
             "ambiguous": self.ambiguous,
@@ -148,6 +163,8 @@ class Diagnosis:
             "selected": self.selected,
             "rejected": self.rejected,
             "selection_ties": self.selection_ties,
+            "selection_steps": self.selection_steps,
+            "pruned_joints": self.pruned,
             "not_applicable": self.not_applicable,
             "validation_before": self.validation_before,
             "validation_after": self.validation_after,
@@ -218,6 +235,9 @@ def _cannot_size(mechanism: Mechanism, names) -> list:
     """Gravity-driven effects that no declared mass can size (never an assumed mass)."""
     if gravity_source(mechanism) is not None:
         return []
+    parallel = len(mechanism.chains) > 1 and bool(mechanism.closures)
+    legs = any(mechanism.joints[i].type == "P" for i in mechanism.actuated)
+    names = [n for n in names if n != "joint-clearance" or (parallel and legs)]  # only a parallel machine's legs
     return [{"effect": n, "field": MASS_FIELD,
              "reason": (f"the gravity loads need the link masses and centres of mass, and '{mechanism.name}' declares "
                         f"none; declare them in {MASS_FIELD_SHORT}")} for n in GRAVITY_EFFECTS if n in names]
@@ -241,6 +261,13 @@ def _rigid_rows(mechanism, analysis, kin, rigid: IdentificationResult, data: Mea
     target_jac = tj[np.arange(k), :, np.asarray(data.target_index, dtype=int), :]
     target_jac = stack_rows(target_jac, np.zeros_like(target_jac) if six_d else None)  # an offset turns nothing
     return resid, w, jac[:, :, base_idx], full, act_jac, target_jac, base_idx
+
+
+def _at_rigid(kin, rigid: IdentificationResult, full) -> dict:
+    """The rigid solution's configurations, state, target points (base frame) and tracker rotation."""
+    state = kin.evaluate(full.q, rigid.model.defects(rigid.theta), jacobians=False)
+    r_trk, _ = rigid.model.tracker_pose(rigid.theta)
+    return {"q": full.q, "state": state, "world": full.world, "r_trk": r_trk}
 
 
 class _Run:
@@ -291,6 +318,10 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         for name, spec in spectral_candidates(run.plain, run.rows, run.act_jac).items():
             names.append(name)
             options[name] = {"joints": spec["joints"]}
+    if "screw-periodic" in names and run.plain["spectra"]:  # a screw's period from its spectrum, not the lead
+        period = screw_period(run.plain, run.rows, run.act_jac, float(mechanism.metadata.get("screw_lead", 10.0)))
+        if period is not None:
+            options["screw-periodic"] = {"lead": period}
     step("candidates")
     _screen_candidates(run, names, options)
     step("selection")
@@ -306,8 +337,12 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
             lambda d, v: _diagnose(mechanism, analysis, d, v, candidates, run.kin, n_blocks, seed, max_effects, None,
                                    per_target=False), checks)
         whole = {"outcome": diag.outcome, "named_effects": diag.named_effects,
-                 "equivalence_sets": diag.equivalence_sets}
+                 "equivalence_sets": diag.equivalence_sets, "effect_joints": diag.effect_joints}
         diag.targets_agree, diag.targets_evidence = targets_agree(whole, diag.per_target)
+        if not diag.targets_agree and "evidence" in diag.verdict:  # another story: the answer says so
+            diag.verdict["targets_disagree"] = diag.targets_evidence
+            diag.verdict["evidence"] += (f"; {diag.targets_evidence} (confidence low: check the targets' offsets and "
+                                         f"measure again before acting on this answer)")
     diag.elapsed = time.perf_counter() - t0
     return diag
 
@@ -321,6 +356,7 @@ def _rows_and_screen(run: _Run) -> None:
     schemes = folds(run.rows, run.n_blocks, run.seed)
     resid, w, base_jac, full, run.act_jac, run.target_jac, base_idx = _rigid_rows(run.mechanism, run.analysis,
                                                                                    run.kin, rigid, data)
+    run.at_rigid = _at_rigid(run.kin, rigid, full)
     units, kinds = rigid.model.units, rigid.model.kinds
     prior = np.array([(PRIOR_ANGLE if units[j] == "rad" else PRIOR_LENGTH) if kinds[j] == "geometry" else 1e3
                       for j in base_idx])
@@ -340,9 +376,11 @@ def _screen_candidates(run: _Run, names: list, options: dict) -> None:
     run.not_applicable = {k: v for k, v in applicable_effects(run.mechanism, run.analysis, data).items()
                           if k in names}
     scr = screen_candidates(run.mechanism, run.analysis, run.kin, run.rigid, data, screen, run.act_jac, run.base_cv,
-                            run.base_bic, names, run.not_applicable, options)
+                            run.base_bic, names, run.not_applicable, options, with_atoms=False,
+                            at_rigid=run.at_rigid)
     run.ranking, run.columns, run.effects = scr["ranking"], scr["columns"], scr["effects"]
-    run.rejected, run.violated = scr["rejected"], scr["violated"]
+    run.rejected, run.violated, run.atoms = scr["rejected"], scr["violated"], scr["atoms"]
+    run.options = options
     signatures = {e["effect"]: run.columns[e["effect"]][0] for e in run.ranking if not e.get("note")}
     run.structure = structure_tests(run.mechanism, run.rows, screen.resid, screen.w, screen.prepared()["qb"],
                                     run.r_trk, run.act_jac, run.target_jac, signatures, positions=run.k)
@@ -358,28 +396,158 @@ def _screen_candidates(run: _Run, names: list, options: dict) -> None:
 
 
 def _select(run: _Run, max_effects: int) -> None:
-    """Step 3: forward selection; periodic effects and scale errors pass the spectrum's gate when they are added."""
-    entries = {e["effect"]: e for e in run.ranking}
+    """Step 3: forward selection, joint by joint then grouped (:mod:`.selection`); periodic effects and scale errors
+    pass the spectrum's gate when they are added, and a periodic one the spectrum refuses is replaced by the order at
+    the spectrum's peak on that joint."""
+    pool = {}
+    for e in run.ranking:
+        eff = run.effects[e["effect"]]
+        pool[e["effect"]] = {"entry": e, "columns": run.columns[e["effect"]], "effect": eff,
+                             "joints": list(eff.param_joints) if is_jointwise(e["effect"]) and
+                             hasattr(eff, "param_joints") else None}
+    if run.significant:  # the per-joint candidates (only a gap needs them)
+        from hyperstat.solver.diagnosis.screening import make_atom
 
-    def refuse(name: str, _selected: list) -> dict | None:
-        return periodic_gate(name, run.effects[name], entries[name], run.plain, run.rows, run.act_jac) \
-            if harmonic_order(name) is not None or name == "angle-scale" else None
+        for e in run.ranking:
+            eff, name = run.effects[e["effect"]], e["effect"]
+            if not (is_library_effect(name) and is_jointwise(name) and hasattr(eff, "param_joints")):
+                continue
+            joints = list(dict.fromkeys(eff.param_joints))
+            kw = dict(run.options.get(name, {}))
+            for joint in joints if len(joints) > 1 else []:
+                run.atoms[atom_key(name, joint)] = make_atom(run.screen, run.mechanism, run.analysis, run.data, name,
+                                                             eff, run.columns[name], joint, kw, run.rigid.rank,
+                                                             run.base_bic)
+    for key, atom in run.atoms.items():
+        pool[key] = {"entry": atom["entry"], "columns": atom["columns"], "effect": atom["effect"], "joints": None}
+    run.pool = pool
 
-    run.selected, run.ties, refused = (
-        select_effects(run.screen, run.ranking, run.columns, run.base_cv, run.base_bic, max_effects, refuse)
-        if run.significant else ([], [], []))
-    run.rejected += refused
+    def gated(name: str) -> bool:
+        return harmonic_order(name) is not None or name == "angle-scale"
+
+    def field_after(chosen: list):
+        """The rigid residual projected off the geometry and the candidates ``chosen`` (None: nothing chosen)."""
+        if not chosen:
+            return None
+        ew = run.screen.weighted(np.concatenate([pool[k]["columns"][0] for k in chosen], axis=2))
+        both = np.concatenate([run.screen.prepared()["jw"], ew], axis=1)
+        basis, _ = np.linalg.qr(both / np.linalg.norm(both, axis=0).clip(min=1e-300))
+        return ResidualField(run.screen.resid, run.screen.w, basis)
+
+    def refuse(key: str, chosen: list = ()) -> dict | None:
+        name, _ = split_key(key)
+        if not gated(name):
+            return None
+        why = periodic_gate(name, pool[key]["effect"], pool[key]["entry"], run.plain, run.rows, run.act_jac,
+                            field_after([k for k in chosen if k != key]))
+        if why is not None:
+            why = {**why, "effect": name, "candidate": key}
+        return why
+
+    def replace(key: str, why: dict, chosen: list = ()) -> str | None:
+        """The order at the spectrum's peak on the refused candidate's joint, screened as a new candidate."""
+        if why.get("alias") is not None or why.get("peak_cycles_per_revolution") is None or not why.get("joint"):
+            return None
+        joint = why["joint"]
+        a = run.data.joints.index(joint)
+        order, _ = refined_order(field_after(list(chosen)) or run.plain["field"], run.act_jac[:, :, a],
+                                 run.rows.q[:, a], why["peak_cycles_per_revolution"])
+        spec = next((sp for sp in run.plain["revolute_spectra"] if sp["joint"] == joint), None)
+        if spec is None or order <= 0 or (order not in (1.0, 2.0) and order < spec["resolution_cycles_per_revolution"]):
+            return None  # 1 and 2 always (the library's orders); another below the resolution is a trend
+        name = harmonic_name(order)
+        new = atom_key(name, joint)
+        if new == key or new in pool:
+            return new if new != key else None
+        return _add_atom(run, name, joint)
+
+    run.pool_add = lambda name, joint: _add_atom(run, name, joint)
+    if run.significant:
+        peaks = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < run.plain["threshold"])
+        sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks)
+    else:
+        sel = {"selected": [], "joints": {}, "columns": {}, "keys": [], "steps": [], "refused": [], "ties": [],
+               "pruned": []}
+    # a grouped periodic effect: every joint of its group passes the gate on its own, given the other effects
+    for name in list(sel["selected"]):
+        joints = sel["joints"].get(name)
+        if not gated(name) or not joints or len(joints) < 2:
+            continue
+        others = [k for k in sel["keys"] if split_key(k)[0] != name]
+        for joint in list(joints):
+            key = atom_key(name, joint)
+            if key not in pool:
+                key = _add_atom(run, name, joint)
+            why = refuse(key, others) if key else None
+            if why is not None:
+                sel["refused"].append(why)
+                joints.remove(joint)
+        if not joints:
+            sel["selected"].remove(name)
+        else:
+            idx = [j for j in joints]
+            per = [pool[atom_key(name, j)]["columns"] for j in idx]
+            sel["columns"][name] = (np.concatenate([c for c, _ in per], axis=2), np.concatenate([p for _, p in per]))
+    run.selected, run.ties = sel["selected"], sel["ties"]
+    run.rejected += sel["refused"]
+    run.selection_steps, run.pruned = sel["steps"], sel["pruned"]
+    run.effect_joints = {n: list(j) for n, j in sel["joints"].items() if j and n in run.selected}
+    run.selected_columns = {n: sel["columns"][n] for n in run.selected}
+    for name in run.selected:  # the named effect on the joints of its group
+        joints = run.effect_joints.get(name)
+        whole = run.effects.get(name)
+        if joints and (whole is None or list(dict.fromkeys(getattr(whole, "param_joints", []))) != joints):
+            run.effects[name] = _effect_on(run, name, joints)
+        elif whole is None:
+            run.effects[name] = pool[atom_key(name, joints[0])]["effect"] if joints else None
+    for entry in run.ranking:  # the per-joint candidates, beside their whole effect
+        parts = [a["entry"] for k, a in pool.items() if split_key(k)[0] == entry["effect"] and split_key(k)[1]]
+        if parts:
+            entry["per_joint"] = [{"joint": split_key(p["effect"])[1], "criterion": p["criterion"],
+                                   **({"rejected": p["rejected"]} if p.get("rejected") else {})} for p in parts]
+
+
+def _effect_on(run: _Run, name: str, joints: list):
+    """Effect ``name`` built on ``joints`` only (the options its candidate was screened with)."""
+    kw = {k: v for k, v in run.options.get(name, {}).items() if k != "joints"}
+    if name in ("guide-straightness",):
+        kw["kin"] = run.kin
+    return make_effect(name, run.mechanism, run.analysis, run.data, joints=list(joints), **kw)
+
+
+def _add_atom(run: _Run, name: str, joint: str) -> str | None:
+    """Screen ``name`` on ``joint`` alone as a new candidate of the pool (a periodic order from the spectrum)."""
+    from hyperstat.solver.diagnosis.screening import effect_columns
+
+    key = atom_key(name, joint)
+    if key in run.pool:
+        return key
+    try:
+        effect = _effect_on(run, name, [joint])
+    except DataError:
+        return None
+    cols, prior = effect_columns(run.mechanism, run.analysis, run.kin, run.rigid, run.data, effect, run.screen.q,
+                                 run.act_jac, run.at_rigid)
+    if not np.any(cols):
+        return None
+    entry = score_entry(run.screen, key, effect, cols, prior, run.rigid.rank, run.base_bic, cross_validate=False)
+    if entry.get("rejected"):
+        run.rejected.append({"effect": name, "stage": "screening", "reason": entry["rejected"], "candidate": key})
+    run.pool[key] = {"entry": entry, "columns": (cols, prior), "effect": effect, "joints": None}
+    return key
 
 
 def _shrink(run: _Run) -> None:
     """Step 4: the nonlinear fit with the selected effects, their estimates, how far the gap shrinks."""
     rigid, screen, columns = run.rigid, run.screen, run.columns
     run.final, run.selected = _nonlinear_fit(run.mechanism, run.analysis, run.kin, run.data, run.validation,
-                                             run.selected, run.effects, rigid.validation, run.rejected, run.ranking)
+                                             run.selected, run.effects, rigid.validation, run.rejected, run.ranking,
+                                             rigid)
     current_cv = run.base_cv
     if run.selected:
-        extra = np.concatenate([columns[n][0] for n in run.selected], axis=2)
-        current_cv, _, _, _ = cv_rms(screen, extra, np.concatenate([columns[n][1] for n in run.selected]))
+        chosen = run.selected_columns
+        extra = np.concatenate([chosen[n][0] for n in run.selected], axis=2)
+        current_cv, _, _, _ = cv_rms(screen, extra, np.concatenate([chosen[n][1] for n in run.selected]))
     run.effect_parameters, run.validation_after = [], None
     if "violated-constraint" not in run.selected:
         run.violated = None
@@ -406,7 +574,9 @@ def _shrink(run: _Run) -> None:
 
 def _answer(run: _Run) -> Diagnosis:
     """Steps 4 and 5: the structure left after the effects, the equivalence sets, the outcome in words."""
-    screen, columns, final, selected = run.screen, run.columns, run.final, run.selected
+    screen, final, selected = run.screen, run.final, run.selected
+    columns = dict(run.columns)
+    columns.update({n: c for n, c in run.selected_columns.items() if n in selected})
     after_structure, sets = None, []
     if final is not None:
         ew = screen.weighted(np.concatenate([columns[n][0] for n in selected], axis=2))
@@ -433,11 +603,13 @@ def _answer(run: _Run) -> Diagnosis:
     return Diagnosis(run.significant, run.test, run.where, run.ranking, selected, run.ties, run.not_applicable,
                      run.rigid.validation, run.validation_after, run.share, run.ceiling, run.effect_parameters,
                      run.violated, run.rigid, final, 0.0, outcome, words, run.rejected, sets, run.cannot_size,
-                     spectrum_peaks(run.plain))
+                     spectrum_peaks(run.plain), effect_joints={n: j for n, j in run.effect_joints.items()
+                                                               if n in selected},
+                     selection_steps=run.selection_steps, pruned=run.pruned)
 
 
 def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, effects: dict, before: dict | None,
-                   rejected: list, ranking: list) -> tuple:
+                   rejected: list, ranking: list, rigid: IdentificationResult) -> tuple:
     """Identify the selected effects with the geometry (full nonlinear fit); an effect whose estimate leaves its
     domain or prior there, or whose addition makes the validation RMS worse, is removed again (with the reason)."""
     selected = list(selected)
@@ -446,6 +618,15 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
         chosen = tuple(effects[n] for n in selected)
         with plugin_guard(next((n for n in selected if not is_library_effect(n)), selected[0]), "fit"):
             final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin)
+            if not final.converged:  # again from the rigid solution (the effects at zero)
+                model = MeasurementModel(mechanism, analysis, kin, chosen, targets=list(data.target_names),
+                                         orientation=rigid.model.orientation)
+                theta0 = model.initial(data.tracker, data.target_priors if data.n_targets > 1 else data.target)
+                theta0[: rigid.model.n] = rigid.theta
+                warm = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, theta0=theta0,
+                                model=model)
+                if warm.converged:
+                    final = warm
         dropped = None
         for eff, sl in zip(final.model.effects, final.model._effect_slices):
             est = final.theta[sl]

@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hyperstat.solver.diagnosis.effects import MASS_FIELD, gravity_loads, gravity_regressor, harmonic_order
+from hyperstat.solver.diagnosis.effects import (MASS_FIELD, gravity_loads, gravity_regressor, harmonic_order,
+                                                is_jointwise)
 from hyperstat.solver.diagnosis.periodic import EQUIVALENT_CHI2
 from hyperstat.solver.diagnosis.screening import Screen
 
@@ -143,6 +144,15 @@ def bending_alternatives(mech, kin, data, act_jac: np.ndarray, pairs: dict) -> l
     return out
 
 
+def _on_joints(cols: np.ndarray, effect, joints: set) -> np.ndarray | None:
+    """The columns of a per-joint effect on ``joints`` only (None when it has none there, or no joint labels)."""
+    labels = getattr(effect, "param_joints", None)
+    if not labels or len(labels) != cols.shape[2]:
+        return None
+    idx = [i for i, j in enumerate(labels) if j in joints]
+    return cols[:, :, idx] if idx and len(idx) < len(labels) else None
+
+
 def separating_measurement(x: str, y: str, data, spectra: dict, effects: dict, masses_known: bool) -> str:
     """Words for the measurement that would separate effect ``x`` from ``y`` on this machine."""
     def joints_of(name):
@@ -238,12 +248,23 @@ def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: 
             r = y_off - qc @ (qc.T @ y_off)
             return float(r @ r) - chi2_x
 
+        n_rows = len(y)
+        k_x = qx.shape[1]
+        joints_x = set(getattr(effects.get(x), "joints", None) or []) if is_jointwise(x) else set()
         for name in members_of:
             if name == x or name not in columns:
                 continue
-            miss = misses(screen.weighted(columns[name][0]))
-            evidence.append({"effect": name, "misses_chi2": miss})
-            if miss < EQUIVALENT_CHI2:
+            cols = columns[name][0]
+            local = _on_joints(cols, effects.get(name), joints_x) if is_jointwise(name) and joints_x else None
+            variants = [cols] + ([local] if local is not None else [])
+            miss = min(misses(screen.weighted(c)) for c in variants)
+            # the data's own verdict: the candidate in X's place (on X's joints when it has per-joint parameters)
+            # fits them within the threshold, its parameters counted (BIC)
+            c = local if local is not None else cols
+            worse = fits_worse(screen.weighted(c)) + (_orth(screen.weighted(c) - qb @ (qb.T @ screen.weighted(c))
+                                                            ).shape[1] - k_x) * np.log(n_rows)
+            evidence.append({"effect": name, "misses_chi2": miss, "fits_worse_bic": worse})
+            if miss < EQUIVALENT_CHI2 or worse < EQUIVALENT_CHI2:
                 members.append(name)
         gravity_members = [m for m in members if m in DEFORMATIONS and m != x]
         if family is not None and family.shape[2]:

@@ -5,17 +5,19 @@ units of the residual variance (:meth:`~hyperstat.solver.diagnosis.where.Residua
 
 * **Orders from the spectrum** (:func:`spectral_candidates`): for every revolute whose
   residual spectrum has a significant peak, the order is refined around the grid peak
-  (steps of 0.05) and snapped to the nearest integer when the integer explains as much
-  (within :data:`EQUIVALENT_CHI2`: gear orders are integers): a general
-  ``angle-harmonic-<k>`` on that joint joins the candidates, if at least one period of
-  it fits in the range the joint moved (``k >= 2 pi / range``; below, it is a trend).
+  (steps of 0.05) and named by the simplest order that explains as much (within
+  :data:`EQUIVALENT_CHI2`: an integer, else a half, a quarter, a tenth; a two-stage gear
+  gives 1.5, :func:`simplest_order`): a general ``angle-harmonic-<k>`` on that joint joins
+  the candidates, if at least one period of it fits in the range the joint moved
+  (``k >= 2 pi / range``; below, it is a trend).
 * **The gate** (:func:`periodic_gate`): a periodic effect of order ``k`` is chosen only if,
   on the joint where it is significant,
 
   1. the spectrum agrees: ``k`` explains the residual within :data:`EQUIVALENT_CHI2` of the
      spectrum's best order (else: "the spectrum peaks at ..., not at k");
-  2. the order is established: the neighbouring orders ``k - 1`` and ``k + 1`` explain at
-     least :data:`EQUIVALENT_CHI2` less.  Over a short range of the joint they alias (the
+  2. the order is established: the neighbouring orders ``k - 1`` and ``k + 1`` (and, for an
+     order that is not an integer, the integers around it) explain at least
+     :data:`EQUIVALENT_CHI2` less.  Over a short range of the joint they alias (the
      Rayleigh limit ``|k1 - k2| range < 2 pi``) and fit as well: the order is then not
      established and the candidate is refused, with the range that would establish it.
 """
@@ -25,9 +27,9 @@ from __future__ import annotations
 import numpy as np
 
 from hyperstat.solver.diagnosis.effects import harmonic_name, harmonic_order
-from hyperstat.solver.diagnosis.where import ResidualField
+from hyperstat.solver.diagnosis.where import SPECTRUM_ORDERS, ResidualField
 
-__all__ = ["spectral_candidates", "periodic_gate", "EQUIVALENT_CHI2"]
+__all__ = ["spectral_candidates", "screw_period", "periodic_gate", "refined_order", "simplest_order", "EQUIVALENT_CHI2"]
 
 EQUIVALENT_CHI2 = 10.0  #: chi-square difference below which the data cannot tell two fits apart (Kass-Raftery 'strong')
 
@@ -39,6 +41,35 @@ def _cycles(k: float) -> str:
 
 def _explained_on_grid(field: ResidualField, col: np.ndarray, qv: np.ndarray, orders: np.ndarray) -> np.ndarray:
     return np.array([field.harmonic(col, qv, float(k)) for k in orders])
+
+
+def simplest_order(orders: np.ndarray, explained: np.ndarray, scale: float) -> float:
+    """The simplest order among those within :data:`EQUIVALENT_CHI2` of the best (explained chi-square / ``scale``).
+
+    Simplest: an integer, else a half, a quarter, a tenth, else the best on the grid (steps of
+    0.05): a gear's orders are ratios of tooth counts, and a two-stage gear gives 1.5; among
+    equally simple ones, the one that explains most.
+
+    >>> simplest_order(np.array([1.45, 1.5, 1.55]), np.array([100.0, 98.0, 99.0]), 1.0)
+    1.5
+    >>> simplest_order(np.array([1.9, 1.95, 2.0]), np.array([100.0, 80.0, 60.0]), 1.0)
+    1.9
+    """
+    best = float(explained.max())
+    close = [(float(k), float(e)) for k, e in zip(orders, explained) if (best - e) / scale < EQUIVALENT_CHI2 and k > 0]
+    for denominator in (1, 2, 4, 10):
+        fits = [(e, k) for k, e in close if abs(k * denominator - round(k * denominator)) < 1e-6]
+        if fits:
+            return float(round(max(fits)[1], 2))
+    return float(round(orders[int(np.argmax(explained))], 2))
+
+
+def refined_order(field: ResidualField, col: np.ndarray, qv: np.ndarray, k0: float) -> tuple[float, float]:
+    """The order of a joint's periodic error near ``k0``: refined in steps of 0.05 within 0.25, then the simplest
+    within :data:`EQUIVALENT_CHI2` (:func:`simplest_order`).  Returns ``(order, refined grid peak)``."""
+    grid = np.round(np.arange(max(k0 - 0.25, 0.3), k0 + 0.2501, 0.05), 2)
+    e = _explained_on_grid(field, col, qv, grid)
+    return simplest_order(grid, e, field.scale()), float(grid[int(np.argmax(e))])
 
 
 def spectral_candidates(structure: dict, data, act_jac: np.ndarray) -> dict:
@@ -56,16 +87,7 @@ def spectral_candidates(structure: dict, data, act_jac: np.ndarray) -> dict:
         if spec["peak_p_value"] >= structure["threshold"]:
             continue
         a = data.joints.index(spec["joint"])
-        col, qv = act_jac[:, :, a], data.q[:, a]
-        k0 = spec["peak_cycles_per_revolution"]
-        grid = np.arange(max(k0 - 0.25, 0.3), k0 + 0.2501, 0.05)
-        e = _explained_on_grid(field, col, qv, grid)
-        refined = float(grid[int(np.argmax(e))])
-        nearest = float(round(refined))
-        order = refined
-        if nearest >= 1 and (e.max() - field.harmonic(col, qv, nearest)) / field.scale() < EQUIVALENT_CHI2:
-            order = nearest
-        order = float(round(order, 2))
+        order, refined = refined_order(field, act_jac[:, :, a], data.q[:, a], spec["peak_cycles_per_revolution"])
         if order in (1.0, 2.0) or order < spec["resolution_cycles_per_revolution"]:
             continue  # the library tries 1 and 2; below the resolution not one period is seen (a trend)
         entry = out.setdefault(harmonic_name(order), {"joints": [], "peaks": {}})
@@ -74,20 +96,61 @@ def spectral_candidates(structure: dict, data, act_jac: np.ndarray) -> dict:
     return out
 
 
-def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: np.ndarray) -> dict | None:
+def _spectrum_of(spec: dict, field: ResidualField | None, col: np.ndarray, qv: np.ndarray) -> tuple:
+    """Orders and shares of a joint's spectrum: the rigid residual's (``spec``), or on ``field`` when given (the
+    residual left after the effects already chosen: a periodic error is judged on what they leave)."""
+    if field is None:
+        return np.asarray(spec["cycles_per_revolution"]), np.asarray(spec["share"])
+    orders = np.asarray(SPECTRUM_ORDERS)
+    total = max(field.total, 1e-300)
+    return orders, np.array([field.harmonic(col, qv, float(k)) / total for k in orders])
+
+
+def screw_period(structure: dict, data, act_jac: np.ndarray, lead: float) -> float | None:
+    """The period (mm) of the screws' periodic error when their spectra show another than the declared ``lead``.
+
+    For the strongest significant peak of the screw spectra, the period is refined (steps of 1 %
+    within a grid step) and returned when it explains clearly more (:data:`EQUIVALENT_CHI2`) than a
+    periodic error at the declared lead on that screw; None otherwise (the lead stands).
+    """
+    field: ResidualField = structure["field"]
+    peaks = [sp for sp in structure["spectra"] if sp["peak_p_value"] < structure["threshold"]]
+    if not peaks:
+        return None
+    sp = min(peaks, key=lambda x: x["peak_p_value"])
+    a = data.joints.index(sp["joint"])
+    col, qv = act_jac[:, :, a], data.q[:, a]
+
+    def explained(period: float) -> float:
+        g = np.column_stack([np.sin(2 * np.pi * qv / period), np.cos(2 * np.pi * qv / period)])
+        return field.fit(col[:, :, None] * g[:, None, :])[4]
+
+    p0 = sp["peak_period_mm"]
+    grid = p0 * np.linspace(0.9, 1.1, 21)
+    e = np.array([explained(p) for p in grid])
+    best = float(grid[int(np.argmax(e))])
+    if (e.max() - explained(lead)) / field.scale() <= EQUIVALENT_CHI2:
+        return None
+    return float(f"{best:.3g}")
+
+
+def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: np.ndarray,
+                  field: ResidualField | None = None) -> dict | None:
     """Why a periodic candidate must not be chosen (``{"effect", "stage": "spectrum", "reason", ...}``), or None.
 
     ``entry`` is the candidate's screening entry (estimates and standard deviations of its
     sin and cos parameters per joint); of the joints where its amplitude exceeds 3 standard
     deviations (else the largest), the one whose harmonic alone explains most of the
-    residual carries it and is checked against its spectrum.
+    residual carries it and is checked against its spectrum.  ``field``: the residual after
+    the effects already chosen (default: the rigid residual of ``structure``).
     """
     k = harmonic_order(name)
     if name == "angle-scale":
-        return _scale_gate(name, effect, entry, structure, data, act_jac)
+        return _scale_gate(name, effect, entry, structure, data, act_jac, field)
     if k is None or not hasattr(effect, "axes"):
         return None
-    field: ResidualField = structure["field"]
+    given = field
+    field = field or structure["field"]
     est = np.array(list(entry["estimates"].values()))
     std = np.array(list(entry["std"].values()))
     sig = []
@@ -111,8 +174,7 @@ def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac
             continue
         col, qv = act_jac[:, :, a], data.q[:, a]
         e_k = field.harmonic(col, qv, k)
-        orders = np.asarray(spec["cycles_per_revolution"])
-        shares = np.asarray(spec["share"])
+        orders, shares = _spectrum_of(spec, given, col, qv)
         best = int(np.argmax(shares))
         e_peak = max(float(shares[best]) * field.total, e_k)
         span, res = spec["range_rad"], spec["resolution_cycles_per_revolution"]
@@ -125,7 +187,10 @@ def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac
                               f"{(e_peak - e_k) / scale:.0f} less (chi-square): the spectrum does not agree with "
                               f"its order")
             return info
-        for k2 in (k - 1.0, k + 1.0):
+        rivals = [k - 1.0, k + 1.0]
+        if abs(k - round(k)) > 1e-9:  # a gear stage's order must also beat the integer orders around it
+            rivals += [float(np.floor(k)), float(np.ceil(k))]
+        for k2 in sorted(set(rivals), key=lambda r: abs(r - k)):
             if k2 < 0.5:
                 continue
             e2 = field.harmonic(col, qv, k2)
@@ -141,14 +206,16 @@ def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac
     return None
 
 
-def _scale_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: np.ndarray) -> dict | None:
+def _scale_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: np.ndarray,
+                field: ResidualField | None = None) -> dict | None:
     """A scale error of a joint whose residual the spectrum shows to be periodic is not what is there.
 
     On the joint that carries the scale error (where its estimate is largest in standard
     deviations), the spectrum's best periodic error must not explain :data:`EQUIVALENT_CHI2`
     more than the scale error does; else the candidate is refused, with the peak.
     """
-    field: ResidualField = structure["field"]
+    given = field
+    field = field or structure["field"]
     est = np.array(list(entry["estimates"].values()))
     std = np.array(list(entry["std"].values())).clip(min=1e-300)
     if not len(est):
@@ -161,12 +228,12 @@ def _scale_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: 
         return None
     col, qv = act_jac[:, :, a], data.q[:, a]
     e_scale = field.fit(col[:, :, None] * qv[:, None, None])[4]
-    shares = np.asarray(spec["share"])
+    orders, shares = _spectrum_of(spec, given, col, qv)
     best = int(np.argmax(shares))
     gain = (float(shares[best]) * field.total - e_scale) / field.scale()
     if gain <= EQUIVALENT_CHI2:
         return None
-    order = spec["cycles_per_revolution"][best]
+    order = orders[best]
     return {"effect": name, "stage": "spectrum", "joint": joint, "peak_cycles_per_revolution": float(order),
             "reason": (f"the error of joint {joint} is periodic-like: its spectrum peaks at {_cycles(order)} per "
                        f"revolution ({100 * shares[best]:.0f} % of the residual variance), which explains {gain:.0f} "

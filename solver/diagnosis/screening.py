@@ -32,7 +32,8 @@ from hyperstat.solver.diagnosis.observations import oriented, stack_rows
 from hyperstat.solver.errors import DataError
 
 __all__ = ["Screen", "folds", "region_blocks", "cv_rms", "absorbed", "effect_columns", "bounded_fit", "name_violated",
-           "black_box_ceiling", "screen_candidates", "select_effects", "plugin_guard", "UnitActuators",
+           "black_box_ceiling", "screen_candidates", "select_effects", "plugin_guard", "UnitActuators", "score_entry",
+           "atom_key", "split_key", "make_atom", "bic_of",
            "PRIOR_LENGTH", "PRIOR_ANGLE", "DOMAIN_SIGMAS", "AMBIGUOUS_SHARE"]
 
 PRIOR_LENGTH = 0.5  # mm, prior std of a geometric length parameter in the screening refits
@@ -196,6 +197,41 @@ def cv_rms(screen: Screen, extra: np.ndarray | None, extra_prior: np.ndarray | N
     return out
 
 
+def bic_of(screen: Screen, extra: np.ndarray, extra_prior: np.ndarray) -> float:
+    """The BIC of :func:`cv_rms` alone (the refit on all the data, no folds): a cheap first look at a candidate."""
+    pre = screen.prepared()
+    jb, rw = pre["jw"], pre["rw"]
+    nb = jb.shape[1]
+    ew = screen.weighted(extra)
+    ne = ew.shape[1]
+    gram = np.zeros((nb + ne, nb + ne))
+    gram[:nb, :nb] = pre["gram"]
+    gram[:nb, nb:] = jb.T @ ew
+    gram[nb:, :nb] = gram[:nb, nb:].T
+    gram[nb:, nb:] = ew.T @ ew
+    rhs = np.r_[pre["rhs"], ew.T @ rw]
+    reg = np.diag(1.0 / np.r_[screen.base_prior, extra_prior] ** 2)
+    delta = -np.linalg.solve(gram + reg, rhs)
+    chi = float(np.sum((rw + np.concatenate([jb, ew], axis=1) @ delta) ** 2))
+    rank = nb + _extra_rank(pre["qb"], ew)
+    return chi + rank * np.log(len(rw))
+
+
+def _refit(screen: Screen, extra: np.ndarray, extra_prior: np.ndarray) -> tuple:
+    """BIC, estimates, covariance and chi-square of the refit of :func:`cv_rms` on all the data (no folds)."""
+    pre = screen.prepared()
+    jb, rw = pre["jw"], pre["rw"]
+    nb = jb.shape[1]
+    ew = screen.weighted(extra)
+    gram = np.block([[pre["gram"], jb.T @ ew], [ew.T @ jb, ew.T @ ew]])
+    rhs = np.r_[pre["rhs"], ew.T @ rw]
+    inv = np.linalg.inv(gram + np.diag(1.0 / np.r_[screen.base_prior, extra_prior] ** 2))
+    delta = -inv @ rhs
+    chi = float(np.sum((rw + np.concatenate([jb, ew], axis=1) @ delta) ** 2))
+    rank = nb + _extra_rank(pre["qb"], ew)
+    return chi + rank * np.log(len(rw)), delta[nb:], inv[nb:, nb:], chi
+
+
 def _extra_rank(qb: np.ndarray, ew: np.ndarray) -> int:
     """Number of independent directions the extra columns add to the base columns."""
     norms = np.linalg.norm(ew, axis=0)
@@ -227,6 +263,14 @@ def _only_actuator(effect: Effect) -> bool:
             and cls.actuator_correction is not Effect.actuator_correction)
 
 
+def _only_output(effect: Effect) -> bool:
+    """Whether the effect moves the target point in the base frame alone (``output_correction``)."""
+    cls = type(effect)
+    return (cls.output_correction is not Effect.output_correction and cls.defect_directions is Effect.defect_directions
+            and cls.measurement_correction is Effect.measurement_correction
+            and cls.actuator_correction is Effect.actuator_correction)
+
+
 class UnitActuators(Effect):
     """Helper effect ``dq = theta`` (one parameter per actuator): its columns are ``d position / d q_a``."""
 
@@ -242,13 +286,17 @@ class UnitActuators(Effect):
 
 
 def effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effect,
-                   q_start: np.ndarray | None = None, act_jac: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   q_start: np.ndarray | None = None, act_jac: np.ndarray | None = None,
+                   at_rigid: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unweighted Jacobian columns (R, 3, n_e) of ``effect`` on the rows at the rigid solution, and their prior std.
 
     The rows are the position rows of ``data``, then its orientation rows for a 6-D rigid
     model (:mod:`.observations`).  An effect entering through the actuated values alone is
     ``d row / d q_a`` times its ``d dq / d theta`` (``act_jac`` given, on the same rows):
-    no new evaluation of the model.
+    no new evaluation of the model.  An effect that moves the target point in the base frame
+    alone (``output_correction``) is its ``d dp / d theta`` turned into the tracker frame, at the
+    rigid solution's configurations, state and target points (``at_rigid``: ``q``, ``state``,
+    ``world``, ``r_trk``); it turns no orientation.
     """
     prior = 1000.0 * np.maximum(effect.magnitude, 1e-12)
     six_d = oriented(rigid.model, data)
@@ -259,6 +307,16 @@ def effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effec
             _, dt = effect.actuator_correction(model, theta0, data)
             dt = np.asarray(dt, float)
             return np.einsum("kia,kae->kie", act_jac, stack_rows(dt, dt if six_d else None)), prior
+        if at_rigid is not None and _only_output(effect):
+            model = MeasurementModel(mech, analysis, kin)
+            theta0 = np.zeros(len(effect.parameter_names(None)))
+            _, dp = effect.output_correction(model, theta0, data, at_rigid["q"], at_rigid["state"], at_rigid["world"],
+                                             True)
+            cols = np.einsum("ij,kia->kja", at_rigid["r_trk"], np.asarray(dp, float))
+            cols = stack_rows(cols, np.zeros_like(cols) if six_d else None)
+            if not np.all(np.isfinite(cols)):
+                raise DataError(f"the effect '{effect.name}' gives non-finite derivatives on these poses.")
+            return cols, prior
         model = MeasurementModel(mech, analysis, kin, effects=(effect,), targets=list(data.target_names),
                                  orientation=six_d)
         theta = model.initial()
@@ -355,16 +413,74 @@ def name_violated(mech, analysis, kin, rigid, data, screen: Screen, base_cv: flo
             "ambiguous_with": [e["defect"] for e in tied if e is not named]}
 
 
+def score_entry(screen: Screen, name: str, effect: Effect, jac_e: np.ndarray, prior_e: np.ndarray, rank: int,
+                base_bic: float, cross_validate: bool = True) -> dict:
+    """The screening entry of one candidate (its columns given): CV RMS, delta BIC, estimates, std, the domain check.
+
+    ``rank`` is the rigid fit's; ``entry["rejected"]`` is set (with ``bounded_estimates``) when the
+    unconstrained estimate leaves the effect's domain or prior by more than :data:`DOMAIN_SIGMAS`.
+    Without ``cross_validate`` (a per-joint candidate: the selection cross-validates it when it
+    competes) the CV RMS is left out (None).
+    """
+    params = effect.parameter_names(None)
+    free = absorbed(screen, jac_e)
+    if cross_validate:
+        cv, bic, _, est, cov, chi = cv_rms(screen, jac_e, prior_e, with_cov=True)
+    else:
+        cv = None
+        bic, est, cov, chi = _refit(screen, jac_e, prior_e)
+    dof = max(3 * len(screen.w) - rank - len(prior_e), 1)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None) * max(1.0, chi / dof))
+    entry = {"effect": name, "cv_rms": cv, "criterion": bic - base_bic, "criterion_name": "delta BIC",
+             "parameters": len(prior_e), "unexplained_by_geometry": free,
+             "estimates": dict(zip(params, map(float, est))), "std": dict(zip(params, map(float, std)))}
+    if free < 1e-3:
+        entry["note"] = "absorbed by the geometric parameters: not identifiable against them"
+    elif free < 0.1:
+        entry["absorbed_share"] = 1.0 - free
+    why = effect.plausibility(est, std, DOMAIN_SIGMAS) if free >= 1e-3 else None
+    if why is not None:
+        entry["rejected"] = why
+        entry["bounded_estimates"] = dict(zip(params, map(float, bounded_fit(screen, jac_e, prior_e, effect))))
+    return entry
+
+
+def atom_key(name: str, joint: str) -> str:
+    """Key of a per-joint candidate: ``angle-harmonic-1@2`` is ``angle-harmonic-1`` on joint 2 alone.
+
+    >>> atom_key("angle-scale", "3")
+    'angle-scale@3'
+    """
+    return f"{name}@{joint}"
+
+
+def split_key(key: str) -> tuple[str, str | None]:
+    """The effect name and the joint of a candidate key (None for a whole effect).
+
+    >>> split_key("angle-harmonic-1.5@1"), split_key("compliance")
+    (('angle-harmonic-1.5', '1'), ('compliance', None))
+    """
+    name, _, joint = key.partition("@")
+    return name, (joint or None)
+
+
 def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac: np.ndarray, base_cv: float,
-                      base_bic: float, names: list, not_applicable: dict, options: dict | None = None) -> dict:
-    """Linearise, score and check every candidate: ``ranking`` (sorted), ``columns``, ``rejected``, ``effects``.
+                      base_bic: float, names: list, not_applicable: dict, options: dict | None = None,
+                      with_atoms: bool = True, at_rigid: dict | None = None) -> dict:
+    """Linearise, score and check every candidate: ``ranking`` (sorted), ``columns``, ``rejected``, ``effects``,
+    and the per-joint candidates ``atoms``.
 
     ``options`` gives per-name keyword arguments of :func:`make_effect` (e.g. the joints of
     an ``angle-harmonic-<k>`` from the spectrum).  A candidate whose unconstrained estimate
     leaves its domain or its magnitude prior is kept in the ranking with ``rejected`` set.
+    An effect with parameters per actuated joint (:func:`~.effects.is_jointwise`) is also
+    screened on each joint alone (with ``with_atoms``) (``atoms``: key ``name@joint`` -> ``{"entry", "columns",
+    "effect", "name", "joint"}``; its columns are the whole effect's columns of that joint).
     """
+    from hyperstat.solver.diagnosis.effects import is_jointwise
+
     options = options or {}
-    columns, effects, ranking, rejected = {}, {}, [], []
+    columns, effects, ranking, rejected, atoms = {}, {}, [], [], {}
     violated = None
     for name in names:
         if name in not_applicable:
@@ -378,40 +494,47 @@ def screen_candidates(mech, analysis, kin, rigid, data, screen: Screen, act_jac:
             effect = make_effect(name, mech, analysis, data, only=[violated["defect"]])
         else:
             kw = dict(options.get(name, {}))
-            if name == "link-bending":
+            if name in ("link-bending", "guide-straightness", "base-deformation"):
                 kw["kin"] = kin
             effect = make_effect(name, mech, analysis, data, **kw)
         params = effect.parameter_names(None)
         if not params:
             not_applicable[name] = "no parameter applies to this mechanism and data"
             continue
-        jac_e, prior_e = effect_columns(mech, analysis, kin, rigid, data, effect, screen.q, act_jac)
+        jac_e, prior_e = effect_columns(mech, analysis, kin, rigid, data, effect, screen.q, act_jac, at_rigid)
         if not np.any(jac_e):
             not_applicable[name] = "its signature is zero on these poses (e.g. no gravity moment on its joints)"
             continue
-        free = absorbed(screen, jac_e)
-        cv, bic, _, est, cov, chi = cv_rms(screen, jac_e, prior_e, with_cov=True)
         columns[name] = (jac_e, prior_e)
         effects[name] = effect
-        dof = max(3 * len(screen.w) - rigid.rank - len(prior_e), 1)
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None) * max(1.0, chi / dof))
-        entry = {"effect": name, "cv_rms": cv, "criterion": bic - base_bic, "criterion_name": "delta BIC",
-                 "parameters": len(prior_e), "unexplained_by_geometry": free,
-                 "estimates": dict(zip(params, map(float, est))), "std": dict(zip(params, map(float, std)))}
+        entry = score_entry(screen, name, effect, jac_e, prior_e, rigid.rank, base_bic)
         if name == "violated-constraint":
             entry["defect"] = violated["defect"]
-        if free < 1e-3:
-            entry["note"] = "absorbed by the geometric parameters: not identifiable against them"
-        elif free < 0.1:
-            entry["absorbed_share"] = 1.0 - free
-        why = effect.plausibility(est, std, DOMAIN_SIGMAS) if free >= 1e-3 else None
-        if why is not None:
-            entry["rejected"] = why
-            entry["bounded_estimates"] = dict(zip(params, map(float, bounded_fit(screen, jac_e, prior_e, effect))))
-            rejected.append({"effect": name, "stage": "screening", "reason": why})
+        if "rejected" in entry:
+            rejected.append({"effect": name, "stage": "screening", "reason": entry["rejected"]})
         ranking.append(entry)
+        if with_atoms and is_library_effect(name) and is_jointwise(name) and hasattr(effect, "param_joints"):
+            joints = list(dict.fromkeys(effect.param_joints))
+            if len(joints) > 1:
+                for joint in joints:
+                    atoms[atom_key(name, joint)] = make_atom(screen, mech, analysis, data, name, effect, columns[name],
+                                                             joint, kw, rigid.rank, base_bic)
     ranking.sort(key=lambda e: (e.get("note") is not None, e["cv_rms"]))
-    return {"ranking": ranking, "columns": columns, "effects": effects, "rejected": rejected, "violated": violated}
+    return {"ranking": ranking, "columns": columns, "effects": effects, "rejected": rejected, "violated": violated,
+            "atoms": atoms}
+
+
+def make_atom(screen: Screen, mech, analysis, data, name: str, effect: Effect, whole: tuple, joint: str, kw: dict,
+              rank: int, base_bic: float) -> dict:
+    """The per-joint candidate ``name@joint``: the effect on that joint alone, its columns cut from the whole's."""
+    idx = [i for i, j in enumerate(effect.param_joints) if j == joint]
+    cols, prior = whole[0][:, :, idx], whole[1][idx]
+    kw = {k: v for k, v in kw.items() if k != "joints"}
+    if name in ("guide-straightness",):
+        kw["kin"] = getattr(effect, "kin", None)
+    atom = make_effect(name, mech, analysis, data, joints=[joint], **kw)
+    entry = score_entry(screen, atom_key(name, joint), atom, cols, prior, rank, base_bic, cross_validate=False)
+    return {"entry": entry, "columns": (cols, prior), "effect": atom, "name": name, "joint": joint}
 
 
 def select_effects(screen: Screen, ranking: list, columns: dict, base_cv: float, base_bic: float,

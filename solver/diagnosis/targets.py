@@ -109,26 +109,54 @@ def only_targets(data: MeasurementSet | None, target: str) -> MeasurementSet | N
 def targets_agree(whole: dict, per_target: list) -> tuple[bool, str]:
     """Whether each target alone tells the same story as the whole file, and the words for it.
 
-    ``whole`` has the whole file's ``outcome``, ``named_effects`` and ``equivalence_sets``;
-    each entry of ``per_target`` its ``target``, ``outcome`` and ``named_effects``.
+    ``whole`` has the whole file's ``outcome``, ``named_effects``, ``equivalence_sets`` and
+    ``effect_joints``; each entry of ``per_target`` its ``target``, ``outcome``, ``named_effects``
+    and, when known, ``effect_joints`` and ``refused`` (the periodic effects its own spectrum refused:
+    ``{"effect", "joint", "reason"}``).  The effects and their orders are compared: a target
+    contradicts the whole when it names an effect outside every equivalence set of the whole
+    (another order of a periodic error is another effect), names the same effect on other joints
+    only, finds a gap the whole does not, answers "inputs wrong" alone, or when its own spectrum
+    refuses an effect the whole names on that joint because it peaks at another order.  The order
+    not being established with its fraction of the data is less power, not another story: a
+    target that then names the simpler alternative on that joint (a scale error for a
+    once-per-revolution error over a short range) does not contradict the whole.
     """
     allowed = set(whole["named_effects"])
     for s in whole["equivalence_sets"]:
         allowed |= set(s["members"])
+    joints_whole = whole.get("effect_joints") or {}
     gap_whole = whole["outcome"] != "no significant gap"
     found = {"explained", "partly explained"}
     bad, weaker = [], []
     for t in per_target:
-        other = [n for n in t["named_effects"] if n not in allowed]
+        # on a joint where its own data leave the whole's order unresolved (the order aliases with another, or a
+        # scale error fits as well), a target that names the simpler alternative there tells less, not another story
+        unresolved = {j for r in t.get("refused", []) if r.get("alias") is not None and r["effect"] in
+                      whole["named_effects"] for j in (joints_whole.get(r["effect"]) or [r.get("joint")])}
+        simpler = [n for n in t["named_effects"] if n not in allowed and unresolved
+                   and set((t.get("effect_joints") or {}).get(n) or ["?"]) <= unresolved]
+        other = [n for n in t["named_effects"] if n not in allowed and n not in simpler]
+        elsewhere = [n for n, j in (t.get("effect_joints") or {}).items()
+                     if n in joints_whole and j and not set(j) & set(joints_whole[n])]
+        refuses = [r for r in t.get("refused", []) if r["effect"] in whole["named_effects"] and r.get("alias") is None
+                   and (not joints_whole.get(r["effect"]) or r.get("joint") in joints_whole[r["effect"]])]
         if other:
             bad.append(f"target {t['target']} names {', '.join(other)}, outside the whole file's answer")
+        elif elsewhere:
+            bad.append(f"target {t['target']} finds {', '.join(elsewhere)} on joint(s) "
+                       + ", ".join(", ".join(t["effect_joints"][n]) for n in elsewhere)
+                       + ", not where the whole file does")
+        elif refuses:
+            bad.append(f"target {t['target']}'s own spectrum refuses {refuses[0]['effect']}: {refuses[0]['reason']}")
         elif t["outcome"] in found and not gap_whole:
             bad.append(f"target {t['target']} finds a gap ({t['outcome']}) the whole file does not")
         elif t["outcome"] == "inputs wrong" and whole["outcome"] != "inputs wrong":
             bad.append(f"target {t['target']} answers 'inputs wrong' (its columns or its offset are at fault)")
         elif t["outcome"] != whole["outcome"] or set(t["named_effects"]) != set(whole["named_effects"]):
             weaker.append(f"target {t['target']}: {t['outcome']}"
-                          + (f" by {' + '.join(t['named_effects'])}" if t["named_effects"] else ""))
+                          + (f" by {' + '.join(t['named_effects'])}" if t["named_effects"] else "")
+                          + (f" ({', '.join(simpler)} where its data do not establish the order the whole file "
+                             f"names)" if simpler else ""))
     if bad:
         return False, "the targets disagree: " + "; ".join(bad)
     words = "each target alone tells the same story as the whole file"
@@ -142,9 +170,10 @@ def targets_agree(whole: dict, per_target: list) -> tuple[bool, str]:
 def per_target_check(run, checks: list) -> list:
     """Diagnose each target alone with ``run(data, validation) -> Diagnosis`` (``checks`` of :func:`targets_to_check`).
 
-    Returns ``[{"target", "outcome", "named_effects", "validation_before", "validation_after"}]``
-    (RMS in mm); a target with too few rows to fit alone is reported as ``over-fitting`` (fewer
-    equations than parameters) with the ``reason``.
+    Returns ``[{"target", "outcome", "named_effects", "effect_joints", "refused", "validation_before",
+    "validation_after"}]`` (RMS in mm; ``refused``: the periodic effects and scale errors its own spectrum refused,
+    ``alias`` set when the order was only not established); a target with too few rows to fit alone is reported as
+    ``over-fitting`` (fewer equations than parameters) with the ``reason``.
     """
     out = []
     for t, d_t, v_t in checks:
@@ -156,8 +185,11 @@ def per_target_check(run, checks: list) -> list:
             # whole file's answer stands
             entry.update(outcome="over-fitting", named_effects=[], reason=f"not diagnosed alone: {exc}")
         else:
-            entry.update(outcome=diag.outcome, named_effects=list(diag.named_effects),
-                         validation_before=(diag.validation_before or {}).get("rms"),
+            joints = {n: j for n, j in getattr(diag, "effect_joints", {}).items() if n in diag.named_effects}
+            refused = [{"effect": r["effect"], "joint": r.get("joint"), "reason": r["reason"], "alias": r.get("alias")}
+                       for r in diag.rejected if r["stage"] == "spectrum"]
+            entry.update(outcome=diag.outcome, named_effects=list(diag.named_effects), effect_joints=joints,
+                         refused=refused, validation_before=(diag.validation_before or {}).get("rms"),
                          validation_after=(diag.validation_after or {}).get("rms"))
         out.append(entry)
     return out

@@ -5,7 +5,9 @@ Units: lengths in mm, angles in rad, temperatures in degC, masses in kg, forces 
 Names used in every output: ``compliance``, ``link-bending``, ``violated-constraint``,
 ``thermal``, ``screw-pitch``, ``screw-periodic``, ``angle-scale``, ``angle-harmonic-<k>``
 (``k`` cycles per revolution: 1 and 2 always tried, other orders from the residual
-spectrum), ``backlash``, ``backlash-gravity``, ``tracker-scale``, ``tracker-drift``, and
+spectrum), ``backlash``, ``backlash-gravity``, ``tracker-scale``, ``tracker-drift``, the
+effects of a machine's structure and legs (:mod:`.structure`, :class:`LegThermal`):
+``leg-thermal``, ``guide-straightness``, ``joint-clearance``, ``base-deformation``, and
 the names of user-defined effects registered in the entry-point group
 ``hyperstat.effects`` (see :func:`plugin_effects` and ``docs/diagnosis.md``).  Magnitude
 priors and their sources: :mod:`.priors`.
@@ -14,24 +16,28 @@ priors and their sources: :mod:`.priors`.
 from __future__ import annotations
 
 from hyperstat.solver.errors import DataError
-from hyperstat.solver.diagnosis.effects.actuator import (MASS_FIELD, MASS_FIELD_SHORT, AngleHarmonic, AngleScale, Backlash, Compliance,
-                                                         GravityBacklash, LinkBending, ScrewPeriodic, ScrewPitch,
-                                                         gravity_loads, gravity_regressor, gravity_source,
-                                                         harmonic_name)
+from hyperstat.solver.diagnosis.effects.actuator import (JOINTWISE, MASS_FIELD, MASS_FIELD_SHORT, AngleHarmonic, AngleScale,
+                                                         Backlash, Compliance, GravityBacklash, LegThermal, LinkBending,
+                                                         ScrewPeriodic, ScrewPitch, gravity_loads, gravity_moment,
+                                                         gravity_regressor, gravity_source, harmonic_name)
 from hyperstat.solver.diagnosis.effects.base import Effect
 from hyperstat.solver.diagnosis.effects.other import Thermal, TrackerDrift, TrackerScale, ViolatedConstraint
+from hyperstat.solver.diagnosis.effects.structure import BaseDeformation, GuideStraightness, JointClearance
 
 __all__ = ["Effect", "AngleHarmonic", "AngleScale", "Backlash", "Compliance", "GravityBacklash", "LinkBending",
            "ScrewPeriodic", "ScrewPitch", "Thermal", "TrackerDrift", "TrackerScale", "ViolatedConstraint",
+           "LegThermal", "GuideStraightness", "JointClearance", "BaseDeformation", "JOINTWISE", "gravity_moment",
+           "is_jointwise",
            "EFFECT_NAMES", "GRAVITY_EFFECTS", "ENTRY_POINT_GROUP", "MASS_FIELD", "MASS_FIELD_SHORT", "available_effects", "make_effect",
            "applicable_effects", "plugin_effects", "gravity_loads", "gravity_regressor", "gravity_source",
            "harmonic_name", "harmonic_order", "is_known_effect", "is_library_effect"]
 
 EFFECT_NAMES = ("compliance", "link-bending", "violated-constraint", "thermal", "screw-pitch", "screw-periodic",
                 "angle-scale", "angle-harmonic-1", "angle-harmonic-2", "backlash", "backlash-gravity",
-                "tracker-scale", "tracker-drift")
+                "tracker-scale", "tracker-drift", "leg-thermal", "guide-straightness", "joint-clearance",
+                "base-deformation")
 #: effects driven by the gravity loads: they need declared masses (``cannot_size`` otherwise)
-GRAVITY_EFFECTS = ("compliance", "link-bending", "backlash-gravity")
+GRAVITY_EFFECTS = ("compliance", "link-bending", "backlash-gravity", "joint-clearance", "base-deformation")
 ENTRY_POINT_GROUP = "hyperstat.effects"
 
 
@@ -48,6 +54,15 @@ def harmonic_order(name: str) -> float | None:
     except ValueError:
         return None
     return k if k > 0 and k == k and k != float("inf") else None
+
+
+def is_jointwise(name: str) -> bool:
+    """Whether a library effect has its own parameters per actuated joint (tried joint by joint, ``joints`` option).
+
+    >>> is_jointwise("angle-harmonic-1.5"), is_jointwise("compliance")
+    (True, False)
+    """
+    return name in JOINTWISE or harmonic_order(name) is not None
 
 
 def is_library_effect(name: str) -> bool:
@@ -122,6 +137,14 @@ def make_effect(name: str, mechanism, analysis=None, data=None, **options) -> Ef
         return GravityBacklash(mechanism, **options)
     if name == "tracker-scale":
         return TrackerScale(mechanism, **options)
+    if name == "leg-thermal":
+        return LegThermal(mechanism, **options)
+    if name == "guide-straightness":
+        return GuideStraightness(mechanism, **options)
+    if name == "joint-clearance":
+        return JointClearance(mechanism, **options)
+    if name == "base-deformation":
+        return BaseDeformation(mechanism, **options)
     if name == "tracker-drift":
         sessions = options.pop("sessions", None)
         if sessions is None and data is not None and "session" in data.metadata:
@@ -147,7 +170,12 @@ def applicable_effects(mechanism, analysis, data) -> dict:
     """Effect name -> reason it cannot be fitted on ``data`` (absent when it can)."""
     reasons = {}
     if not any(mechanism.joints[i].type == "P" for i in mechanism.actuated):
-        reasons["screw-pitch"] = reasons["screw-periodic"] = "no prismatic (screw-driven) actuator"
+        for name in ("screw-pitch", "screw-periodic", "leg-thermal", "guide-straightness", "joint-clearance"):
+            reasons[name] = "no prismatic (screw-driven) actuator"
+    if len(mechanism.chains) == 1 or not mechanism.closures:
+        reasons.setdefault("joint-clearance", "the clearance of the platform joints needs a parallel mechanism (legs)")
+        reasons.setdefault("leg-thermal", "the thermal growth of legs needs a parallel mechanism (legs); a serial "
+                                          "axis's growth is 'thermal' or 'screw-pitch'")
     if not any(mechanism.joints[i].type == "R" for i in mechanism.actuated):
         reasons["angle-scale"] = reasons["angle-harmonic-1"] = reasons["angle-harmonic-2"] = "no revolute actuator"
     if len(mechanism.chains) != 1:
@@ -156,11 +184,12 @@ def applicable_effects(mechanism, analysis, data) -> dict:
         reasons["violated-constraint"] = "the mechanism has no forced defect (not over-constrained)"
     if "temperature" not in data.metadata or len(set(data.metadata["temperature"].tolist())) < 2:
         reasons["thermal"] = "no varying 'temperature[degC]' column in the data"
+        reasons.setdefault("leg-thermal", reasons["thermal"])
     if not all(f"dir{mechanism.joints[i].name}" in data.metadata for i in mechanism.actuated):
         reasons["backlash"] = "no approach-direction columns 'dir<joint>' in the data"
     if mechanism.metadata.get("masses") and len(mechanism.chains) != 1:
-        reasons["compliance"] = reasons["backlash-gravity"] = (
-            "link masses are declared, but distributed masses are supported on serial mechanisms only")
+        for name in ("compliance", "backlash-gravity", "joint-clearance", "base-deformation"):
+            reasons[name] = "link masses are declared, but distributed masses are supported on serial mechanisms only"
     elif gravity_source(mechanism) is None:
         for name in GRAVITY_EFFECTS:
             reasons.setdefault(name, "cannot be sized: the model declares no mass (" + MASS_FIELD_SHORT + ")")

@@ -17,6 +17,7 @@ from hyperstat.solver.diagnosis.effects.base import Effect
 from hyperstat.solver.diagnosis.effects.priors import PRIORS, compliance_bounds
 
 __all__ = ["ScrewPitch", "ScrewPeriodic", "AngleScale", "AngleHarmonic", "Backlash", "GravityBacklash", "Compliance",
+           "LegThermal", "JOINTWISE", "gravity_moment",
            "LinkBending", "LinkBendingAlternative", "gravity_loads", "gravity_source", "gravity_regressor",
            "harmonic_name", "MASS_FIELD", "MASS_FIELD_SHORT"]
 
@@ -29,12 +30,27 @@ MASS_FIELD_SHORT = "metadata.masses, the URDF links' <inertial> or the template'
 GRAVITY = 9.81  # m/s^2
 
 
-def _actuators(mechanism, prismatic_only: bool = False, revolute_only: bool = False) -> list[tuple[int, object]]:
+#: effects with their own parameters per actuated joint: the diagnosis tries them joint by joint and groups the
+#: joints that need them (``joints`` option, ``param_joints`` attribute)
+JOINTWISE = ("screw-pitch", "screw-periodic", "angle-scale", "angle-harmonic", "backlash", "backlash-gravity",
+             "leg-thermal", "guide-straightness", "joint-clearance")
+
+
+def _actuators(mechanism, prismatic_only: bool = False, revolute_only: bool = False,
+               joints: list | None = None, name: str = "effect") -> list[tuple[int, object]]:
+    """``(actuator index, joint)`` of the actuated joints (of one type), restricted to ``joints`` when given."""
     out = [(a, mechanism.joints[i]) for a, i in enumerate(mechanism.actuated)]
     if prismatic_only:
-        return [(a, j) for a, j in out if j.type == "P"]
+        out = [(a, j) for a, j in out if j.type == "P"]
     if revolute_only:
-        return [(a, j) for a, j in out if j.type == "R"]
+        out = [(a, j) for a, j in out if j.type == "R"]
+    if joints is not None:
+        names = [j.name for _, j in out]
+        unknown = [str(j) for j in joints if str(j) not in names]
+        if unknown:
+            kind = "prismatic " if prismatic_only else "revolute " if revolute_only else ""
+            raise DataError(f"{name}: '{unknown[0]}' is not a {kind}actuated joint of '{mechanism.name}'.")
+        out = [(a, j) for a, j in out if j.name in [str(x) for x in joints]]
     return out
 
 
@@ -44,12 +60,15 @@ class ScrewPitch(Effect):
     name = "screw-pitch"
     domain_note = "a lead error beyond 2e-3 (2 mm per metre) is no ball screw of any class"
 
-    def __init__(self, mechanism, magnitude: float = 4e-4) -> None:
-        self.axes = [a for a, _ in _actuators(mechanism, prismatic_only=True)]
-        names = [f"pitch_{j.name}" for _, j in _actuators(mechanism, prismatic_only=True)]
+    def __init__(self, mechanism, magnitude: float = 4e-4, joints: list | None = None) -> None:
+        acts = _actuators(mechanism, prismatic_only=True, joints=joints, name=self.name)
+        self.axes = [a for a, _ in acts]
+        self.joints = [j.name for _, j in acts]
+        names = [f"pitch_{j.name}" for _, j in acts]
         p = PRIORS["screw-pitch"]
         super().__init__(names, ["1"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
                          source=p.source)
+        self.param_joints = list(self.joints)
 
     def actuator_correction(self, model, theta, data):
         k, na = data.q.shape
@@ -66,14 +85,20 @@ class ScrewPeriodic(Effect):
 
     name = "screw-periodic"
 
-    def __init__(self, mechanism, lead: float | None = None, magnitude: float = 0.01) -> None:
-        self.lead = float(lead or mechanism.metadata.get("screw_lead", 10.0))
-        acts = _actuators(mechanism, prismatic_only=True)
+    def __init__(self, mechanism, lead: float | None = None, magnitude: float = 0.01, joints: list | None = None) -> None:
+        declared = float(mechanism.metadata.get("screw_lead", 10.0))
+        self.lead = float(lead or declared)
+        if not (np.isfinite(self.lead) and self.lead > 0):
+            raise DataError(f"screw-periodic: the screw lead must be a positive length in mm, got {lead!r}.")
+        acts = _actuators(mechanism, prismatic_only=True, joints=joints, name=self.name)
         self.axes = [a for a, _ in acts]
-        names = [f"periodic_{j.name}_{t}" for _, j in acts for t in ("sin", "cos")]
+        self.joints = [j.name for _, j in acts]
+        tag = "" if self.lead == declared else f"_p{self.lead:g}"  # another period than the lead: its name says it
+        names = [f"periodic_{j.name}{tag}_{t}" for _, j in acts for t in ("sin", "cos")]
         p = PRIORS["screw-periodic"]
         super().__init__(names, ["mm"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
                          source=p.source, groups=[[2 * e, 2 * e + 1] for e in range(len(acts))])
+        self.param_joints = [j for j in self.joints for _ in (0, 1)]
 
     domain_note = "a periodic lead error beyond 0.05 mm is no ball screw"
 
@@ -90,6 +115,45 @@ class ScrewPeriodic(Effect):
         return dq, dt
 
 
+class LegThermal(Effect):
+    """Thermal growth of each prismatic actuator's length: ``dq_j = kappa_j (T - 20 degC) q_j``.
+
+    A PKM's legs (or any screw-driven axis) lengthen with their temperature: the actuated
+    length ``q_j`` (mm, as the model measures it: a leg from its base joint's centre) grows by
+    ``kappa_j (T - T_ref) q_j``, ``T`` from the ``temperature[degC]`` column, ``T_ref`` = 20 degC,
+    one coefficient per leg (1/degC).  Domain: a structural expansion coefficient,
+    ``-2e-6 <= kappa <= 3e-5`` /degC (carbon fibre and Invar to aluminium, :mod:`.priors`);
+    realistic 1.2e-5 (a steel strut or ball screw).  Unlike ``thermal`` (the whole structure
+    about the base origin) it moves the platform through the legs: each leg by its own length.
+    """
+
+    name = "leg-thermal"
+    requires = ("temperature",)
+    reference = 20.0
+    domain_note = ("a leg's expansion coefficient lies between -2e-6 /degC (carbon fibre, Invar) and 3e-5 /degC "
+                   "(aluminium 2.3e-5, magnesium 2.6e-5)")
+
+    def __init__(self, mechanism, magnitude: float = 1.2e-5, joints: list | None = None) -> None:
+        acts = _actuators(mechanism, prismatic_only=True, joints=joints, name=self.name)
+        self.axes = [a for a, _ in acts]
+        self.joints = [j.name for _, j in acts]
+        p = PRIORS["leg-thermal"]
+        names = [f"leg_thermal_{j}" for j in self.joints]
+        super().__init__(names, ["1/degC"] * len(names), [magnitude] * len(names), lower=-2e-6, upper=3e-5,
+                         plausible=p.plausible, what=p.what, source=p.source)
+        self.param_joints = list(self.joints)
+
+    def actuator_correction(self, model, theta, data):
+        if "temperature" not in data.metadata:
+            raise DataError(f"{data.source}: the leg-thermal effect needs the column 'temperature[degC]'.")
+        k, na = data.q.shape
+        dtemp = data.metadata["temperature"] - self.reference
+        dt = np.zeros((k, na, len(self.axes)))
+        for e, a in enumerate(self.axes):
+            dt[:, a, e] = dtemp * data.q[:, a]
+        return np.einsum("kae,e->ka", dt, theta), dt
+
+
 class Backlash(Effect):
     """Backlash of each actuator: ``dq_j = -beta_j / 2 * dir_j``, ``beta_j >= 0``.
 
@@ -103,8 +167,10 @@ class Backlash(Effect):
     requires = ("dir*",)
     domain_note = "a clearance is never negative (beta >= 0), and above 0.1 mm or 1.5 mrad it is a loose joint"
 
-    def __init__(self, mechanism, magnitude_mm: float = 0.03, magnitude_rad: float = 1.5e-4) -> None:
-        acts = _actuators(mechanism)
+    def __init__(self, mechanism, magnitude_mm: float = 0.03, magnitude_rad: float = 1.5e-4,
+                 joints: list | None = None) -> None:
+        acts = _actuators(mechanism, joints=joints, name=self.name)
+        self.axes = [a for a, _ in acts]
         self.columns = [f"dir{j.name}" for _, j in acts]
         names = [f"backlash_{j.name}" for _, j in acts]
         _backlash_init(self, acts, names, magnitude_mm, magnitude_rad)
@@ -118,9 +184,9 @@ class Backlash(Effect):
             missing = [c for c in self.columns if c not in data.metadata]
             raise DataError(f"{data.source}: the backlash effect needs the column(s) {', '.join(missing)}.")
         k, na = data.q.shape
-        dt = np.zeros((k, na, na))
-        for a, col in enumerate(self.columns):
-            dt[:, a, a] = -0.5 * data.metadata[col]
+        dt = np.zeros((k, na, len(self.axes)))
+        for e, (a, col) in enumerate(zip(self.axes, self.columns)):
+            dt[:, a, e] = -0.5 * data.metadata[col]
         return np.einsum("kae,e->ka", dt, theta), dt
 
 
@@ -134,13 +200,15 @@ class AngleScale(Effect):
     name = "angle-scale"
     domain_note = "a ratio error beyond 5e-3 is a wrong gear ratio in the joint map, not a manufacturing error"
 
-    def __init__(self, mechanism, magnitude: float = 2e-4) -> None:
-        acts = _actuators(mechanism, revolute_only=True)
+    def __init__(self, mechanism, magnitude: float = 2e-4, joints: list | None = None) -> None:
+        acts = _actuators(mechanism, revolute_only=True, joints=joints, name=self.name)
         self.axes = [a for a, _ in acts]
+        self.joints = [j.name for _, j in acts]
         names = [f"angle_scale_{j.name}" for _, j in acts]
         p = PRIORS["angle-scale"]
         super().__init__(names, ["1"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
                          source=p.source)
+        self.param_joints = list(self.joints)
 
     def actuator_correction(self, model, theta, data):
         k, na = data.q.shape
@@ -159,6 +227,8 @@ def _backlash_init(effect: Effect, acts: list, names: list, magnitude_mm: float,
     mags = [magnitude_mm if u == "mm" else magnitude_rad for u in units]
     Effect.__init__(effect, names, units, mags, lower=0.0, plausible=[p.plausible for p in priors],
                     what=[p.what for p in priors], source=[p.source for p in priors])
+    effect.joints = [j.name for _, j in acts]
+    effect.param_joints = list(effect.joints)
 
 
 def harmonic_name(cycles: float) -> str:
@@ -188,18 +258,14 @@ class AngleHarmonic(Effect):
         if not (np.isfinite(self.cycles) and self.cycles > 0):
             raise DataError(f"a periodic angle error needs a positive number of cycles per revolution, got {cycles!r}.")
         self.name = harmonic_name(self.cycles)
-        acts = _actuators(mechanism, revolute_only=True)
-        if joints is not None:
-            unknown = [j for j in joints if j not in [jj.name for _, jj in acts]]
-            if unknown:
-                raise DataError(f"{self.name}: '{unknown[0]}' is not a revolute actuator of '{mechanism.name}'.")
-            acts = [(a, j) for a, j in acts if j.name in joints]
+        acts = _actuators(mechanism, revolute_only=True, joints=joints, name=self.name)
         self.axes = [a for a, _ in acts]
         self.joints = [j.name for _, j in acts]
         names = [f"harmonic{self.cycles:g}_{j.name}_{t}" for _, j in acts for t in ("sin", "cos")]
         p = PRIORS["angle-harmonic"]
         super().__init__(names, ["rad"] * len(names), [magnitude] * len(names), plausible=p.plausible, what=p.what,
                          source=p.source, groups=[[2 * e, 2 * e + 1] for e in range(len(acts))])
+        self.param_joints = [j for j in self.joints for _ in (0, 1)]
 
     def actuator_correction(self, model, theta, data):
         k, na = data.q.shape
@@ -366,11 +432,51 @@ def gravity_loads(mechanism, kin, q_act: np.ndarray, payload: np.ndarray, cache:
     return tau
 
 
+def gravity_moment(mechanism, kin, q_act: np.ndarray, payload: np.ndarray) -> np.ndarray:
+    """Moment of the moving masses' weight about the base origin (N mm, base frame), (K, 3).
+
+    ``M = sum_b x_b x m_b g``: the declared link masses at their centres of mass at the pose
+    (serial chains, :func:`gravity_loads`' bodies), a declared ``metadata['moving_mass']`` and
+    the payload (kg, per pose) at ``metadata['com']`` of the output frame; gravity along
+    ``metadata['gravity']`` (default -z).  Nothing is assumed: without declared masses only the
+    payload counts.
+    """
+    meta = mechanism.metadata
+    g = np.asarray(meta.get("gravity", (0.0, 0.0, -1.0)), dtype=float)
+    g = GRAVITY * g / np.linalg.norm(g)
+    moving = float(meta.get("moving_mass", 0.0) or 0.0)
+    com_out = np.asarray(meta.get("com", (0.0, 0.0, 0.0)), dtype=float)
+    res, st, frames = _body_frames(mechanism, kin, q_act)
+    out_point = st.output_pose[:, :3, 3] + np.einsum("kij,j->ki", st.output_pose[:, :3, :3], com_out)
+    moment = np.cross(out_point, (moving + payload)[:, None] * g[None, :])
+    links = _declared_masses(mechanism)
+    if links:
+        _, _, home = _body_frames(mechanism, kin, np.array([mechanism.home[mechanism.actuated]]))
+        for link in links:
+            if link["joint"] not in frames:
+                continue
+            local = np.linalg.solve(home[link["joint"]][1][0], np.r_[link["com"], 1.0])
+            point = np.einsum("kij,j->ki", frames[link["joint"]][1], local)[:, :3]
+            moment += np.cross(point, link["mass"] * g[None, :])
+    return moment
+
+
 def _require_gravity(mechanism, name: str) -> None:
     """Refuse a gravity-driven effect on a model that declares no mass (never assume one)."""
     if gravity_source(mechanism) is None:
         raise DataError(f"'{mechanism.name}': the {name} effect needs the gravity loads, and the model declares no "
                         f"mass; declare them in {MASS_FIELD}.")
+
+
+def _gravity_side(tau: np.ndarray, axes: list, theta: np.ndarray):
+    """``dq_a = beta_e / 2 * sign(tau_a)`` for the actuators ``axes`` (a load near zero rests on neither flank)."""
+    scale = np.abs(tau).max(axis=0, keepdims=True).clip(min=1e-300)
+    side = np.where(np.abs(tau) > 1e-6 * scale, np.sign(tau), 0.0)
+    k, na = tau.shape
+    dt = np.zeros((k, na, len(axes)))
+    for e, a in enumerate(axes):
+        dt[:, a, e] = 0.5 * side[:, a]
+    return np.einsum("kae,e->ka", dt, theta), dt
 
 
 class GravityBacklash(Effect):
@@ -384,9 +490,11 @@ class GravityBacklash(Effect):
     name = "backlash-gravity"
     domain_note = "a clearance is never negative (beta >= 0), and above 0.1 mm or 1.5 mrad it is a loose joint"
 
-    def __init__(self, mechanism, magnitude_mm: float = 0.03, magnitude_rad: float = 1.5e-4) -> None:
+    def __init__(self, mechanism, magnitude_mm: float = 0.03, magnitude_rad: float = 1.5e-4,
+                 joints: list | None = None) -> None:
         _require_gravity(mechanism, self.name)
-        acts = _actuators(mechanism)
+        acts = _actuators(mechanism, joints=joints, name=self.name)
+        self.axes = [a for a, _ in acts]
         names = [f"gravity_backlash_{j.name}" for _, j in acts]
         _backlash_init(self, acts, names, magnitude_mm, magnitude_rad)
         self._cache: dict = {}
@@ -394,13 +502,7 @@ class GravityBacklash(Effect):
     def actuator_correction(self, model, theta, data):
         payload = data.metadata.get("payload", np.zeros(len(data)))
         tau = gravity_loads(model.mechanism, model.kin, data.q, payload, self._cache)
-        scale = np.abs(tau).max(axis=0, keepdims=True).clip(min=1e-300)
-        side = np.where(np.abs(tau) > 1e-6 * scale, np.sign(tau), 0.0)
-        k, na = tau.shape
-        dt = np.zeros((k, na, na))
-        idx = np.arange(na)
-        dt[:, idx, idx] = 0.5 * side
-        return np.einsum("kae,e->ka", dt, theta), dt
+        return _gravity_side(tau, self.axes, theta)
 
 
 def _main_axes(mechanism) -> set:

@@ -10,7 +10,46 @@ import numpy as np
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.diagnosis.effects.base import Effect
 
-__all__ = ["Thermal", "TrackerScale", "TrackerDrift", "ViolatedConstraint"]
+__all__ = ["Thermal", "TrackerScale", "TrackerDrift", "ViolatedConstraint", "deformation_twists"]
+
+
+def deformation_twists(kin, q: np.ndarray, index: list) -> np.ndarray:
+    """Output twist per unit defect ``index[e]`` at configurations ``q``, the machine closing its loops, (K, 6, n_e).
+
+    The passive joints ``dq_p`` and an elastic deformation ``d`` of the defects (energy ``d^T W d``,
+    rotations weighted by the squared length scale) close the loops, ``A (e + d) + B_p dq_p = 0``,
+    with the least energy: ``d = -W^-1 (P A)^T [(P A) W^-1 (P A)^T]^+ P A e``, ``P = I - B_p B_p^+``
+    (the motions the passive joints cannot absorb).  An admissible defect needs no deformation
+    (``d = 0``, the passive joints absorb it: the twist is ``K_xi e``); a forced one deforms the
+    machine.  On the nominal geometry (first order); a serial chain has no loop (``d = 0``,
+    ``dq_p = 0``).
+    """
+    m = kin.mechanism
+    st = kin.evaluate(q, None, jacobians=True)
+    k, n_xi = len(q), len(m.parameters)
+    unit = np.zeros((n_xi, len(index)))
+    unit[list(index), np.arange(len(index))] = 1.0
+    if st.closure_xi is None or not st.closure_xi.shape[1]:
+        return st.output_xi @ unit
+    passive = m.passive
+    a = kin.scaled_rows(st.closure_xi)  # (K, 6L, n_xi)
+    b = kin.scaled_rows(st.closure_q[:, :, passive])
+    w_inv = 1.0 / np.array([kin.length_scale**2 if p.unit == "rad" else 1.0 for p in m.parameters])
+    bpinv = np.linalg.pinv(b, rcond=1e-10)
+    proj = np.eye(a.shape[1])[None] - b @ bpinv
+    pa = proj @ a  # (K, 6L, n_xi)
+    gram = np.einsum("kin,n,kjn->kij", pa, w_inv, pa)
+    gap = pa[:, :, list(index)]  # P A e
+    # pseudo-inverse with a cut relative to the closure's own scale (A W^-1 A^T), not to P A's: where the
+    # passive joints absorb everything, P A is round-off and must give no deformation, not amplified noise
+    size = np.einsum("kin,n,kin->k", a, w_inv, a)
+    ev, vec = np.linalg.eigh(gram)
+    inv = np.where(ev > 1e-12 * size[:, None], 1.0 / np.where(ev > 0, ev, 1.0), 0.0)
+    lam = np.einsum("kij,kj,klj,kle->kie", vec, inv, vec, gap)
+    d = -w_inv[None, :, None] * np.einsum("kin,kie->kne", pa, lam)  # (K, n_xi, n_e)
+    total = d + unit[None]
+    dq_p = -bpinv @ (a @ total)  # (K, n_p, n_e)
+    return st.output_xi @ total + st.output_q[:, :, passive] @ dq_p
 
 
 class Thermal(Effect):
@@ -126,24 +165,7 @@ class ViolatedConstraint(Effect):
         key = (q.shape, q.tobytes()[:256], float(q.sum()))
         if key in self._cache:
             return self._cache[key]
-        kin = model.kin
-        m = model.mechanism
-        st = kin.evaluate(q, None, jacobians=True)
-        passive = m.passive
-        a = kin.scaled_rows(st.closure_xi)  # (K, 6L, n_xi)
-        b = kin.scaled_rows(st.closure_q[:, :, passive])
-        w_inv = 1.0 / np.array([kin.length_scale**2 if p.unit == "rad" else 1.0 for p in m.parameters])
-        bpinv = np.linalg.pinv(b, rcond=1e-10)
-        proj = np.eye(a.shape[1])[None] - b @ bpinv
-        pa = proj @ a  # (K, 6L, n_xi)
-        gram = np.einsum("kin,n,kjn->kij", pa, w_inv, pa)
-        gap = pa[:, :, self._index]  # P A e_v
-        lam = np.linalg.pinv(gram, rcond=1e-10, hermitian=True) @ gap
-        d = -w_inv[None, :, None] * np.einsum("kin,kie->kne", pa, lam)  # (K, n_xi, n_e)
-        total = d.copy()
-        total[:, self._index, np.arange(len(self._index))] += 1.0
-        dq_p = -bpinv @ (a @ total)  # (K, n_p, n_e)
-        twist = st.output_xi @ total + st.output_q[:, :, passive] @ dq_p
+        twist = deformation_twists(model.kin, q, self._index)
         self._cache = {key: twist}
         return twist
 

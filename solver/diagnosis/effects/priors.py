@@ -47,6 +47,19 @@ Sources (cited by key in :data:`PRIORS`):
     B. Mooring, Z. Roth, M. Driels, *Fundamentals of Manipulator Calibration*, Wiley, 1991:
     joint transducer gain (scale) and offset errors; gear ratios are exact integer ratios,
     belt stages and encoder mounting give scale errors of the order of 1e-4.
+``iso230``
+    ISO 230-1 (test code for machine tools, geometric accuracy: straightness of linear axes,
+    tolerances of the order of 0.01 to 0.02 mm per metre of travel) and the linear-guide
+    makers' running-parallelism tables (THK LM Guide general catalogue: normal grade of the
+    order of 10 to 30 um over one to two metres of rail).
+``iso12240``
+    ISO 12240-1 (radial spherical plain bearings, radial internal clearance groups C2, normal,
+    C3: tens of micrometres for bores of 20 to 50 mm) and ISO 5753-1 (radial internal clearance
+    of rolling bearings, group C2 0 to 10 um at bores of 18 to 24 mm).
+``weck2006``
+    M. Weck, C. Brecher, *Werkzeugmaschinen 5: Messtechnische Untersuchung und Beurteilung*,
+    Springer, 2006: static stiffness of machine-tool structures measured at the tool of the order
+    of 10 to 100 N/um, i.e. about 1e7 to 1e8 N m/rad for a tilt of the frame with a one-metre lever.
 
 Examples
 --------
@@ -98,6 +111,9 @@ SOURCES = {
     "cte": "Callister, Materials Science and Engineering: expansion -1e-6 (carbon fibre) to 26e-6 /degC (magnesium)",
     "tracker": "laser-tracker datasheets (e.g. Leica AT960: 15 um + 6 um/m)",
     "mooring1991": "Mooring, Roth and Driels, Fundamentals of Manipulator Calibration, 1991",
+    "iso230": "ISO 230-1 straightness of linear axes and linear-guide running parallelism (THK: 10-30 um per metre)",
+    "iso12240": "ISO 12240-1 / ISO 5753-1 radial internal clearance of spherical plain and rolling bearings",
+    "weck2006": "Weck and Brecher, Werkzeugmaschinen 5, 2006: machine frames 10-100 N/um at the tool",
     "assembly": "geometry: a forced defect violated beyond this does not assemble",
 }
 
@@ -112,6 +128,12 @@ PRIORS = {
     "screw-pitch": Prior(4e-4, 2e-3, "1", "ball-screw lead error", "iso3408"),
     "screw-periodic": Prior(0.01, 0.05, "mm", "ball-screw periodic lead error", "iso3408"),
     "thermal": Prior(1e-5, 3e-5, "1/degC", "structural expansion coefficient", "cte"),
+    "leg-thermal": Prior(1.2e-5, 3e-5, "1/degC", "leg expansion coefficient", "cte"),
+    "guide-straightness": Prior(0.005, 0.05, "mm", "guide straightness (bow over the stroke)", "iso230"),
+    "joint-clearance": Prior(0.01, 0.15, "mm", "platform-joint clearance", "iso12240"),
+    # a tilt of the frame under the moment of the moving masses: 5e7 N m/rad realistic, 1e6 N m/rad at the bound
+    "base-deformation": Prior(2e-11, 1e-9, "rad/(N mm)", "base tilt compliance (stiffness above 1e6 N m/rad)",
+                              "weck2006"),
     "tracker-scale": Prior(1e-5, 1e-4, "1", "tracker scale error", "tracker"),
     "tracker-drift": Prior(0.03, 1.0, "mm", "tracker drift between sessions", "tracker"),
     "compliance-mm": Prior(1e-4, 1e-3, "mm/N", "axis compliance (1 N/um stiffness at the bound)", "abele2007"),

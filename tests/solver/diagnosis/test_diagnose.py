@@ -87,7 +87,8 @@ def test_diagnose_command_json_contract(tmp_path, capsys):
     assert [s["members"][0] for s in doc["equivalence_sets"]] == doc["named_effects"]
     assert all(set(s) == {"members", "separating_measurement"} for s in doc["equivalence_sets"])
     # the SCARA template declares no mass: the gravity-driven effects are listed, none is assumed
-    assert {c["effect"] for c in doc["cannot_size"]} == {"compliance", "link-bending", "backlash-gravity"}
+    assert {c["effect"] for c in doc["cannot_size"]} == {"compliance", "link-bending", "backlash-gravity",
+                                                          "base-deformation"}
     assert all(set(c) == {"effect", "reason", "field"} for c in doc["cannot_size"])
     revolutes = {f"{j}" for j in ("1", "2", "4")}
     assert set(doc["spectrum_peaks"]) == revolutes
@@ -95,6 +96,9 @@ def test_diagnose_command_json_contract(tmp_path, capsys):
                for p in doc["spectrum_peaks"].values())
     assert doc["noise_factor"] is None and doc["validation_factor"] > 0 and doc["identification_factor"] > 0
     assert doc["per_target"] == [] and doc["targets_agree"] is None
+    # issue 40: the joints of each named per-joint effect, and the confidence
+    assert doc["effect_joints"] == {"backlash": ["1", "2", "3", "4"]} or set(doc["effect_joints"]) == {"backlash"}
+    assert doc["confidence"] in ("high", "low") and isinstance(doc["selection_steps"], list)
     assert all(set(r) >= {"effect", "stage", "reason"} for r in doc["rejected"])
     assert all({"effect", "validation_rms", "criterion"} <= set(e) for e in doc["ranking"])
     for key in ("validation_before", "validation_after"):

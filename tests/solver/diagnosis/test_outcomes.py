@@ -209,7 +209,7 @@ def test_a_model_without_masses_cannot_size_compliance(tmp_path, capsys):
                  "--json", str(out), "--quiet"]) == 0
     doc = json.loads(out.read_text())
     sizes = {c["effect"]: c for c in doc["cannot_size"]}
-    assert set(sizes) == {"compliance", "link-bending", "backlash-gravity"}
+    assert set(sizes) == {"compliance", "link-bending", "backlash-gravity", "base-deformation"}
     assert "metadata.masses" in sizes["compliance"]["field"] and "<inertial>" in sizes["compliance"]["field"]
     assert "compliance" not in doc["named_effects"] and doc["outcome"] != "explained"
     assert "compliance" not in [e["effect"] for e in doc["ranking"]]
