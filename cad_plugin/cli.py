@@ -187,7 +187,8 @@ def _cmd_report(args) -> int:
         drawn = views.result()
         if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
             images["rendered"] = drawn
-        written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images)
+        written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
+                               step_drawings=args.step_drawings)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
@@ -314,6 +315,8 @@ def build_parser():
     p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
     p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
     p.add_argument("--revision", default="-", metavar="TEXT", help="revision printed in the title block (default '-')")
+    p.add_argument("--step-drawings", action="store_true", help="also write each part drawing as DIR/parts/PART.step: "
+                   "STEP AP242 with its datums and geometric tolerances as semantic PMI")
     p.add_argument("--date", metavar="YYYY-MM-DD", help="date printed in the title block (default: today, or "
                    "SOURCE_DATE_EPOCH when set)")
     p.add_argument("--quiet", action="store_true", help="print nothing")

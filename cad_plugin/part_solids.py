@@ -11,13 +11,14 @@ by their geometry (never by construction history, which the Boolean operations r
   the span of the joint's supports) in a boss; its end faces are the boss's annular planes;
 * an ``axis`` of a prismatic joint is a **guide way**: a rectangular channel along the axis, of the
   feature's width (its diameter) and length; the feature is the channel's two flanks and its floor;
-* a ``plane`` is a planar face through the feature's point, normal to its direction (a pad on the part's
-  side of the plane, flush with a boss end when it is one);
+* a ``plane`` is a planar face through the feature's point, normal to its direction: a bore's end face
+  when it lies there, else a pad behind it (its direction is its outward normal: the material is behind);
 * a ``median plane`` is the pair of parallel faces ``length_mm`` apart, centred on the point;
 * a ``point`` is a spherical socket (the centre of a ball joint).
 
-The features are joined by bars: the template's link bars when the part is a declared link (same name),
-else the shortest tree through the features' points.  Sizes the drawing does not give (a bore's
+The features are joined by bars along the shortest tree through their points, each bar running from one
+feature's material to the other's (never through a bore).  An axis named a pin (trunnion, journal, shaft) is
+an external cylinder, as on a universal joint's cross.  Sizes the drawing does not give (a bore's
 diameter, the wall around it) are assumed and listed in :attr:`PartSolid.assumed`, so that the page that
 draws the part says so.
 
@@ -52,6 +53,7 @@ DEFAULT_DIAMETER_MM = 20.0
 #: a feature's length when the drawing gives none
 DEFAULT_LENGTH_MM = 20.0
 _PAD_MM = 3.0  # thickness of the pad behind a plane feature
+_PIN_WORDS = ("pin", "trunnion", "journal", "shaft")  # an axis feature so named is an external cylinder
 
 
 @dataclass
@@ -63,6 +65,7 @@ class PartSolid:
     faces: dict = field(default_factory=dict)  # feature id -> list of cq.Face
     features: dict = field(default_factory=dict)  # feature id -> the drawing's feature (dict)
     assumed: list = field(default_factory=list)  # sentences: sizes the drawing did not give
+    parsed: dict = field(default_factory=dict)  # feature id -> its checked geometry (sizes used, guide or bore)
 
     def size_mm(self) -> float:
         """The diagonal of the solid's bounding box (mm)."""
@@ -123,12 +126,14 @@ class _Feature:
         if not (self.length > 0 and self.diameter > 0 and math.isfinite(self.length) and math.isfinite(self.diameter)):
             raise HyperstatError(f"{where}: length_mm and diameter_mm must be positive numbers (mm).")
         self.guide = self.kind == "axis" and joint_type == "P"
+        name = str(f.get("name") or "").lower()
+        self.pin = self.kind == "axis" and not self.guide and any(w in name for w in _PIN_WORDS)
         self.element = str(f.get("element") or "")
         self.wall = max(0.3 * self.diameter, 4.0)
 
     @property
     def outer_radius(self) -> float:
-        return 0.5 * self.diameter + self.wall
+        return 0.5 * self.diameter * (1.0 if self.pin else 1.0) + (0.0 if self.pin else self.wall)
 
 
 def _cylinder(radius: float, start: np.ndarray, axis: np.ndarray, length: float):
@@ -155,13 +160,38 @@ def _moved(shape, centre: np.ndarray, u: np.ndarray, v: np.ndarray, w: np.ndarra
     return shape.moved(cq.Location(t))
 
 
+def _boss_end(f: _Feature, features: list[_Feature]) -> _Feature | None:
+    """The bore or pin whose end face plane feature ``f`` is (its plane holds that end), if any."""
+    for g in features:
+        if g.kind == "axis" and not g.guide and abs(abs(float(f.u @ g.u)) - 1) < 1e-9:
+            r = f.p - g.p
+            lateral = r - (r @ g.u) * g.u
+            if abs(abs(float(r @ g.u)) - 0.5 * g.length) < 1e-6 * max(1.0, g.length) and \
+                    np.linalg.norm(lateral) <= g.outer_radius:
+                return g
+    return None
+
+
+def _ends(f: _Feature) -> list[_Feature]:
+    """The two faces of a median plane as plane features (outward normals)."""
+    out = []
+    for sign in (-1.0, 1.0):
+        g = object.__new__(_Feature)
+        g.__dict__.update(f.__dict__)
+        g.kind, g.p, g.u = "plane", f.p + sign * 0.5 * f.length * f.u, sign * f.u
+        out.append(g)
+    return out
+
+
 def _material_and_voids(features: list[_Feature], centroid: np.ndarray) -> tuple[list, list]:
     """Solids to fuse (bosses, pads, housings) and to cut (bores, channels, sockets), per feature."""
     import cadquery as cq
 
     solids, voids = [], []
     for f in features:
-        if f.kind == "axis" and not f.guide:
+        if f.pin:
+            solids.append(_cylinder(0.5 * f.diameter, f.p - 0.5 * f.length * f.u, f.u, f.length))
+        elif f.kind == "axis" and not f.guide:
             solids.append(_cylinder(f.outer_radius, f.p - 0.5 * f.length * f.u, f.u, f.length))
             voids.append(_cylinder(0.5 * f.diameter, f.p - (0.5 * f.length + 0.1) * f.u, f.u, f.length + 0.2))
         elif f.kind == "axis":  # a guide way: a rectangular channel open towards w (away from the part's centre)
@@ -173,12 +203,11 @@ def _material_and_voids(features: list[_Feature], centroid: np.ndarray) -> tuple
             # the channel: its floor half a width below the axis, open at w (1 µm beyond the top face)
             voids.append(_box(f.p - 0.5 * depth * w + 0.5e-3 * w, f.u, v, w, (f.length + 0.2, width, depth + 1e-3)))
         elif f.kind == "plane":
-            inward = -f.u if (centroid - f.p) @ f.u < 0 else f.u
-            radius = max(f.outer_radius, 0.5 * f.length)
-            solids.append(_cylinder(radius, f.p, inward, _PAD_MM))
+            if _boss_end(f, features) is None:  # a face of its own: a pad behind it (its direction points out)
+                solids.append(_cylinder(max(f.outer_radius, 0.5 * f.length), f.p, -f.u, _PAD_MM))
         elif f.kind == "median plane":
-            radius = max(f.outer_radius, 10.0)
-            solids.append(_cylinder(radius, f.p - 0.5 * f.length * f.u, f.u, f.length))
+            if not any(_boss_end(g, features) is not None for g in _ends(f)):
+                solids.append(_cylinder(max(f.outer_radius, 10.0), f.p - 0.5 * f.length * f.u, f.u, f.length))
         else:  # point: a ball socket
             solids.append(cq.Solid.makeSphere(f.outer_radius, cq.Vector(*f.p), angleDegrees1=-90, angleDegrees2=90))
             voids.append(cq.Solid.makeSphere(0.5 * f.diameter, cq.Vector(*f.p), angleDegrees1=-90, angleDegrees2=90))
@@ -199,22 +228,43 @@ def _tree(points: np.ndarray) -> list[tuple[int, int]]:
     return edges
 
 
-def _bars(features: list[_Feature], link: dict | None) -> list:
-    """Bars joining the features: the link's bars (points, radius) or the shortest tree through their points."""
-    radius = 0.5 * min(f.outer_radius for f in features) if features else 5.0
-    if link and len(link.get("points") or []) >= 2:
-        pts = np.asarray(link["points"], dtype=float)
-        radius = min(float(link.get("radius", radius)), radius)
-        pairs = list(zip(pts[:-1], pts[1:]))
-    else:
-        pts = np.unique(np.round(np.array([f.p for f in features]), 9), axis=0) if features else np.zeros((0, 3))
-        pairs = [(pts[i], pts[j]) for i, j in _tree(pts)]
+def _attach(f: _Feature, target: np.ndarray) -> np.ndarray:
+    """Where a bar towards ``target`` meets feature ``f``'s material (never inside its bore or channel)."""
+    r = target - f.p
+    if f.kind == "axis" and f.guide:
+        return f.p - (0.5 * f.diameter + 0.5 * f.wall) * f.w
+    if f.kind == "plane":
+        return f.p - 0.5 * _PAD_MM * f.u * (1.0 if (target - f.p) @ f.u < 0 else -1.0)
+    if f.kind == "median plane" or f.pin:
+        return f.p
+    mid = 0.5 * f.diameter + 0.5 * f.wall  # in the wall of a bore or socket
+    if f.kind == "point":
+        return f.p + mid * r / max(float(np.linalg.norm(r)), 1e-12)
+    lateral = r - (r @ f.u) * f.u
+    if np.linalg.norm(lateral) > 1e-6 * max(1.0, float(np.linalg.norm(r))):
+        return f.p + mid * lateral / np.linalg.norm(lateral)
+    v, _ = feature_frame(f.u)
+    return f.p + np.sign(r @ f.u) * 0.5 * f.length * f.u + mid * v  # along the axis: from the boss's end face
+
+
+def _bars(features: list[_Feature]) -> list:
+    """Bars along the shortest tree through the features' points, from material to material.
+
+    A plane that is a bore's end face, and a median plane whose faces are, are that bore's material already.
+    """
+    features = [f for f in features if not (f.kind == "plane" and _boss_end(f, features) is not None) and
+                not (f.kind == "median plane" and any(_boss_end(g, features) is not None for g in _ends(f)))]
+    points = np.array([f.p for f in features])
     out = []
-    for a, b in pairs:
-        d = b - a
+    for i, j in _tree(points):
+        a, b = features[i], features[j]
+        if np.linalg.norm(a.p - b.p) < 1e-6:
+            continue  # features at one point (a cross's two axes): their bosses already meet
+        pa, pb = _attach(a, b.p), _attach(b, a.p)
+        d = pb - pa
         n = float(np.linalg.norm(d))
         if n > 1e-6:
-            out.append(_cylinder(radius, a, d / n, n))
+            out.append(_cylinder(0.4 * min(a.outer_radius, b.outer_radius), pa, d / n, n))
     return out
 
 
@@ -234,8 +284,10 @@ def _faces_of(shape, f: _Feature, tol: float) -> list:
         kind = face.geomType()
         if f.kind == "axis" and not f.guide and kind == "CYLINDER":
             axis, origin, radius = _cylinder_of(face)
+            centre = np.array(face.Center().toTuple())
             if (_close(radius, 0.5 * f.diameter, tol) and abs(abs(float(axis @ f.u)) - 1) < 1e-6
-                    and np.linalg.norm(np.cross(f.p - origin, axis)) < tol):
+                    and np.linalg.norm(np.cross(f.p - origin, axis)) < tol
+                    and abs(float((centre - f.p) @ f.u)) <= 0.5 * f.length + tol):
                 out.append(face)
         elif f.kind == "point" and kind == "SPHERE":
             centre, radius = _sphere_of(face)
@@ -278,16 +330,13 @@ def _sphere_of(face) -> tuple[np.ndarray, float]:
     return np.array([c.X(), c.Y(), c.Z()]), float(sph.Radius())
 
 
-def part_solid(drawing: dict, links: list | None = None, joint_types: dict | None = None) -> PartSolid:
+def part_solid(drawing: dict, joint_types: dict | None = None) -> PartSolid:
     """The solid of one part drawing, with the faces of each of its features (see the module docstring).
 
     Parameters
     ----------
     drawing : dict
         One entry of ``report.json``'s ``drawings`` (``part``, ``features``).
-    links : list of dict, optional
-        The template's links (``metadata["links"]`` of the model: ``name``, ``points`` in mm, ``radius``); the
-        link named as the part gives its bars.
     joint_types : dict, optional
         Element name -> ``"R"`` or ``"P"`` (``report.json``'s ``joints``): an axis of a prismatic joint is a
         guide way.
@@ -313,10 +362,12 @@ def part_solid(drawing: dict, links: list | None = None, joint_types: dict | Non
     assumed.append("walls and bars are drawn to join the features (not toleranced)")
     centroid = np.mean([f.p for f in features], axis=0)
     solids, voids = _material_and_voids(features, centroid)
-    link = next((l for l in (links or []) if l.get("name") == part), None)
-    shape = _fuse(solids + _bars(features, link))
+    shape = _fuse(solids + _bars(features))
     if voids:
         shape = shape.cut(*voids).clean()
+    solids_left = shape.Solids()
+    if len(solids_left) > 1:  # a bar's end cap cut off by a bore or a channel: a sliver, not part of the part
+        shape = max(solids_left, key=lambda x: x.Volume())
     tol = 1e-4 * max(1.0, max(float(np.linalg.norm(f.p)) for f in features))
     faces, missing = {}, []
     for f in features:
@@ -327,4 +378,4 @@ def part_solid(drawing: dict, links: list | None = None, joint_types: dict | Non
     if missing:
         raise HyperstatError(f"drawing of part '{part}': no face of its solid realises feature '{missing[0]}' "
                              "(two features overlap or one lies inside another's material).")
-    return PartSolid(part, shape, faces, {f["id"]: f for f in raw}, assumed)
+    return PartSolid(part, shape, faces, {f["id"]: f for f in raw}, assumed, {f.id: f for f in features})

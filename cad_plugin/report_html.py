@@ -27,7 +27,7 @@ from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, c
 __all__ = ["render_html", "SECTIONS", "CSS"]
 
 SECTIONS = ("summary", "skeleton", "assembly", "accuracy", "montecarlo", "calibration", "hypotheses", "identification",
-            "diagnosis", "joints", "glossary", "appendix")
+            "diagnosis", "joints", "glossary", "appendix", "parts")
 
 CSS = """
 body { font-family: "DejaVu Sans", Arial, sans-serif; font-size: 17px; color: #111; margin: 2em auto;
@@ -479,12 +479,16 @@ def render_html(doc: dict, images: dict) -> str:
     """The report as one self-contained HTML page (page 1: title block, counts, tolerance table).
 
     ``images`` maps names to SVG text or PNG bytes: ``views`` (the skeleton drawing), the
-    diagnosis plots, ``accuracy_map``.
+    diagnosis plots, ``accuracy_map``; ``parts`` the part drawings' pages
+    (:func:`hyperstat.cad_plugin.report_parts.part_pages`), one A4 page each after the appendix.
     """
+    from hyperstat.cad_plugin.report_parts import PARTS_CSS, parts_html
+
     head = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-            f"<title>hyperstat tolerance report: {_e(doc['mechanism'])}</title>", f"<style>{CSS}</style></head><body>",
+            f"<title>hyperstat tolerance report: {_e(doc['mechanism'])}</title>",
+            f"<style>{CSS}{PARTS_CSS}</style></head><body>",
             f"<h1>Tolerance report: {_e(doc['mechanism'])}</h1>"]
     body = [_summary(doc), _skeleton(images), _assembly(doc), _accuracy(doc, images), _montecarlo(doc),
             _calibration(doc), _hypotheses(doc), _identification(doc), _diagnosis(doc, images), _joints(doc),
-            _glossary(doc), _appendix(doc)]
+            _glossary(doc), _appendix(doc), parts_html(doc, images.get("parts"))]
     return "\n".join(head + body + ["</body></html>"]) + "\n"

@@ -132,4 +132,7 @@ def render_markdown(doc: dict) -> str:
     lines += ["", "## Glossary", ""] + [f"* **{k}**: {v}" for k, v in glossary(doc)]
     lines += ["", "## Appendix: normalisation components (not tolerances)", ""]
     lines += [f"* {a['name']} (joint {a['element']})" for a in tol["appendix"]["normalisation"]] or ["* none"]
+    from hyperstat.cad_plugin.report_parts import parts_markdown
+
+    lines += parts_markdown(doc)
     return micro("\n".join(lines) + "\n")

@@ -1,0 +1,625 @@
+"""The part drawings of the report: one A4 page per part, drawn from the part's solid, with its frames and datums.
+
+Units: lengths and zones in mm (the drawing's frame: the world frame at the home configuration); the page in
+mm and type in pt (8 pt everywhere on the drawing: :data:`hyperstat.cad_plugin.drawing.FONT_PT`).
+
+Each entry of ``report.json``'s ``drawings`` (``docs/drawing-format.md``) becomes a page: two orthographic
+views of the part's solid (:func:`hyperstat.cad_plugin.part_solids.part_solid`; visible edges solid, hidden
+edges dashed, from OCCT's hidden-line removal) at an ISO 5455 scale, the datum feature symbols of ISO 5459
+(a filled triangle on the datum feature, a square with its letter), the feature control frames of ISO 1101
+(characteristic symbol drawn from :mod:`hyperstat.cad_plugin.gdt`, ``⌀`` for a cylindrical zone, the datum
+system in order of precedence, and the intersection / orientation plane indicator that states a planar
+zone's direction) with a leader to their feature, then the table of the part's datums and frames in words
+(feature and length, zone shape and direction, datum system, theoretically exact dimensions, the value's
+kind: without or with calibration, the note).  :func:`part_pages` draws every page, :func:`parts_html` and
+:func:`parts_markdown` lay them out.
+"""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+
+from functools import lru_cache
+
+from hyperstat.cad_plugin.drawing import FONT_PT, WIDTH_MM, figure_svg
+from hyperstat.cad_plugin.drawing import text_width_pt as _text_width
+from hyperstat.cad_plugin.gdt import draw_symbol, symbol_svg
+
+__all__ = ["part_pages", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
+           "PARTS_CSS"]
+
+#: drawing scales of ISO 5455 (paper mm per part mm), largest first
+ISO_SCALES = (5.0, 2.0, 1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
+_FAMILY = "DejaVu Sans"
+_VIEWS_MM = 108.0  # width of the views' column
+_GAP_MM = 6.0
+_BAND_MM = 16.0  # above a view: its label and room for the datum symbols that stand out of it
+_LINE = 1.28 * FONT_PT  # pt
+_ROW = 1.55 * FONT_PT  # height of a frame's row, pt
+_PT = 25.4 / 72.0  # mm per pt
+PARTS_CSS = """
+section.part-page { break-before: page; page-break-before: always; }
+section.part-page h3 { margin-top: 0; } table.part { font-size: .8em; width: 100%; }
+table.part td { padding: 0 .25em; } .ted { border: 1px solid #111; padding: 0 .2em; }
+@media print { section.part-page { font-size: 8pt; } table.part { font-size: 8pt; } }
+"""
+
+
+@lru_cache(maxsize=4096)
+def text_width_pt(text: str) -> float:
+    """Width of ``text`` at 8 pt (pt), measured once per text (the outlines take milliseconds)."""
+    return _text_width(text)
+
+
+def _scale_text(s: float) -> str:
+    return f"{s:g}:1" if s >= 1 else f"1:{1 / s:g}"
+
+
+def _dominant(directions: list[np.ndarray]) -> np.ndarray | None:
+    """The direction (up to sign) shared by most of ``directions``."""
+    best, count = None, 0
+    for d in directions:
+        n = sum(abs(float(d @ e)) > 0.999 for e in directions)
+        if n > count:
+            best, count = d, n
+    return best
+
+
+def view_axes(features: list[dict]) -> list[dict]:
+    """Two orthographic views of a part: along its dominant axis, and across it showing the axes' lengths.
+
+    Each view is ``{"toward", "right", "up"}``: unit vectors of the drawing's frame (the eye looks along
+    ``-toward``).  The first view looks along the direction most axes share (bores appear as circles), the
+    second across it, so that the part's longest extent runs left to right in both.
+
+    >>> v = view_axes([{"kind": "axis", "point_mm": [0, 0, 0], "direction": [0, 1, 0]},
+    ...                {"kind": "axis", "point_mm": [100, 0, 0], "direction": [0, 1, 0]}])
+    >>> [(np.round(x["toward"], 6) + 0.0).tolist() for x in v], (np.round(v[1]["up"], 6) + 0.0).tolist()
+    ([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [0.0, 1.0, 0.0])
+    """
+    axes = [np.asarray(f["direction"], float) / np.linalg.norm(f["direction"]) for f in features
+            if f.get("kind") == "axis" and f.get("direction") is not None]
+    planes = [np.asarray(f["direction"], float) / np.linalg.norm(f["direction"]) for f in features
+              if f.get("kind") in ("plane", "median plane") and f.get("direction") is not None]
+    main = _dominant(axes) if axes else (_dominant(planes) if planes else None)
+    if main is None:
+        main = np.array([0.0, 0.0, 1.0])
+    k = int(np.argmax(np.abs(main)))
+    if main[k] < 0:  # a view along -y looks as along +y: the positive one, for stable pictures
+        main = -main
+    pts = np.array([f["point_mm"] for f in features], float)
+    flat = pts - pts.mean(axis=0)
+    flat = flat - np.outer(flat @ main, main)
+    if len(pts) > 1 and np.linalg.norm(flat) > 1e-6:
+        long = np.linalg.svd(flat, full_matrices=False)[2][0]
+    else:
+        from hyperstat.cad_plugin.part_solids import feature_frame
+
+        long = feature_frame(main)[0]
+    long = long - (long @ main) * main
+    long /= np.linalg.norm(long)
+    j = int(np.argmax(np.abs(long)))
+    if long[j] < 0:
+        long = -long
+    first = {"toward": main, "right": long, "up": np.cross(main, long)}
+    across = np.cross(main, long)
+    second = {"toward": -across if across @ np.ones(3) < 0 else across, "right": long}
+    second["up"] = np.cross(second["toward"], long)
+    return [first, second]
+
+
+def _direction_words(d: np.ndarray) -> str:
+    names = "xyz"
+    k = int(np.argmax(np.abs(d)))
+    if abs(abs(float(d[k])) - 1) < 1e-9:
+        return ("+" if d[k] > 0 else "-") + names[k]
+    return "(" + ", ".join(f"{c:.3g}" for c in d) + ")"
+
+
+def _hlr(shape, view: dict) -> dict:
+    """Visible and hidden edges of ``shape`` in ``view``: 2-D polylines (mm) from OCCT's polygonal hidden-line
+    removal on a mesh whose deflection is 1/1500 of the part's size (the exact algorithm takes seconds on a bar
+    meeting a boss; 1/1500 of the view is under a tenth of a millimetre on the page)."""
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+    from OCP.HLRAlgo import HLRAlgo_Projector
+    from OCP.HLRBRep import HLRBRep_PolyAlgo, HLRBRep_PolyHLRToShape
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+
+    bb = shape.BoundingBox()
+    BRepMesh_IncrementalMesh(shape.wrapped, max(0.02, max(bb.xlen, bb.ylen, bb.zlen) / 1500.0), False, 0.2, True)
+    algo = HLRBRep_PolyAlgo(shape.wrapped)
+    algo.Projector(HLRAlgo_Projector(gp_Ax2(gp_Pnt(0, 0, 0), gp_Dir(*view["toward"]), gp_Dir(*view["right"]))))
+    algo.Update()
+    out = HLRBRep_PolyHLRToShape()
+    out.Update(algo)
+    result = {}
+    for key, parts in (("visible", (out.VCompound(), out.OutLineVCompound(), out.Rg1LineVCompound())),
+                       ("hidden", (out.HCompound(), out.OutLineHCompound()))):
+        lines = []
+        for comp in parts:
+            if comp.IsNull():
+                continue
+            ex = TopExp_Explorer(comp, TopAbs_EDGE)
+            while ex.More():
+                curve = BRepAdaptor_Curve(TopoDS.Edge_s(ex.Current()))
+                a, b = curve.Value(curve.FirstParameter()), curve.Value(curve.LastParameter())
+                lines.append(np.array([[a.X(), a.Y()], [b.X(), b.Y()]]))
+                ex.Next()
+        result[key] = _chain(lines)
+    return result
+
+
+def _chain(segments: list) -> list:
+    """Segments joined end to end into polylines (fewer, smoother strokes in the SVG)."""
+    ends: dict = {}
+    key = lambda q: (round(float(q[0]), 6), round(float(q[1]), 6))  # noqa: E731
+    for i, seg in enumerate(segments):
+        for q in (seg[0], seg[-1]):
+            ends.setdefault(key(q), []).append(i)
+    used = [False] * len(segments)
+    out = []
+    for i in range(len(segments)):
+        if used[i]:
+            continue
+        used[i] = True
+        line = [segments[i][0], segments[i][-1]]
+        for forward in (True, False):
+            while True:
+                tip = line[-1] if forward else line[0]
+                nxt = next((j for j in ends.get(key(tip), []) if not used[j]), None)
+                if nxt is None or len(ends[key(tip)]) > 2:  # a branch point: stop the stroke there
+                    break
+                used[nxt] = True
+                seg = segments[nxt]
+                other = seg[-1] if key(seg[0]) == key(tip) else seg[0]
+                if forward:
+                    line.append(other)
+                else:
+                    line.insert(0, other)
+        out.append(np.array(line))
+    return out
+
+
+def _project(view: dict, p) -> np.ndarray:
+    p = np.asarray(p, float)
+    return np.array([float(p @ view["right"]), float(p @ view["up"])])
+
+
+def zone_words(frame: dict) -> str:
+    """The zone of a frame in words: its shape, width (mm) and direction.
+
+    >>> zone_words({"zone_mm": 0.05, "zone_shape": "two parallel planes", "zone_direction": [0, 0, 1]})
+    'two parallel planes 0.05 mm apart, normal to +z'
+    >>> zone_words({"zone_mm": 0.02, "zone_shape": "cylinder"})
+    'cylinder of diameter 0.02 mm'
+    """
+    shape = str(frame.get("zone_shape") or "zone")
+    z = f"{float(frame['zone_mm']):.3g}"
+    if "cylinder" in shape or "circle" in shape:
+        text = f"{shape} of diameter {z} mm"
+    elif "sphere" in shape:
+        text = f"{shape} of diameter {z} mm"
+    else:
+        text = f"{shape} {z} mm apart"
+    d = frame.get("zone_direction")
+    if d is not None:
+        text += ", normal to " + _direction_words(np.asarray(d, float) / np.linalg.norm(d))
+    return text
+
+
+def _diameter(frame: dict) -> bool:
+    shape = str(frame.get("zone_shape") or "")
+    return "cylinder" in shape or "circle" in shape
+
+
+def frame_cells(frame: dict) -> list[str]:
+    """The cells of a frame as printed: characteristic, zone (``⌀`` for a cylinder, ``S⌀`` a sphere), datums,
+    then the direction indicator's cells (``"|| B"`` style words: relation symbol and datum).
+
+    >>> frame_cells({"characteristic": "position", "zone_mm": 0.05, "zone_shape": "cylinder",
+    ...              "datum_system": ["A", "B"]})
+    ['position', '\u23000.05', 'A', 'B']
+    """
+    shape = str(frame.get("zone_shape") or "")
+    prefix = "S\u2300" if "sphere" in shape else "\u2300" if _diameter(frame) else ""
+    cells = [str(frame.get("characteristic", "")).lower(), f"{prefix}{float(frame['zone_mm']):.3g}"]
+    return cells + [str(d) for d in frame.get("datum_system") or []]
+
+
+_RELATION_SYMBOL = {"parallel": "parallelism", "perpendicular": "perpendicularity", "inclined": "angularity",
+                    "angular": "angularity"}
+
+
+def _indicator_text(ind: dict | None) -> str:
+    if not ind:
+        return ""
+    return f"{ind.get('kind', '')}: {ind.get('relation', '')} to {ind.get('datum', '')}"
+
+
+class _Layout:
+    """Page geometry of one part drawing (mm, y downwards from the figure's top)."""
+
+    def __init__(self, views: list[dict], scale: float, head_mm: float, width_mm: float):
+        self.views, self.scale, self.head, self.width = views, scale, head_mm, width_mm
+        self.boxes = []  # per view: (x0, y0, w, h) on the page and the view's 2-D bounds
+        y = head_mm
+        for v in views:
+            lo, hi = v["bounds"]
+            w, h = (hi - lo) * scale
+            self.boxes.append((0.0, y + _BAND_MM, w, h, lo))  # a band above each view: its label, datum symbols
+            y += _BAND_MM + h + _GAP_MM
+        self.height = y
+
+    def page(self, k: int, xy: np.ndarray) -> np.ndarray:
+        """A point of view ``k`` (part mm, view coordinates) on the page (mm, y down)."""
+        x0, y0, w, h, lo = self.boxes[k]
+        rel = (xy - lo) * self.scale
+        return np.array([x0 + rel[0] + 0.5 * (self.width - w), y0 + h - rel[1]])
+
+
+def _anchor(feature: dict, views: list[dict], solid_feature, part_centre: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """Where a feature is called out: (view index, point in the drawing's frame, outward direction there)."""
+    p = np.asarray(feature["point_mm"], float)
+    kind = feature.get("kind")
+    u = np.asarray(feature.get("direction") or [0, 0, 1], float)
+    u = u / np.linalg.norm(u)
+    along = [abs(float(u @ v["toward"])) for v in views]
+    d = float(feature.get("diameter_mm") or 20.0)
+    outer = solid_feature.outer_radius if solid_feature is not None else 0.5 * d
+    if kind == "axis":
+        k = 0 if along[0] > 0.9 else int(np.argmin(along))
+        v = views[k]
+        if along[k] > 0.9:  # seen as a circle: on the bore's rim, upwards
+            return k, p + 0.5 * d * v["up"], v["up"]
+        side = np.cross(v["toward"], u)
+        side /= np.linalg.norm(side)
+        if (p - part_centre) @ side < 0:
+            side = -side
+        return k, p + outer * side, side
+    if kind in ("plane", "median plane"):
+        k = int(np.argmin(along))
+        v = views[k]
+        face = p + (0.5 * float(feature.get("length_mm") or 0.0) * u if kind == "median plane" else 0.0)
+        t = np.cross(v["toward"], u)
+        t = t / np.linalg.norm(t) if np.linalg.norm(t) > 1e-9 else v["up"]
+        return k, face + 0.5 * (0.5 * d + outer) * t, u
+    return 0, p + 0.5 * d * views[0]["up"], views[0]["up"]
+
+
+def _frame_label(fr: dict) -> str:
+    ids = ", ".join(fr.get("tolerances") or [])
+    return fr["id"] + (f" ({ids})" if ids else "") + ("; with calibration" if "with cal" in
+                                                     str(fr.get("value_kind", "")) else "")
+
+
+def _block_width(fr: dict) -> float:
+    """Width (mm) of a frame's block: its label line or its row of cells and indicator, whichever is wider."""
+    h = _ROW * _PT
+    cells = frame_cells(fr)
+    row = h + sum((text_width_pt(c) + 5.0) * _PT for c in cells[1:])
+    ind = fr.get("indicator")
+    if ind:
+        row += 1.0 + 1.7 * h + (text_width_pt(str(ind.get("datum", ""))) + 5.0) * _PT
+    return max(row, text_width_pt(_frame_label(fr)) * _PT)
+
+
+def _draw_block(ax, x: float, y: float, fr: dict, text: dict, words: dict) -> float:
+    """A frame's block at (x, y) (top left, mm): its label, then its cells and indicator; returns the row's
+    vertical middle."""
+    from matplotlib.patches import Rectangle
+
+    label = _frame_label(fr)
+    ax.text(x, y + 0.5 * _LINE * _PT, label, va="center", **text)
+    words["callouts"].append(label)
+    row_y = y + _LINE * _PT
+    h = _ROW * _PT
+    drawn = []
+    for i, cell in enumerate(frame_cells(fr)):
+        w = h if i == 0 else (text_width_pt(cell) + 5.0) * _PT
+        ax.add_patch(Rectangle((x, row_y), w, h, fc="white", ec="black", lw=0.6))
+        if i == 0:
+            if not draw_symbol(ax, cell, x + 0.15 * h, row_y + 0.85 * h, 0.7 * h):
+                ax.text(x + 0.5 * w, row_y + 0.5 * h, cell[:4], ha="center", va="center", **text)
+        else:
+            ax.text(x + 0.5 * w, row_y + 0.5 * h, cell, ha="center", va="center", **text)
+        drawn.append(cell)
+        x += w
+    ind = fr.get("indicator")
+    if ind:
+        _draw_indicator(ax, x + 1.0, row_y, h, ind, text)
+        drawn.append(f"{ind.get('kind')} {ind.get('relation')} {ind.get('datum')}")
+    words["frames"].append(f"{fr['id']} |" + "|".join(drawn) + "|")
+    return row_y + 0.5 * h
+
+
+def _leader(ax, start, target) -> None:
+    ax.annotate("", xy=target, xytext=start, arrowprops={"arrowstyle": "-|>", "lw": 0.45, "color": "black",
+                                                         "shrinkA": 0, "shrinkB": 0, "mutation_scale": 7})
+
+
+def _band_rows(frames: list, width: float) -> list[list]:
+    """The frames' blocks in rows across ``width`` mm (the band under wide views): [(x, frame)] per row."""
+    rows: list = [[]]
+    x = 0.0
+    for fr in frames:
+        w = _block_width(fr) + 4.0
+        if x + w > width and rows[-1]:
+            rows.append([])
+            x = 0.0
+        rows[-1].append((x, fr))
+        x += w
+    return rows
+
+
+def part_figure(drawing: dict, solid):
+    """The figure of one part drawing (views, datum symbols, frames with leaders); returns ``(figure, words)``.
+
+    The frames stand in a column right of the views, or, for a part whose views are wide (a long leg),
+    in rows under views that take the page's width: whichever draws the part at the larger ISO 5455 scale.
+    """
+    from matplotlib.collections import LineCollection
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Polygon, Rectangle
+
+    features = drawing.get("features") or []
+    frames = drawing.get("frames") or []
+    views = view_axes(features)
+    for v in views:
+        v.update(_hlr(solid.shape, v))
+        pts = np.vstack([np.vstack(v["visible"] or [np.zeros((1, 2))]), *(v["hidden"] or [])])
+        v["bounds"] = (pts.min(axis=0) - 2.0, pts.max(axis=0) + 2.0)
+    spans = [v["bounds"][1] - v["bounds"][0] for v in views]
+    head_mm = 10.0
+    block_h = (_LINE + _ROW + 3.0) * _PT
+    tall = sum(x[1] for x in spans)
+
+    def scale_for(width: float, height: float) -> float:
+        fit = min(min(width / s[0] for s in spans), height / tall)
+        return next((s for s in ISO_SCALES if s <= fit), ISO_SCALES[-1])
+
+    side = scale_for(_VIEWS_MM, 150.0 - len(views) * _BAND_MM)
+    band_rows = _band_rows(frames, WIDTH_MM)
+    wide = scale_for(WIDTH_MM, 150.0 - len(views) * _BAND_MM - len(band_rows) * (block_h + 4.0))
+    use_band = wide > side
+    scale = wide if use_band else side
+    views_width = WIDTH_MM if use_band else _VIEWS_MM
+    lay = _Layout(views, scale, head_mm, views_width)
+    if use_band:
+        band_top = lay.height + 4.0
+        height = band_top + len(band_rows) * (block_h + 4.0) + 4.0
+    else:
+        height = max(lay.height, head_mm + len(frames) * block_h + 4.0) + 8.0
+    fig = Figure(figsize=(WIDTH_MM / 25.4, height / 25.4))
+    ax = fig.add_axes([0, 0, 1, 1])
+    ax.set_xlim(0, WIDTH_MM)
+    ax.set_ylim(height, 0)
+    ax.set_axis_off()
+    part = drawing.get("part", "")
+    words = {"format": "hyperstat-picture-words", "version": 1, "title": f"Part drawing: {part}", "views": [],
+             "datums": [], "frames": [], "callouts": []}
+    text = {"fontsize": FONT_PT, "family": _FAMILY}
+    elements = ", ".join(str(e) for e in drawing.get("elements") or [])
+    sub = (f"{drawing['title']}; " if drawing.get("title") and drawing["title"] != part else "") + \
+        (f"elements {elements}; " if elements else "") + f"scale {_scale_text(scale)}; lengths and zones in mm"
+    ax.text(0, 6.0, sub, va="center", **text)
+    words["callouts"].append(sub)
+    for k, v in enumerate(views):
+        x0, y0, w, h, lo = lay.boxes[k]
+        label = f"view {k + 1}: looking along {_direction_words(-v['toward'])}, right {_direction_words(v['right'])}"
+        ax.text(0, y0 - _BAND_MM + 3.0, label, va="center", style="italic", color="#333333", **text)
+        words["views"].append(label)
+        for key, style in (("hidden", {"lw": 0.35, "linestyle": (0, (3, 2)), "color": "#555555"}),
+                           ("visible", {"lw": 0.7, "color": "black", "capstyle": "round", "joinstyle": "round"})):
+            if v[key]:
+                ax.add_collection(LineCollection([np.array([lay.page(k, q) for q in line]) for line in v[key]],
+                                                 **style))
+    centre = np.mean([np.asarray(f["point_mm"], float) for f in features], axis=0) if features else np.zeros(3)
+    anchors = {f["id"]: _anchor(f, views, solid.parsed.get(f["id"]), centre) for f in features}
+
+    def on_page(fid: str) -> np.ndarray:
+        k, point, _ = anchors[fid]
+        return lay.page(k, _project(views[k], point))
+
+    # datum feature symbols (ISO 5459): filled triangle on the feature, a stem, the letter in a square
+    for d in drawing.get("datums") or []:
+        if d["feature"] not in anchors:
+            continue
+        k, point, out = anchors[d["feature"]]
+        base = on_page(d["feature"])
+        direction = _project(views[k], out)
+        if np.linalg.norm(direction) < 1e-9:
+            direction = np.array([0.0, 1.0])
+        direction = direction / np.linalg.norm(direction) * np.array([1.0, -1.0])  # page y points down
+        normal = np.array([-direction[1], direction[0]])
+        ax.add_patch(Polygon([base + 1.2 * normal, base - 1.2 * normal, base + 2.0 * direction], closed=True,
+                             fc="black", ec="black", lw=0.4))
+        stem_end = base + 6.0 * direction
+        ax.plot([base[0] + 2.0 * direction[0], stem_end[0]], [base[1] + 2.0 * direction[1], stem_end[1]],
+                color="black", lw=0.5)
+        box = 4.6
+        middle = stem_end + 0.5 * box * direction
+        ax.add_patch(Rectangle(middle - 0.5 * box, box, box, fc="white", ec="black", lw=0.6))
+        ax.text(middle[0], middle[1], d["letter"], ha="center", va="center", **text)
+        words["datums"].append(str(d["letter"]))
+    # feature control frames, each with a leader to its feature
+    if use_band:
+        order = sorted(frames, key=lambda fr: on_page(fr["feature"])[0] if fr.get("feature") in anchors else 0.0)
+        for r, row in enumerate(_band_rows(order, WIDTH_MM)):
+            y = band_top + r * (block_h + 4.0)
+            for x, fr in row:
+                _draw_block(ax, x, y, fr, text, words)
+                if fr.get("feature") in anchors:
+                    _leader(ax, np.array([x + 2.0, y]), on_page(fr["feature"]))
+    else:
+        column_x = _VIEWS_MM + 8.0
+        order = sorted(frames, key=lambda fr: on_page(fr["feature"])[1] if fr.get("feature") in anchors else 0.0)
+        for i, fr in enumerate(order):
+            middle = _draw_block(ax, column_x, head_mm + 2.0 + i * block_h, fr, text, words)
+            if fr.get("feature") in anchors:
+                _leader(ax, np.array([column_x - 1.0, middle]), on_page(fr["feature"]))
+    return fig, words
+
+
+def _draw_indicator(ax, x: float, y: float, h: float, ind: dict, text: dict) -> float:
+    """An intersection or orientation plane indicator (ISO 1101:2017) right of a frame: its relation symbol and
+    datum letter; the intersection plane's frame has doubled ends, the orientation plane's pointed ends."""
+    symbol = _RELATION_SYMBOL.get(str(ind.get("relation", "")).lower(), "parallelism")
+    letter = str(ind.get("datum", ""))
+    w_sym, w_let = h, (text_width_pt(letter) + 5.0) * _PT
+    kind = str(ind.get("kind", ""))
+    tip = 0.35 * h if "orientation" in kind else 0.0
+    x0, x1 = x + tip, x + tip + w_sym + w_let
+    if "orientation" in kind:
+        outline = [(x, y + 0.5 * h), (x0, y), (x1, y), (x1 + tip, y + 0.5 * h), (x1, y + h), (x0, y + h),
+                   (x, y + 0.5 * h)]
+    else:
+        outline = [(x0, y), (x1, y), (x1, y + h), (x0, y + h), (x0, y)]
+    xs, ys = zip(*outline)
+    ax.plot(xs, ys, color="black", lw=0.6)
+    if "intersection" in kind:
+        for xe in (x0 + 0.6, x1 - 0.6):
+            ax.plot([xe, xe], [y, y + h], color="black", lw=0.6)
+    ax.plot([x0 + w_sym, x0 + w_sym], [y, y + h], color="black", lw=0.6)
+    draw_symbol(ax, symbol, x0 + 0.15 * h, y + 0.85 * h, 0.7 * h)
+    ax.text(x0 + w_sym + 0.5 * w_let, y + 0.5 * h, letter, ha="center", va="center", **text)
+    return x1 + tip
+
+
+def part_pages(doc: dict) -> list[dict]:
+    """Every part drawing of a report: ``{"part", "svg", "words", "solid"}`` per entry of ``drawings``."""
+    from hyperstat.cad_plugin.part_solids import part_solid
+
+    types = {str(j["element"]): j.get("type") for j in doc.get("joints") or []}
+    pages = []
+    for drawing in doc.get("drawings") or []:
+        solid = part_solid(drawing, types)
+        fig, words = part_figure(drawing, solid)
+        pages.append({"part": drawing["part"], "svg": figure_svg(fig), "words": words, "solid": solid})
+    return pages
+
+
+def _e(text) -> str:
+    return html.escape(str(text))
+
+
+def _fcf_html(frame: dict) -> str:
+    cells = frame_cells(frame)
+    parts = [symbol_svg(cells[0], 11)] + [_e(c) for c in cells[1:]]
+    out = '<span class="fcf">' + "".join(f"<span>{c}</span>" for c in parts) + "</span>"
+    ind = frame.get("indicator")
+    if ind:
+        sym = _RELATION_SYMBOL.get(str(ind.get("relation", "")).lower(), "parallelism")
+        out += (f' <span class="fcf" title="{_e(_indicator_text(ind))}"><span>{symbol_svg(sym, 11)}</span>'
+                f"<span>{_e(ind.get('datum', ''))}</span></span>")
+    return out
+
+
+def _feature_words(f: dict | None) -> str:
+    if not f:
+        return "-"
+    length = f.get("length_mm")
+    dia = f.get("diameter_mm")
+    extra = []
+    if dia is not None:
+        extra.append(f"\u2300{float(dia):g} mm")
+    if length is not None:
+        extra.append(f"length {float(length):g} mm" + (f" ({f['length_source']})" if f.get("length_source") else ""))
+    return f"{f.get('name') or f['id']} ({f.get('kind', '')})" + (": " + ", ".join(extra) if extra else "")
+
+
+def _ted_words(frame: dict) -> str:
+    teds = frame.get("ted") or []
+    return "; ".join(f"[{float(t['distance_mm']):g}] mm from {t.get('from', '')} along "
+                     f"{_direction_words(np.asarray(t['direction'], float) / np.linalg.norm(t['direction']))}"
+                     if t.get("direction") is not None else f"[{float(t['distance_mm']):g}] mm from {t.get('from', '')}"
+                     for t in teds) or "-"
+
+
+def _page_html(drawing: dict, page: dict | None) -> str:
+    part = drawing["part"]
+    features = {f["id"]: f for f in drawing.get("features") or []}
+    out = [f'<section class="part-page" id="part-{_e(part)}"><h3>Part drawing: {_e(part)}</h3>']
+    if page is not None:
+        out.append(f"<figure>{page['svg']}</figure>")
+    datums = [[_e(d["letter"]), _e(d.get("precedence", "")), _e(_feature_words(features.get(d["feature"])))]
+              for d in drawing.get("datums") or []]
+    if datums:
+        out.append('<table class="part"><thead><tr><th>datum</th><th>precedence</th><th>datum feature</th></tr></thead>'
+                   "<tbody>" + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in datums)
+                   + "</tbody></table>")
+    rows = []
+    for fr in drawing.get("frames") or []:
+        teds = _ted_words(fr).replace("[", '<span class="ted">').replace("]", "</span>") if fr.get("ted") else "-"
+        rows.append([_e(fr["id"]), _e(", ".join(fr.get("tolerances") or []) or "-"),
+                     _e(_feature_words(features.get(fr.get("feature")))), _fcf_html(fr),
+                     _e(zone_words(fr)) + (f"; {_e(_indicator_text(fr.get('indicator')))}" if fr.get("indicator") else ""),
+                     _e(" | ".join(fr.get("datum_system") or []) or "none"), teds,
+                     _e(fr.get("value_kind", "")) + (f"; {_e(fr['note'])}" if fr.get("note") else "")])
+    if rows:
+        head = ["frame", "tolerances", "toleranced feature", "frame as drawn", "zone", "datum system",
+                "theoretically exact", "value; note"]
+        out.append('<table class="part"><thead><tr>' + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
+                   + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
+                   + "</tbody></table>")
+    if page is not None and page["solid"].assumed:
+        out.append('<p class="note">Geometry drawn: ' + _e("; ".join(page["solid"].assumed)) + ".</p>")
+    out.append("</section>")
+    return "".join(out)
+
+
+def parts_html(doc: dict, pages: list | None) -> str:
+    """The report's section ``parts``: the assembly requirements, then one page per part drawing."""
+    drawings = doc.get("drawings") or []
+    out = ['<section id="parts"><h2>Part drawings</h2>']
+    if not drawings:
+        out.append('<p class="note">This report carries no part drawings.</p></section>')
+        return "".join(out)
+    out.append(f'<p class="note">{len(drawings)} part drawings, one per page: two views of the part (visible edges '
+               "solid, hidden dashed), ISO 5459 datum feature symbols, ISO 1101 feature control frames with the "
+               "plane indicators that state a planar zone's direction; zones and lengths in mm, directions in the "
+               "mechanism's base frame at its home configuration.</p>")
+    reqs = doc.get("assembly_requirements") or []
+    if reqs:
+        out.append("<h3>Assembly requirements (conditions across parts)</h3><ul>"
+                   + "".join(f"<li>{_e(r.get('tolerance', ''))}: {_e(r.get('statement', ''))} "
+                             f"({_e(', '.join(r.get('parts') or []))})"
+                             + (f", {r['value']:.3g} {_e(r.get('unit', ''))}" if isinstance(r.get("value"), (int, float))
+                                else "") + "</li>" for r in reqs) + "</ul>")
+    by_part = {p["part"]: p for p in pages or []}
+    out += [_page_html(d, by_part.get(d["part"])) for d in drawings]
+    out.append("</section>")
+    return "".join(out)
+
+
+def parts_markdown(doc: dict) -> list[str]:
+    """The part drawings in Markdown: per part its datums and frames (the pictures are left to the HTML)."""
+    drawings = doc.get("drawings") or []
+    lines = ["", "## Part drawings", ""]
+    if not drawings:
+        return lines + ["This report carries no part drawings."]
+    for r in doc.get("assembly_requirements") or []:
+        lines.append(f"* assembly requirement {r.get('tolerance', '')}: {r.get('statement', '')} "
+                     f"(parts {', '.join(r.get('parts') or [])})")
+    for d in drawings:
+        features = {f["id"]: f for f in d.get("features") or []}
+        lines += ["", f"### Part drawing: {d['part']}", ""]
+        lines += [f"* datum {x['letter']} ({x.get('precedence', '')}): {_feature_words(features.get(x['feature']))}"
+                  for x in d.get("datums") or []]
+        lines += ["", "| frame | tolerances | feature | frame as drawn | zone | datum system | theoretically exact | "
+                      "value; note |", "|---|---|---|---|---|---|---|---|"]
+        for fr in d.get("frames") or []:
+            drawn = "|" + "|".join(frame_cells(fr)) + "|"
+            if fr.get("indicator"):
+                drawn += f" [{_indicator_text(fr['indicator'])}]"
+            cells = [fr["id"], ", ".join(fr.get("tolerances") or []) or "-", _feature_words(features.get(fr.get("feature"))),
+                     drawn, zone_words(fr), "|".join(fr.get("datum_system") or []) or "none", _ted_words(fr),
+                     str(fr.get("value_kind", "")) + ("; " + fr["note"] if fr.get("note") else "")]
+            lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return lines
+
