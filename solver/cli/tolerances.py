@@ -81,7 +81,7 @@ def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True, c
     cl = _classes(args, mech, kin)[0] if cl is None else cl
     assign_values(cl, mech, kin, q, args.position_accuracy, args.orientation_accuracy, assembly=assembly,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE],
-                  workspace=args.workspace_used if args.range else None, calibrate=assembly,
+                  workspace=args.workspace_used if args.range else None, calibrate=True,
                   task_maps_at=task_maps_at)
     return cl
 

@@ -229,6 +229,7 @@ class Classification:
     checked: dict = field(default_factory=dict)
     configurations: np.ndarray | None = field(default=None, repr=False)
     analysis: object = field(default=None, repr=False)
+    drawings: dict = field(default_factory=dict, repr=False)
 
     def counts(self) -> dict:
         """Number of tolerances per class (every class present, in :data:`CLASSES` order)."""

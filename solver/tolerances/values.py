@@ -270,6 +270,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         if t.cls == "non-influent":
             t.value = None
             t.value_source = "not limited by accuracy (moves nothing the task uses)"
+    qa = None
     if assembly:
         from hyperstat.solver.tolerances.clearance import assembly_tolerances
 
@@ -319,7 +320,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         from hyperstat.solver.tolerances.calibrated import calibrated_values
 
         info["with_calibration"] = calibrated_values(cl, mechanism, kin, q, spec_p, spec_o, workspace, share=reserve)
-    _drawing_values(cl, mechanism)
+    info.update(_drawing_values(cl, mechanism, kin, qa, workspace))
     cl.allocation = info
     return cl
 
@@ -365,16 +366,27 @@ def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, s
                 t.bounds = {k: bounds[k] for k in ("attainable_linear_worst_case", "triangle_bound", "unit")}
 
 
-def _drawing_values(cl, mechanism) -> None:
-    """The value a drawing carries (rounded to the safe side) and the ISO 1101 callouts."""
+def _drawing_values(cl, mechanism, kin=None, assembly_q=None, workspace=None) -> dict:
+    """The assembly values together (the drawing read as a whole), the values a drawing carries (rounded to the safe
+    side) and the part drawings (:mod:`hyperstat.solver.tolerances.drawing`); returns the whole drawing's evidence."""
     from hyperstat.solver.tolerances.drawing import add_drawing, safe_round
 
+    out = {}
+    if assembly_q is not None and kin is not None:
+        from hyperstat.solver.tolerances.whole_drawing import allocate_together
+
+        out["whole_drawing"] = allocate_together(cl, mechanism, kin, assembly_q, workspace)
     calibrated = "measurements" in cl.declaration.declared
     for t in cl.items:
         v = t.value_with_calibration if calibrated and t.cls == "compensable" and \
             t.value_with_calibration is not None else t.value
         t.drawing_value = safe_round(v)
-    add_drawing(cl, mechanism)
+    add_drawing(cl, mechanism, kin)
+    if out.get("whole_drawing"):
+        from hyperstat.solver.tolerances.whole_drawing import confirm_corner
+
+        out["whole_drawing"]["nonlinear"] = confirm_corner(cl, mechanism, out["whole_drawing"])
+    return out
 
 
 def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
