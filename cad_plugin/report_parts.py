@@ -18,13 +18,13 @@ kind: without or with calibration, the note).  :func:`part_pages` draws every pa
 from __future__ import annotations
 
 import html
+import re
 
 import numpy as np
 
 from functools import lru_cache
 
 from hyperstat.cad_plugin.drawing import FONT_PT, WIDTH_MM, figure_svg
-from hyperstat.cad_plugin.drawing import text_width_pt as _text_width
 from hyperstat.cad_plugin.gdt import draw_symbol, symbol_svg
 
 __all__ = ["part_pages", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
@@ -39,18 +39,37 @@ _BAND_MM = 16.0  # above a view: its label and room for the datum symbols that s
 _LINE = 1.28 * FONT_PT  # pt
 _ROW = 1.55 * FONT_PT  # height of a frame's row, pt
 _PT = 25.4 / 72.0  # mm per pt
+_PAGE_MM = 273.0  # A4's height less the report's 12 mm margins
 PARTS_CSS = """
 section.part-page { break-before: page; page-break-before: always; }
 section.part-page h3 { margin-top: 0; } table.part { font-size: .8em; width: 100%; }
 table.part td { padding: 0 .25em; } .ted { border: 1px solid #111; padding: 0 .2em; }
-@media print { section.part-page { font-size: 8pt; } table.part { font-size: 8pt; } }
+ol.part-notes { font-size: .8em; margin: .2em 0; padding-left: 1.5em; }
+@media print { section.part-page { font-size: 8pt; } table.part, ol.part-notes, section.part-page .note { font-size: 8pt; }
+  section.part-page figure { margin: 0; } }
 """
 
 
-@lru_cache(maxsize=4096)
+@lru_cache(maxsize=None)
+def _advance_pt(char: str) -> float:
+    """The advance of one character of DejaVu Sans at 8 pt (pt), from the font file (FreeType, via matplotlib)."""
+    font = _font()
+    glyph = font.load_char(ord(char)) if font.get_char_index(ord(char)) else font.load_char(ord("M"))
+    return glyph.linearHoriAdvance / 65536.0
+
+
+@lru_cache(maxsize=1)
+def _font():
+    from matplotlib import font_manager, ft2font
+
+    font = ft2font.FT2Font(font_manager.findfont(font_manager.FontProperties(family=_FAMILY)))
+    font.set_size(FONT_PT, 72)
+    return font
+
+
 def text_width_pt(text: str) -> float:
-    """Width of ``text`` at 8 pt (pt), measured once per text (the outlines take milliseconds)."""
-    return _text_width(text)
+    """Width of ``text`` at 8 pt (pt): the sum of its characters' advances, as a browser sets it (no kerning)."""
+    return sum(_advance_pt(c) for c in text)
 
 
 def _scale_text(s: float) -> str:
@@ -111,11 +130,12 @@ def view_axes(features: list[dict]) -> list[dict]:
 
 
 def _direction_words(d: np.ndarray) -> str:
+    d = np.asarray(d, float) + 0.0  # no "-0"
     names = "xyz"
     k = int(np.argmax(np.abs(d)))
     if abs(abs(float(d[k])) - 1) < 1e-9:
         return ("+" if d[k] > 0 else "-") + names[k]
-    return "(" + ", ".join(f"{c:.3g}" for c in d) + ")"
+    return "(" + ", ".join(f"{c + 0.0:.3g}" for c in np.round(d, 3) + 0.0) + ")"
 
 
 def _hlr(shape, view: dict) -> dict:
@@ -263,39 +283,52 @@ class _Layout:
         return np.array([x0 + rel[0] + 0.5 * (self.width - w), y0 + h - rel[1]])
 
 
-def _anchor(feature: dict, views: list[dict], solid_feature, part_centre: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-    """Where a feature is called out: (view index, point in the drawing's frame, outward direction there)."""
-    p = np.asarray(feature["point_mm"], float)
-    kind = feature.get("kind")
-    u = np.asarray(feature.get("direction") or [0, 0, 1], float)
-    u = u / np.linalg.norm(u)
-    along = [abs(float(u @ v["toward"])) for v in views]
-    d = float(feature.get("diameter_mm") or 20.0)
-    outer = solid_feature.outer_radius if solid_feature is not None else 0.5 * d
-    if kind == "axis":
+def _anchor(f, views: list[dict], part_centre: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """Where a feature is called out: (view index, point in the base frame, outward direction there).
+
+    ``f`` is the feature as drawn (:attr:`hyperstat.cad_plugin.part_solids.PartSolid.parsed`).
+    """
+    along = [abs(float(f.u @ v["toward"])) for v in views]
+    if f.kind == "axis":
         k = 0 if along[0] > 0.9 else int(np.argmin(along))
         v = views[k]
-        if along[k] > 0.9:  # seen as a circle: on the bore's rim, upwards
-            return k, p + 0.5 * d * v["up"], v["up"]
-        side = np.cross(v["toward"], u)
+        if along[k] > 0.9:  # seen end on: on its rim, upwards
+            return k, f.p + 0.5 * f.diameter * v["up"], v["up"]
+        side = np.cross(v["toward"], f.u)
         side /= np.linalg.norm(side)
-        if (p - part_centre) @ side < 0:
+        if (f.p - part_centre) @ side < 0:
             side = -side
-        return k, p + outer * side, side
-    if kind in ("plane", "median plane"):
-        k = int(np.argmin(along))
+        reach = 0.5 * f.diameter if f.role == "journal" else f.outer_radius
+        return k, f.p + reach * side, side
+    if f.kind in ("plane", "median plane"):
+        k = int(np.argmin(along))  # edge on
         v = views[k]
-        face = p + (0.5 * float(feature.get("length_mm") or 0.0) * u if kind == "median plane" else 0.0)
-        t = np.cross(v["toward"], u)
+        t = np.cross(v["toward"], f.u)
         t = t / np.linalg.norm(t) if np.linalg.norm(t) > 1e-9 else v["up"]
-        return k, face + 0.5 * (0.5 * d + outer) * t, u
-    return 0, p + 0.5 * d * views[0]["up"], views[0]["up"]
+        if f.role == "slot":
+            h = f.host
+            side = np.cross(f.u, h.u)
+            side /= np.linalg.norm(side)
+            return k, f.p + 0.5 * f.length * f.u + 0.5 * h.diameter * side, f.u
+        if f.role == "end" and f.host is not None:
+            return k, f.p + (0.5 * f.host.diameter + 0.5 * f.host.wall) * t, f.u
+        if f.role == "median":
+            return k, f.p + 0.5 * f.length * f.u + 0.5 * f.outer_radius * t, f.u
+        return k, f.p, f.u
+    return 0, f.p + 0.5 * f.diameter * views[0]["up"], views[0]["up"]
 
 
-def _frame_label(fr: dict) -> str:
-    ids = ", ".join(fr.get("tolerances") or [])
-    return fr["id"] + (f" ({ids})" if ids else "") + ("; with calibration" if "with cal" in
-                                                     str(fr.get("value_kind", "")) else "")
+def _frame_label(fr: dict, width_mm: float = WIDTH_MM - _VIEWS_MM - 8.0) -> str:
+    """``base-F2, with calibration (T11)``: the frame's id, its value's kind, its tolerances (runs as ``T3-T5``),
+    cut with an ellipsis to ``width_mm`` (the table below gives them in full)."""
+    from hyperstat.cad_plugin.palette import callout_text
+
+    ids = callout_text("", list(fr.get("tolerances") or [])).split(": ", 1)[-1] if fr.get("tolerances") else ""
+    label = fr["id"] + (", with calibration" if "with cal" in str(fr.get("value_kind", "")) else "") + \
+        (f" ({ids})" if ids else "")
+    while text_width_pt(label) * _PT > width_mm and len(label) > 8:
+        label = label[:-2] + "\u2026"
+    return label
 
 
 def _block_width(fr: dict) -> float:
@@ -357,11 +390,12 @@ def _band_rows(frames: list, width: float) -> list[list]:
     return rows
 
 
-def part_figure(drawing: dict, solid):
+def part_figure(drawing: dict, solid, max_height_mm: float = 175.0):
     """The figure of one part drawing (views, datum symbols, frames with leaders); returns ``(figure, words)``.
 
     The frames stand in a column right of the views, or, for a part whose views are wide (a long leg),
-    in rows under views that take the page's width: whichever draws the part at the larger ISO 5455 scale.
+    in rows under views that take the page's width: whichever draws the part at the larger ISO 5455 scale
+    within ``max_height_mm`` (what the page leaves beside the part's tables).
     """
     from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
@@ -383,9 +417,10 @@ def part_figure(drawing: dict, solid):
         fit = min(min(width / s[0] for s in spans), height / tall)
         return next((s for s in ISO_SCALES if s <= fit), ISO_SCALES[-1])
 
-    side = scale_for(_VIEWS_MM, 150.0 - len(views) * _BAND_MM)
+    room = max(max_height_mm, 80.0) - head_mm - 8.0 - len(views) * _BAND_MM - (len(views) - 1) * _GAP_MM
+    side = scale_for(_VIEWS_MM, room)
     band_rows = _band_rows(frames, WIDTH_MM)
-    wide = scale_for(WIDTH_MM, 150.0 - len(views) * _BAND_MM - len(band_rows) * (block_h + 4.0))
+    wide = scale_for(WIDTH_MM, room - 4.0 - len(band_rows) * (block_h + 4.0))
     use_band = wide > side
     scale = wide if use_band else side
     views_width = WIDTH_MM if use_band else _VIEWS_MM
@@ -394,7 +429,7 @@ def part_figure(drawing: dict, solid):
         band_top = lay.height + 4.0
         height = band_top + len(band_rows) * (block_h + 4.0) + 4.0
     else:
-        height = max(lay.height, head_mm + len(frames) * block_h + 4.0) + 8.0
+        height = max(lay.height, head_mm + 2.0 + len(frames) * block_h) + 4.0
     fig = Figure(figsize=(WIDTH_MM / 25.4, height / 25.4))
     ax = fig.add_axes([0, 0, 1, 1])
     ax.set_xlim(0, WIDTH_MM)
@@ -420,7 +455,7 @@ def part_figure(drawing: dict, solid):
                 ax.add_collection(LineCollection([np.array([lay.page(k, q) for q in line]) for line in v[key]],
                                                  **style))
     centre = np.mean([np.asarray(f["point_mm"], float) for f in features], axis=0) if features else np.zeros(3)
-    anchors = {f["id"]: _anchor(f, views, solid.parsed.get(f["id"]), centre) for f in features}
+    anchors = {fid: _anchor(f, views, centre) for fid, f in solid.parsed.items()}
 
     def on_page(fid: str) -> np.ndarray:
         k, point, _ = anchors[fid]
@@ -499,7 +534,11 @@ def part_pages(doc: dict) -> list[dict]:
     pages = []
     for drawing in doc.get("drawings") or []:
         solid = part_solid(drawing, types)
-        fig, words = part_figure(drawing, solid)
+        # the heading, the picture, then the tables: the picture shrinks (to 80 mm) so that the tables fit on
+        # its page (their height is measured to within about 7 mm: 10 mm are kept); when they cannot, the picture
+        # keeps 200 mm and the table of a part with many frames continues on the next page
+        room = _PAGE_MM - 10.0 - _tables_height_mm(drawing, solid.assumed)
+        fig, words = part_figure(drawing, solid, room if room >= 80.0 else 200.0)
         pages.append({"part": drawing["part"], "svg": figure_svg(fig), "words": words, "solid": solid})
     return pages
 
@@ -520,57 +559,169 @@ def _fcf_html(frame: dict) -> str:
     return out
 
 
-def _feature_words(f: dict | None) -> str:
+def _feature_words(f: dict | None, source: bool = True) -> str:
+    """A feature in words with its size: ``bore of joint 2 (axis, 20 mm long, assumed support span)``; without
+    ``source``, the length's origin is left out (the datum table says it)."""
     if not f:
         return "-"
-    length = f.get("length_mm")
-    dia = f.get("diameter_mm")
-    extra = []
-    if dia is not None:
-        extra.append(f"\u2300{float(dia):g} mm")
-    if length is not None:
-        extra.append(f"length {float(length):g} mm" + (f" ({f['length_source']})" if f.get("length_source") else ""))
-    return f"{f.get('name') or f['id']} ({f.get('kind', '')})" + (": " + ", ".join(extra) if extra else "")
+    extra = [str(f.get("kind", ""))]
+    if f.get("diameter_mm") is not None:
+        extra.append(f"\u2300{float(f['diameter_mm']):g} mm")
+    if f.get("length_mm") is not None:
+        extra.append(f"{float(f['length_mm']):g} mm long"
+                     + (f", {f['length_source']}" if source and f.get("length_source") else ""))
+    return f"{f.get('name') or f['id']} ({', '.join(extra)})"
 
 
 def _ted_words(frame: dict) -> str:
-    teds = frame.get("ted") or []
+    teds = [t for t in frame.get("ted") or [] if t.get("direction") is None or np.linalg.norm(t["direction"]) > 0]
     return "; ".join(f"[{float(t['distance_mm']):g}] mm from {t.get('from', '')} along "
                      f"{_direction_words(np.asarray(t['direction'], float) / np.linalg.norm(t['direction']))}"
                      if t.get("direction") is not None else f"[{float(t['distance_mm']):g}] mm from {t.get('from', '')}"
                      for t in teds) or "-"
 
 
-def _page_html(drawing: dict, page: dict | None) -> str:
-    part = drawing["part"]
+def _notes(frames: list) -> tuple[dict, list]:
+    """A frame's note split at ``;``: its short parts stay in the frame's row, each long part (a sentence several
+    frames share) is printed once below the table.  Returns frame id -> (numbers of its notes, its short
+    words), and the numbered notes with their frames."""
+    marks: dict = {}
+    notes: list = []
+    for fr in frames:
+        numbers, short = [], []
+        for piece in (p.strip() for p in str(fr.get("note") or "").split(";")):
+            if not piece:
+                continue
+            if len(piece) <= 60:
+                short.append(re.sub(r"^without calibration the value is ", "uncalibrated: ", piece))
+                continue
+            k = next((i for i, (t, _) in enumerate(notes) if t == piece), None)
+            if k is None:
+                notes.append((piece, []))
+                k = len(notes) - 1
+            notes[k][1].append(fr["id"])
+            numbers.append(k + 1)
+        marks[fr["id"]] = (numbers, short)
+    return marks, notes
+
+
+_COLUMNS = (("frame, tolerances", 12), ("toleranced feature", 22), ("zone (mm)", 26), ("datums", 7),
+            ("theoretically exact", 15), ("value", 18))
+
+
+def _lines(text: str, width_mm: float) -> int:
+    """Lines a cell of ``text`` takes at 8 pt in a column ``width_mm`` wide: words wrapped greedily, each measured
+    on the font's outlines (DejaVu Sans, the report's font); a word wider than the column breaks anywhere."""
+    room = (width_mm - 1.6) / _PT  # less the cell's padding and borders, in pt
+    space = text_width_pt("a b") - text_width_pt("ab")
+    total = 0
+    for para in text.split("\n"):
+        lines, used = 1, 0.0
+        for word in para.split():
+            w = text_width_pt(word)
+            if used and used + space + w > room:
+                lines += 1
+                used = 0.0
+            if w > room:  # overflow-wrap: anywhere
+                lines += int(w // room)
+                w = w % room
+            used += (space if used else 0.0) + w
+        total += lines
+    return total
+
+
+_LINE_MM = 8.0 * 1.3 * _PT  # an 8 pt line at the report's line height
+
+
+def _table_height_mm(rows: list[list[str]], widths: list[float]) -> float:
+    return sum(max(_lines(c, w) for c, w in zip(row, widths)) * _LINE_MM + 0.35 for row in rows)
+
+
+def _words_of(drawing: dict) -> dict:
+    """The words of a part's tables (plain text): what the page prints below its picture."""
     features = {f["id"]: f for f in drawing.get("features") or []}
+    frames = drawing.get("frames") or []
+    marks, notes = _notes(frames)
+    rows = []
+    for fr in frames:
+        numbers, short = marks[fr["id"]]
+        value = "; ".join([str(fr.get("value_kind", ""))] + short) + \
+            (f" (note {', '.join(str(n) for n in numbers)})" if numbers else "")
+        rows.append([fr["id"] + ("\n" + ", ".join(fr["tolerances"]) if fr.get("tolerances") else ""),
+                     _feature_words(features.get(fr.get("feature")), source=False), zone_words(fr)
+                     + (f"; {_indicator_text(fr.get('indicator'))}" if fr.get("indicator") else ""),
+                     "|".join(fr.get("datum_system") or []) or "none", _ted_words(fr), value])
+    datums = [[str(d["letter"]), str(d.get("precedence", "")), _feature_words(features.get(d["feature"]))]
+              for d in drawing.get("datums") or []]
+    return {"rows": rows, "datums": datums, "notes": notes}
+
+
+def _tables_height_mm(drawing: dict, assumed: list[str]) -> float:
+    """How much of the page the part's heading, tables, notes and geometry note take (mm, 8 pt), measured word
+    by word as :func:`_lines` wraps them."""
+    w = _words_of(drawing)
+    widths = [WIDTH_MM * pct / 100.0 for _, pct in _COLUMNS]
+    height = 5.0  # the heading (9 pt) and its margin
+    if w["rows"]:
+        height += 2.0 + _table_height_mm([[h for h, _ in _COLUMNS]] + w["rows"], widths)
+    else:
+        height += _lines("No geometric tolerance on this part: its datums locate it for the frames of the parts it "
+                         "carries.", WIDTH_MM) * _LINE_MM + 2.0
+    if w["datums"]:
+        height += 2.0 + _table_height_mm([["datum", "precedence", "datum feature"]] + w["datums"],
+                                         [0.1 * WIDTH_MM, 0.15 * WIDTH_MM, 0.75 * WIDTH_MM])
+    height += sum(_lines(f"{t} ({', '.join(ids)})", WIDTH_MM - 6.0) * _LINE_MM for t, ids in w["notes"])
+    if w["notes"]:
+        height += 2.0
+    if assumed:
+        height += _lines("Geometry drawn: " + "; ".join(assumed) + ".", WIDTH_MM) * _LINE_MM + 2.5
+    return height
+
+
+def _page_html(drawing: dict, page: dict | None) -> str:
+    """One part's page: its picture, its datums, its frames in words, the notes, the geometry drawn."""
+    part = drawing["part"]
+    frames = drawing.get("frames") or []
+    words = _words_of(drawing)
     out = [f'<section class="part-page" id="part-{_e(part)}"><h3>Part drawing: {_e(part)}</h3>']
     if page is not None:
         out.append(f"<figure>{page['svg']}</figure>")
-    datums = [[_e(d["letter"]), _e(d.get("precedence", "")), _e(_feature_words(features.get(d["feature"])))]
-              for d in drawing.get("datums") or []]
-    if datums:
-        out.append('<table class="part"><thead><tr><th>datum</th><th>precedence</th><th>datum feature</th></tr></thead>'
-                   "<tbody>" + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in datums)
+    if words["datums"]:
+        out.append('<table class="part"><colgroup><col style="width:10%"><col style="width:15%"><col style="width:75%">'
+                   "</colgroup><thead><tr><th>datum</th><th>precedence</th><th>datum feature</th></tr></thead><tbody>"
+                   + "".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in row) + "</tr>" for row in words["datums"])
                    + "</tbody></table>")
-    rows = []
-    for fr in drawing.get("frames") or []:
-        teds = _ted_words(fr).replace("[", '<span class="ted">').replace("]", "</span>") if fr.get("ted") else "-"
-        rows.append([_e(fr["id"]), _e(", ".join(fr.get("tolerances") or []) or "-"),
-                     _e(_feature_words(features.get(fr.get("feature")))), _fcf_html(fr),
-                     _e(zone_words(fr)) + (f"; {_e(_indicator_text(fr.get('indicator')))}" if fr.get("indicator") else ""),
-                     _e(" | ".join(fr.get("datum_system") or []) or "none"), teds,
-                     _e(fr.get("value_kind", "")) + (f"; {_e(fr['note'])}" if fr.get("note") else "")])
-    if rows:
-        head = ["frame", "tolerances", "toleranced feature", "frame as drawn", "zone", "datum system",
-                "theoretically exact", "value; note"]
-        out.append('<table class="part"><thead><tr>' + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
+    if frames:
+        rows = []
+        for fr, row in zip(frames, words["rows"]):
+            cells = [_e(c).replace("\n", "<br>") for c in row]
+            if fr.get("ted"):
+                cells[4] = cells[4].replace("[", '<span class="ted">').replace("]", "</span>")
+            rows.append(cells)
+        out.append('<table class="part" style="table-layout: fixed"><colgroup>'
+                   + "".join(f'<col style="width:{pct}%">' for _, pct in _COLUMNS) + "</colgroup><thead><tr>"
+                   + "".join(f"<th>{h}</th>" for h, _ in _COLUMNS) + "</tr></thead><tbody>"
                    + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
                    + "</tbody></table>")
+    else:
+        out.append('<p class="note">No geometric tolerance on this part: its datums locate it for the frames of the '
+                   "parts it carries.</p>")
+    if words["notes"]:
+        out.append('<ol class="part-notes">' + "".join(f"<li>{_e(text)} ({_e(', '.join(ids))})</li>"
+                                                        for text, ids in words["notes"]) + "</ol>")
     if page is not None and page["solid"].assumed:
         out.append('<p class="note">Geometry drawn: ' + _e("; ".join(page["solid"].assumed)) + ".</p>")
     out.append("</section>")
     return "".join(out)
+
+
+def _requirement_words(r: dict) -> str:
+    """An assembly requirement in one line: its id, tolerances, statement and value, parts, and its text."""
+    value = r.get("value")
+    head = (f"{r.get('id', '')} ({', '.join(r.get('tolerances') or [])}): {r.get('statement', '')}"
+            + (f" within \u00b1 {float(value):.3g} {r.get('unit', '')}" if isinstance(value, (int, float)) else "")
+            + f", parts {', '.join(r.get('parts') or [])}")
+    return head + (f". {r['text']}" if r.get("text") else "")
 
 
 def parts_html(doc: dict, pages: list | None) -> str:
@@ -587,10 +738,7 @@ def parts_html(doc: dict, pages: list | None) -> str:
     reqs = doc.get("assembly_requirements") or []
     if reqs:
         out.append("<h3>Assembly requirements (conditions across parts)</h3><ul>"
-                   + "".join(f"<li>{_e(r.get('tolerance', ''))}: {_e(r.get('statement', ''))} "
-                             f"({_e(', '.join(r.get('parts') or []))})"
-                             + (f", {r['value']:.3g} {_e(r.get('unit', ''))}" if isinstance(r.get("value"), (int, float))
-                                else "") + "</li>" for r in reqs) + "</ul>")
+                   + "".join(f"<li>{_e(_requirement_words(r))}</li>" for r in reqs) + "</ul>")
     by_part = {p["part"]: p for p in pages or []}
     out += [_page_html(d, by_part.get(d["part"])) for d in drawings]
     out.append("</section>")
@@ -603,9 +751,7 @@ def parts_markdown(doc: dict) -> list[str]:
     lines = ["", "## Part drawings", ""]
     if not drawings:
         return lines + ["This report carries no part drawings."]
-    for r in doc.get("assembly_requirements") or []:
-        lines.append(f"* assembly requirement {r.get('tolerance', '')}: {r.get('statement', '')} "
-                     f"(parts {', '.join(r.get('parts') or [])})")
+    lines += [f"* {_requirement_words(r)}" for r in doc.get("assembly_requirements") or []]
     for d in drawings:
         features = {f["id"]: f for f in d.get("features") or []}
         lines += ["", f"### Part drawing: {d['part']}", ""]
