@@ -303,7 +303,8 @@ def _material_and_voids(features: list[_Feature]) -> tuple[list, list]:
             solids.append(_cylinder(R, base, f.collar, _PAD_MM))
         elif f.role == "guide":  # a block with a channel open along w: floor at -d/2 w, flanks at +-d/2 v
             solids.append(_box(f.p - 0.5 * (0.5 * d + f.wall) * f.w, f.u, f.v, f.w, (L, d + 2 * f.wall, 0.5 * d + f.wall)))
-            voids.append(_box(f.p - 0.25 * d * f.w + 0.5e-3 * f.w, f.u, f.v, f.w, (L + 0.2, d, 0.5 * d + 1e-3)))
+            # the channel is as long as the block (flush: a longer cut would carve a bar's end beyond it)
+            voids.append(_box(f.p - 0.25 * d * f.w + 0.5e-3 * f.w, f.u, f.v, f.w, (L, d, 0.5 * d + 1e-3)))
         elif f.role == "slide":  # the bar that fits the channel, on a plate above it
             solids.append(_box(f.p - 0.25 * d * f.w, f.u, f.v, f.w, (L, d, 0.5 * d)))
             solids.append(_box(f.p + 0.5 * f.wall * f.w, f.u, f.v, f.w, (L, d + 2 * f.wall, f.wall)))
@@ -316,8 +317,8 @@ def _material_and_voids(features: list[_Feature]) -> tuple[list, list]:
             t = np.cross(f.u, h.u)
             t /= np.linalg.norm(t)
             depth = 0.25 * h.diameter
-            if h.role == "journal":  # from 0.1 mm beyond the pin's free end to 0.05 mm short of its collar
-                centre, length = h.p + 0.5 * h.diameter * t - 0.075 * h.collar, h.length + 0.05
+            if h.role == "journal":  # from 0.1 mm beyond the pin's free end to 0.5 mm short of its collar
+                centre, length = h.p + 0.5 * h.diameter * t - 0.3 * h.collar, h.length - 0.4
             else:  # a hub's keyway: through the boss
                 centre, length = h.p + 0.5 * h.diameter * t, h.length + 0.2
             voids.append(_box(centre, h.u, f.u, t, (length, f.length, 2 * depth)))
@@ -484,7 +485,7 @@ def part_solid(drawing: dict, joint_types: dict | None = None) -> PartSolid:
     pieces = shape.Solids()
     if len(pieces) > 1:  # a bar's end cap cut off by a bore or a channel: a sliver, not part of the part
         shape = max(pieces, key=lambda x: x.Volume())
-    tol = 1e-4 * max(1.0, max(float(np.linalg.norm(f.p)) for f in features))
+    tol = 1e-5 * max(1.0, max(float(np.linalg.norm(f.p)) for f in features))  # 10 nm at 1 m
     faces = {f.id: [face for face in shape.Faces() if _matches(face, f, tol)] for f in features}
     missing = [fid for fid, found in faces.items() if not found]
     if missing:

@@ -45,7 +45,8 @@ from typing import Iterator
 
 from hyperstat.solver.errors import HyperstatError
 
-__all__ = ["write_part_step", "read_part_step", "drawing_pmi", "part_step_bytes", "CHARACTERISTICS", "compare_pmi"]
+__all__ = ["write_part_step", "read_part_step", "drawing_pmi", "part_step_bytes", "CHARACTERISTICS", "compare_pmi",
+           "ascii_words"]
 
 #: ISO 1101 characteristic (the drawing's word) -> XCAFDimTolObjects_GeomToleranceType member suffix
 CHARACTERISTICS = {
@@ -174,8 +175,23 @@ def _face_labels(shape_tool, root, solid) -> dict:
     return out
 
 
+_ASCII = {"\u00b1": "+-", "\u2300": "diameter ", "\u00b5": "u", "\u2225": "//", "\u27c2": "perpendicular",
+          "\u22a5": "perpendicular", "\u2220": "angle", "\u2316": "position", "\u25ce": "coaxial", "\u2264": "<=",
+          "\u2265": ">=", "\u2212": "-", "\u00d7": "x", "\u2026": "..."}
+
+
+def ascii_words(text: str) -> str:
+    """``text`` in ASCII for a STEP string (ISO 10303-21 strings are ASCII): the drawing's symbols spelled out.
+
+    >>> ascii_words("within \u2300 0.02 mm (\u00b1 0.01 mm)")
+    'within diameter  0.02 mm (+- 0.01 mm)'
+    """
+    out = "".join(_ASCII.get(c, c) for c in text)
+    return out.encode("ascii", "replace").decode("ascii")
+
+
 def _describe(frame: dict) -> str:
-    """The words a tolerance's description carries: what the semantics of OCCT's AP242 cannot (mm)."""
+    """The words a tolerance's description carries: what the semantics of OCCT's AP242 cannot (mm), in ASCII."""
     words = [str(frame.get("text") or "")]
     direction = frame.get("zone_direction")
     if direction is not None:
@@ -185,7 +201,7 @@ def _describe(frame: dict) -> str:
         words.append(f"{ind.get('kind', '')} {ind.get('relation', '')} to datum {ind.get('datum', '')}".strip())
     if frame.get("value_kind"):
         words.append(str(frame["value_kind"]))
-    return "; ".join(w for w in words if w)
+    return ascii_words("; ".join(w for w in words if w))
 
 
 def _fix_units(model, names: list[str], descriptions: list[str], zones: list[float]) -> None:
@@ -203,7 +219,7 @@ def _fix_units(model, names: list[str], descriptions: list[str], zones: list[flo
             if not math.isclose(ent.Magnitude().ValueComponent(), zones[k], rel_tol=1e-12):
                 raise HyperstatError(f"OCCT wrote the geometric tolerances in another order than the frames "
                                      f"({names[k]}).")
-            ent.SetName(TCollection_HAsciiString(names[k]))
+            ent.SetName(TCollection_HAsciiString(ascii_words(names[k])))
             ent.SetDescription(TCollection_HAsciiString(descriptions[k]))
             unit = ent.Magnitude().UnitComponent().NamedUnit()
             if hasattr(unit, "HasPrefix") and not unit.HasPrefix() and unit.Name() == StepBasic_SiUnitName.StepBasic_sunMetre:
