@@ -716,12 +716,13 @@ def _page_html(drawing: dict, page: dict | None) -> str:
 
 
 def _requirement_words(r: dict) -> str:
-    """An assembly requirement in one line: its id, tolerances, statement and value, parts, and its text."""
+    """An assembly requirement in one line: its id and its text (else its tolerances, statement, value, parts)."""
+    if r.get("text"):
+        return f"{r.get('id', '')}: {r['text']}"
     value = r.get("value")
-    head = (f"{r.get('id', '')} ({', '.join(r.get('tolerances') or [])}): {r.get('statement', '')}"
+    return (f"{r.get('id', '')} ({', '.join(r.get('tolerances') or [])}): {r.get('statement', '')}"
             + (f" within \u00b1 {float(value):.3g} {r.get('unit', '')}" if isinstance(value, (int, float)) else "")
             + f", parts {', '.join(r.get('parts') or [])}")
-    return head + (f". {r['text']}" if r.get("text") else "")
 
 
 def parts_html(doc: dict, pages: list | None) -> str:

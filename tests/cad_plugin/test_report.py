@@ -99,10 +99,11 @@ def _ink(png) -> float:
     return float(np.mean(np.asarray(Image.open(png).convert("L")) < 200))
 
 
-def first_part_page(pdf: Path) -> int:
-    """The page of the first part drawing (the pages after the report's own), or one past the last page."""
+def first_part_page(pdf: Path, heading: str = "Part drawing") -> int:
+    """The first page that begins with ``heading``: "Part drawings" (the section: the report's own pages end
+    before it) or "Part drawing:" (the first part's page); one past the last page when there is none."""
     pages = pages_of(pdf)
-    return next((p for p in range(1, pages + 1) if page_text(pdf, p).lstrip().startswith("Part drawing:")), pages + 1)
+    return next((p for p in range(1, pages + 1) if page_text(pdf, p).lstrip().startswith(heading)), pages + 1)
 
 
 @pytest.mark.parametrize("which", ["full_report", "plain_report"])
@@ -308,7 +309,7 @@ def test_each_part_drawing_prints_on_its_own_page_legible_at_8_pt(plain_report):
     drawings = doc["drawings"]
     assert len(drawings) >= 10  # the Tripteor's parts: base, crosses, legs, platform, wrist
     pages = pages_of(pdf)
-    start = first_part_page(pdf)
+    start = first_part_page(pdf, "Part drawing:")
     texts = {p: page_text(pdf, p, layout=False) for p in range(start, pages + 1)}
     heads = {p: m.group(1) for p, t in texts.items() if (m := re.match(r"\s*Part drawing: (\S+)", t))}
     assert list(heads.values()) == [d["part"] for d in drawings]  # in order, each once, each at a page's top

@@ -145,6 +145,8 @@ def state(doc):
                              "center": list(s.getGlobalPlacement().Base)}
                         for el, s in hs.class_spheres(sk).items()},
             "callouts": {k: list(v.LabelText) for k, v in hs.callout_labels(sk).items()},
+            "frame_labels": {k: {"text": list(v.LabelText), "position": list(v.Position)}
+                             for k, v in hs.frame_labels(sk).items()},
             "analysis": json.loads(sk.Analysis) if sk.Analysis else None,
             "tolerances": hs.tolerances(sk),
             "identification": bool(sk.Identification), "diagnosis": bool(sk.Diagnosis),
@@ -165,6 +167,12 @@ def panel_contents(panel):
         out["table_header"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]
     if panel is not None and hasattr(panel, "parameters") and hasattr(panel.parameters, "rowCount"):
         out["parameter_table"] = table_rows(panel.parameters)
+    if panel is not None and hasattr(panel, "drawings") and hasattr(panel.drawings, "rowCount"):
+        out["frame_table"] = table_rows(panel.drawings)
+        out["frame_table_header"] = [panel.drawings.horizontalHeaderItem(c).text()
+                                     for c in range(panel.drawings.columnCount())]
+        out["datum_table"] = table_rows(panel.datums)
+        out["drawings_note"] = panel.drawings_note.text()
     if panel is not None and hasattr(panel, "summary"):
         out["summary"] = panel.summary.text()
     if panel is not None and hasattr(panel, "legend"):
