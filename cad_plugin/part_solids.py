@@ -113,7 +113,8 @@ class _Feature:
             raise HyperstatError(f"drawing of part '{part}': a feature has no 'id'.")
         self.kind = str(f.get("kind", ""))
         if self.kind not in ("axis", "plane", "median plane", "point"):
-            raise HyperstatError(f"{where}: kind must be 'axis', 'plane', 'median plane' or 'point', got {self.kind!r}.")
+            raise HyperstatError(f"{where}: kind must be 'axis', 'plane', 'median plane' or 'point', "
+                                 f"got {self.kind!r}.")
         p = np.asarray(f.get("point_mm"), dtype=float) if f.get("point_mm") is not None else None
         if p is None or p.shape != (3,) or not np.all(np.isfinite(p)):
             raise HyperstatError(f"{where}: point_mm must be [x, y, z] in mm, got {f.get('point_mm')!r}.")
@@ -151,8 +152,7 @@ class _Feature:
 
     @property
     def outer_radius(self) -> float:
-        if self.role == "journal":
-            return 0.5 * self.diameter + self.wall
+        """A boss's, collar's or housing's radius (mm): the diameter's half and a wall."""
         return 0.5 * self.diameter + self.wall
 
 
@@ -302,7 +302,8 @@ def _material_and_voids(features: list[_Feature]) -> tuple[list, list]:
             base = f.p + 0.5 * L * f.collar
             solids.append(_cylinder(R, base, f.collar, _PAD_MM))
         elif f.role == "guide":  # a block with a channel open along w: floor at -d/2 w, flanks at +-d/2 v
-            solids.append(_box(f.p - 0.5 * (0.5 * d + f.wall) * f.w, f.u, f.v, f.w, (L, d + 2 * f.wall, 0.5 * d + f.wall)))
+            solids.append(_box(f.p - 0.5 * (0.5 * d + f.wall) * f.w, f.u, f.v, f.w,
+                               (L, d + 2 * f.wall, 0.5 * d + f.wall)))
             # the channel is as long as the block (flush: a longer cut would carve a bar's end beyond it)
             voids.append(_box(f.p - 0.25 * d * f.w + 0.5e-3 * f.w, f.u, f.v, f.w, (L, d, 0.5 * d + 1e-3)))
         elif f.role == "slide":  # the bar that fits the channel, on a plate above it
@@ -378,7 +379,7 @@ def _bars(features: list[_Feature]) -> list:
         d = pb - pa
         n = float(np.linalg.norm(d))
         if n > 1e-6:
-            out.append(_cylinder(0.4 * min(a.outer_radius, b.outer_radius, 0.5 * a.diameter + a.wall), pa, d / n, n))
+            out.append(_cylinder(0.4 * min(a.outer_radius, b.outer_radius), pa, d / n, n))
     return out
 
 

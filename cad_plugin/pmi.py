@@ -195,7 +195,8 @@ def _describe(frame: dict) -> str:
     words = [str(frame.get("text") or "")]
     direction = frame.get("zone_direction")
     if direction is not None:
-        words.append("zone direction (" + ", ".join(f"{float(c):.6g}" for c in direction) + ") in the drawing's frame (world, home)")
+        words.append("zone direction (" + ", ".join(f"{float(c):.6g}" for c in direction)
+                     + ") in the drawing's frame (base frame, home configuration)")
     ind = frame.get("indicator")
     if ind:
         words.append(f"{ind.get('kind', '')} {ind.get('relation', '')} to datum {ind.get('datum', '')}".strip())
@@ -222,7 +223,8 @@ def _fix_units(model, names: list[str], descriptions: list[str], zones: list[flo
             ent.SetName(TCollection_HAsciiString(ascii_words(names[k])))
             ent.SetDescription(TCollection_HAsciiString(descriptions[k]))
             unit = ent.Magnitude().UnitComponent().NamedUnit()
-            if hasattr(unit, "HasPrefix") and not unit.HasPrefix() and unit.Name() == StepBasic_SiUnitName.StepBasic_sunMetre:
+            if hasattr(unit, "HasPrefix") and not unit.HasPrefix() and \
+                    unit.Name() == StepBasic_SiUnitName.StepBasic_sunMetre:
                 unit.SetPrefix(StepBasic_SiPrefix.StepBasic_spMilli)
             k += 1
         elif isinstance(ent, StepBasic_SiUnitAndPlaneAngleUnit) and \

@@ -78,7 +78,8 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
 
         for page in images.get("parts") or []:
             drawing = next(d for d in doc["drawings"] if d["part"] == page["part"])
-            extra.append((out_dir / "parts" / f"{step_name(page['part'])}.step", part_step_bytes(page["solid"], drawing)))
+            extra.append((out_dir / "parts" / f"{step_name(page['part'])}.step",
+                          part_step_bytes(page["solid"], drawing)))
     if rendered is not None:
         svg, png, words = skeleton_drawing(rendered, doc["tolerances"]["items"], f"Skeleton of {doc['mechanism']}")
         images["views"] = svg

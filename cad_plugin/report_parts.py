@@ -19,13 +19,12 @@ from __future__ import annotations
 
 import html
 import re
+from functools import lru_cache
 
 import numpy as np
 
-from functools import lru_cache
-
 from hyperstat.cad_plugin.drawing import FONT_PT, WIDTH_MM, figure_svg
-from hyperstat.cad_plugin.gdt import draw_symbol, symbol_svg
+from hyperstat.cad_plugin.gdt import draw_symbol
 
 __all__ = ["part_pages", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
            "PARTS_CSS"]
@@ -45,7 +44,8 @@ section.part-page { break-before: page; page-break-before: always; }
 section.part-page h3 { margin-top: 0; } table.part { font-size: .8em; width: 100%; }
 table.part td { padding: 0 .25em; } .ted { border: 1px solid #111; padding: 0 .2em; }
 ol.part-notes { font-size: .8em; margin: .2em 0; padding-left: 1.5em; }
-@media print { section.part-page { font-size: 8pt; } table.part, ol.part-notes, section.part-page .note { font-size: 8pt; }
+@media print { section.part-page { font-size: 8pt; }
+  table.part, ol.part-notes, section.part-page .note { font-size: 8pt; }
   section.part-page figure { margin: 0; } }
 """
 
@@ -547,18 +547,6 @@ def _e(text) -> str:
     return html.escape(str(text))
 
 
-def _fcf_html(frame: dict) -> str:
-    cells = frame_cells(frame)
-    parts = [symbol_svg(cells[0], 11)] + [_e(c) for c in cells[1:]]
-    out = '<span class="fcf">' + "".join(f"<span>{c}</span>" for c in parts) + "</span>"
-    ind = frame.get("indicator")
-    if ind:
-        sym = _RELATION_SYMBOL.get(str(ind.get("relation", "")).lower(), "parallelism")
-        out += (f' <span class="fcf" title="{_e(_indicator_text(ind))}"><span>{symbol_svg(sym, 11)}</span>'
-                f"<span>{_e(ind.get('datum', ''))}</span></span>")
-    return out
-
-
 def _feature_words(f: dict | None, source: bool = True) -> str:
     """A feature in words with its size: ``bore of joint 2 (axis, 20 mm long, assumed support span)``; without
     ``source``, the length's origin is left out (the datum table says it)."""
@@ -764,7 +752,8 @@ def parts_markdown(doc: dict) -> list[str]:
             drawn = "|" + "|".join(frame_cells(fr)) + "|"
             if fr.get("indicator"):
                 drawn += f" [{_indicator_text(fr['indicator'])}]"
-            cells = [fr["id"], ", ".join(fr.get("tolerances") or []) or "-", _feature_words(features.get(fr.get("feature"))),
+            cells = [fr["id"], ", ".join(fr.get("tolerances") or []) or "-",
+                     _feature_words(features.get(fr.get("feature"))),
                      drawn, zone_words(fr), "|".join(fr.get("datum_system") or []) or "none", _ted_words(fr),
                      str(fr.get("value_kind", "")) + ("; " + fr["note"] if fr.get("note") else "")]
             lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")

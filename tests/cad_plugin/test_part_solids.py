@@ -1,6 +1,7 @@
 """Every feature of a part drawing is a face of the part's solid, where report.json says it is (units: mm).
 
-The faces are checked on points sampled on them (the vertices of OCCT's triangulation of each face), against the feature of ``report.json`` read here: a bore's or journal's points lie at the
+The faces are checked on points sampled on them (the vertices of OCCT's triangulation of each face), against
+the feature of ``report.json`` read here: a bore's or journal's points lie at the
 diameter's half from the feature's axis and within its length; a plane's points lie in one plane of the
 feature's normal, through the feature's point or (an end face, shoulder or stop: the joint's centre is where
 the drawing places it) half its bore's length from it along that normal; a median plane's two faces lie at

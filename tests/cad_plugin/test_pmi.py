@@ -40,7 +40,8 @@ def test_each_part_step_read_back_by_occt_says_what_the_drawing_says(which, requ
             assert g["characteristic"] == f["characteristic"], f["id"]
             assert math.isclose(g["zone_mm"], f["zone_mm"], rel_tol=1e-12), (f["id"], g["zone_mm"], f["zone_mm"])
             assert (g["zone_form"] == "diameter") == (f["zone_shape"] == "cylinder"), f["id"]
-            assert g["datum_system"] == f["datum_system"] and g["precedences"] == list(range(1, len(f["datum_system"]) + 1))
+            assert g["datum_system"] == f["datum_system"]
+            assert g["precedences"] == list(range(1, len(f["datum_system"]) + 1))
             assert g["features"] == [f["feature"]], (f["id"], g["features"])
             frames_seen += 1
         cited = {letter for f in d["frames"] for letter in f["datum_system"]}
@@ -53,8 +54,8 @@ def test_each_part_step_read_back_by_occt_says_what_the_drawing_says(which, requ
 def _entities(text: str) -> dict:
     """The DATA section of an ISO 10303-21 file: entity number -> its text (one line)."""
     data = text.split("DATA;", 1)[1]
-    return {int(m.group(1)): re.sub(r"\s+", " ", m.group(2)) for m in re.finditer(r"#(\d+)\s*=\s*(.*?);\s*(?=#\d+\s*=|ENDSEC)",
-                                                                                    data, flags=re.S)}
+    pattern = r"#(\d+)\s*=\s*(.*?);\s*(?=#\d+\s*=|ENDSEC)"
+    return {int(m.group(1)): re.sub(r"\s+", " ", m.group(2)) for m in re.finditer(pattern, data, flags=re.S)}
 
 
 def test_the_step_text_states_ap242_millimetres_and_the_frame_names(tripteor_report):

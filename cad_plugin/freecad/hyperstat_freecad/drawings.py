@@ -42,7 +42,8 @@ def frame_text(frame: dict) -> str:
     text = "|" + "|".join(cells) + "|"
     ind = frame.get("indicator")
     if ind:
-        rel = {"parallel": "\u2225", "perpendicular": "\u27c2"}.get(str(ind.get("relation", "")), ind.get("relation", ""))
+        rel = str(ind.get("relation", ""))
+        rel = {"parallel": "\u2225", "perpendicular": "\u27c2"}.get(rel, rel)
         text += f" {ind.get('kind', '')} {rel} {ind.get('datum', '')}"
     return text
 
