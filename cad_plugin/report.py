@@ -81,7 +81,10 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
             extra.append((out_dir / "parts" / f"{step_name(page['part'])}.step",
                           part_step_bytes(page["solid"], drawing)))
     if rendered is not None:
-        svg, png, words = skeleton_drawing(rendered, doc["tolerances"]["items"], f"Skeleton of {doc['mechanism']}")
+        items = doc["tolerances"]["items"]
+        if doc.get("drawings"):  # the frames are on the part drawings' pages; the skeleton calls out the ids
+            items = [{**t, "drawing": []} for t in items]
+        svg, png, words = skeleton_drawing(rendered, items, f"Skeleton of {doc['mechanism']}")
         images["views"] = svg
         extra += [(out_dir / "skeleton_views.png", png), (out_dir / "skeleton_views.png.json", dumps_json(words))]
     with all_or_nothing():  # every file of the report or none

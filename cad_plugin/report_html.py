@@ -202,13 +202,14 @@ def _breakable(mathml: str) -> str:
                     for g in groups)
 
 
-def _skeleton(images: dict) -> str:
+def _skeleton(images: dict, parts: bool = False) -> str:
     out = [_head("skeleton", "Skeleton and tolerances")]
     if "views" in images:
+        called = ("its tolerance ids (the feature control frames are on the part drawings, one page per part, at the "
+                  "end)" if parts else "its tolerance ids and feature control frames")
         out.append(f"<figure>{_image(images['views'], 'skeleton views')}<figcaption>The template's links at home, "
                    "four orthographic views (none edge-on to a planar mechanism's plane). Each joint is coloured by "
-                   "the most severe class of its defects and called out once with its tolerance ids and feature "
-                   "control frames.</figcaption></figure>")
+                   f"the most severe class of its defects and called out once with {called}.</figcaption></figure>")
     out.append("</section>")
     return "".join(out)
 
@@ -488,7 +489,8 @@ def render_html(doc: dict, images: dict) -> str:
             f"<title>hyperstat tolerance report: {_e(doc['mechanism'])}</title>",
             f"<style>{CSS}{PARTS_CSS}</style></head><body>",
             f"<h1>Tolerance report: {_e(doc['mechanism'])}</h1>"]
-    body = [_summary(doc), _skeleton(images), _assembly(doc), _accuracy(doc, images), _montecarlo(doc),
+    parts = bool(doc.get("drawings"))
+    body = [_summary(doc), _skeleton(images, parts), _assembly(doc), _accuracy(doc, images), _montecarlo(doc),
             _calibration(doc), _hypotheses(doc), _identification(doc), _diagnosis(doc, images), _joints(doc),
             _glossary(doc), _appendix(doc), parts_html(doc, images.get("parts"))]
     return "\n".join(head + body + ["</body></html>"]) + "\n"
