@@ -106,7 +106,7 @@ def feature_frame(direction: np.ndarray, hint: np.ndarray | None = None) -> tupl
 class _Feature:
     """A feature's geometry, read and checked from the drawing's dict; :func:`_place` sets what is drawn."""
 
-    def __init__(self, f: dict, part: str, joint_type: str | None):
+    def __init__(self, f: dict, part: str, joint_type: str | None, default_diameter: float = DEFAULT_DIAMETER_MM):
         where = f"drawing of part '{part}', feature '{f.get('id', '?')}'"
         self.id = str(f.get("id") or "")
         if not self.id:
@@ -129,7 +129,7 @@ class _Feature:
         self.length_given = f.get("length_mm") is not None
         self.length = float(f["length_mm"]) if self.length_given else DEFAULT_LENGTH_MM
         self.diameter_given = f.get("diameter_mm") is not None
-        self.diameter = float(f["diameter_mm"]) if self.diameter_given else DEFAULT_DIAMETER_MM
+        self.diameter = float(f["diameter_mm"]) if self.diameter_given else default_diameter
         self.element = str(f.get("element") or "")
         self.name = str(f.get("name") or self.id)
         side = f.get("side")
@@ -144,7 +144,8 @@ class _Feature:
                 self.role = "journal" if moving else "bore"
         elif self.kind == "point":
             self.role = "socket"
-        self.wall = max(0.3 * self.diameter, 4.0)
+        self.wall = max(0.3 * self.diameter, min(4.0, 0.5 * self.diameter))
+        self.pad = min(_PAD_MM, 0.15 * self.diameter)  # a pad's or a collar's thickness
         self.host: _Feature | None = None  # the axis feature a plane or median plane belongs to
         self.v = self.w = None  # a guide way's or slide's cross-section axes (flanks along v, open along w)
         self.width = 0.0  # a slot's width (median plane on a host)
@@ -240,7 +241,7 @@ def _inside(point: np.ndarray, radius: float, g: _Feature) -> bool:
         reach = g.outer_radius * (1.5 if g.role in ("guide", "slide") else 1.0)
         r = point - g.p
         along = float(r @ g.u)
-        extra = _PAD_MM if g.role == "journal" else 0.0
+        extra = g.pad if g.role == "journal" else 0.0
         return abs(along) <= 0.5 * g.length + extra + radius and \
             float(np.linalg.norm(r - along * g.u)) < reach + radius
     if g.role == "socket":
@@ -300,7 +301,7 @@ def _material_and_voids(features: list[_Feature]) -> tuple[list, list]:
         elif f.role == "journal":
             solids.append(_cylinder(0.5 * d, f.p - 0.5 * L * f.u, f.u, L))
             base = f.p + 0.5 * L * f.collar
-            solids.append(_cylinder(R, base, f.collar, _PAD_MM))
+            solids.append(_cylinder(R, base, f.collar, f.pad))
         elif f.role == "guide":  # a block with a channel open along w: floor at -d/2 w, flanks at +-d/2 v
             solids.append(_box(f.p - 0.5 * (0.5 * d + f.wall) * f.w, f.u, f.v, f.w,
                                (L, d + 2 * f.wall, 0.5 * d + f.wall)))
@@ -310,7 +311,7 @@ def _material_and_voids(features: list[_Feature]) -> tuple[list, list]:
             solids.append(_box(f.p - 0.25 * d * f.w, f.u, f.v, f.w, (L, d, 0.5 * d)))
             solids.append(_box(f.p + 0.5 * f.wall * f.w, f.u, f.v, f.w, (L, d + 2 * f.wall, f.wall)))
         elif f.role == "pad":
-            solids.append(_cylinder(max(R, 0.5 * L), f.p, -f.u, _PAD_MM))
+            solids.append(_cylinder(max(R, 0.5 * L), f.p, -f.u, f.pad))
         elif f.role == "median":
             solids.append(_cylinder(max(R, 10.0), f.p - 0.5 * L * f.u, f.u, L))
         elif f.role == "slot":  # along the host's axis, at its surface, across the median plane's normal
@@ -351,9 +352,9 @@ def _attach(f: _Feature, target: np.ndarray) -> np.ndarray:
     if f.role == "slide":
         return f.p + 0.5 * f.wall * f.w
     if f.role == "journal":
-        return f.p + (0.5 * f.length + 0.5 * _PAD_MM) * f.collar
+        return f.p + (0.5 * f.length + 0.5 * f.pad) * f.collar
     if f.role == "pad":
-        return f.p - 0.5 * _PAD_MM * f.u
+        return f.p - 0.5 * f.pad * f.u
     if f.role == "median":
         return f.p
     mid = 0.5 * f.diameter + 0.5 * f.wall  # in the wall of a bore or socket
@@ -432,7 +433,8 @@ def _matches(face, f: _Feature, tol: float) -> bool:
     if f.role == "slot":
         h = f.host
         return any(abs(float((centre - (f.p + s * 0.5 * f.length * f.u)) @ f.u)) < tol for s in (-1, 1)) and \
-            abs(float((centre - h.p) @ h.u)) <= 0.5 * h.length + _PAD_MM + tol
+            abs(float((centre - h.p) @ h.u)) <= 0.5 * h.length + h.pad + tol and \
+            float(np.linalg.norm((centre - h.p) - ((centre - h.p) @ h.u) * h.u)) <= h.outer_radius + tol
     offsets = [-0.5 * f.length, 0.5 * f.length] if f.role == "median" else [0.0]
     reach = f.host.outer_radius if f.host is not None and f.role == "end" else \
         (0.5 * f.host.length if f.host is not None else max(f.outer_radius, f.length))
@@ -442,6 +444,21 @@ def _matches(face, f: _Feature, tol: float) -> bool:
         if abs(float((centre - q) @ f.u)) < tol and np.linalg.norm(lateral) <= reach + tol:
             return True
     return False
+
+
+def _default_diameter(raw: list) -> float:
+    """The diameter assumed where the drawing gives none (mm): :data:`DEFAULT_DIAMETER_MM`, or two thirds of the
+    shortest distance between two of the part's axes when that is less (a template drawn a few mm wide)."""
+    points = []
+    for f in raw:
+        try:
+            if f.get("kind") == "axis":
+                points.append(np.asarray(f["point_mm"], dtype=float).reshape(3))
+        except (KeyError, TypeError, ValueError):
+            continue
+    gaps = [float(np.linalg.norm(a - b)) for i, a in enumerate(points) for b in points[i + 1:]]
+    gaps = [g for g in gaps if g > 1e-6 and math.isfinite(g)]
+    return min(DEFAULT_DIAMETER_MM, min(gaps) / 1.5) if gaps else DEFAULT_DIAMETER_MM
 
 
 def part_solid(drawing: dict, joint_types: dict | None = None) -> PartSolid:
@@ -465,7 +482,8 @@ def part_solid(drawing: dict, joint_types: dict | None = None) -> PartSolid:
     if not part or not isinstance(raw, list):
         raise HyperstatError("a drawing needs a 'part' name and a list of 'features'.")
     types = {str(k): v for k, v in (joint_types or {}).items()}
-    features = [_Feature(f, part, types.get(str(f.get("element")))) for f in raw]
+    default = _default_diameter(raw)
+    features = [_Feature(f, part, types.get(str(f.get("element"))), default) for f in raw]
     if not features:
         raise HyperstatError(f"drawing of part '{part}': it has no feature to draw.")
     ids = [f.id for f in features]
@@ -475,7 +493,7 @@ def part_solid(drawing: dict, joint_types: dict | None = None) -> PartSolid:
     centroid = np.mean([f.p for f in features], axis=0)
     notes = _place(features, centroid)
     assumed = sorted({f"{'guide way and slide widths' if f.role in ('guide', 'slide') else 'diameters'} "
-                      f"{DEFAULT_DIAMETER_MM:g} mm (the drawing gives none)"
+                      f"{default:.3g} mm (the drawing gives none)"
                       for f in features if f.kind == "axis" and not f.diameter_given})
     assumed += notes
     assumed.append("walls, collars and bars join the features (not toleranced)")

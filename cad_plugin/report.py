@@ -77,6 +77,11 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
         from hyperstat.cad_plugin.pmi import part_step_bytes
 
         for page in images.get("parts") or []:
+            if page.get("error"):
+                from hyperstat.solver.errors import HyperstatError
+
+                raise HyperstatError(f"--step-drawings: part '{page['part']}' cannot be written as STEP: "
+                                     f"{page['error'].rstrip('.')}; no output was written.")
             drawing = next(d for d in doc["drawings"] if d["part"] == page["part"])
             extra.append((out_dir / "parts" / f"{step_name(page['part'])}.step",
                           part_step_bytes(page["solid"], drawing)))

@@ -527,19 +527,30 @@ def _draw_indicator(ax, x: float, y: float, h: float, ind: dict, text: dict) -> 
 
 
 def part_pages(doc: dict) -> list[dict]:
-    """Every part drawing of a report: ``{"part", "svg", "words", "solid"}`` per entry of ``drawings``."""
+    """Every part drawing of a report: ``{"part", "svg", "words", "solid", "error"}`` per entry of ``drawings``.
+
+    A part whose solid cannot be built (``error``: the sentence why; ``svg`` and ``solid`` None) still gets its
+    page, with its datums and frames in words and that sentence where the views would be: the report is
+    written whole, only ``--step-drawings`` refuses (it cannot write that part's file).
+    """
     from hyperstat.cad_plugin.part_solids import part_solid
 
     types = {str(j["element"]): j.get("type") for j in doc.get("joints") or []}
     pages = []
     for drawing in doc.get("drawings") or []:
-        solid = part_solid(drawing, types)
+        try:
+            solid = part_solid(drawing, types)
+        except Exception as exc:  # noqa: BLE001 - HyperstatError, or OCCT's Standard_Failure from a Boolean
+            reason = str(exc).strip() or type(exc).__name__
+            pages.append({"part": drawing["part"], "svg": None, "words": None, "solid": None, "error": reason})
+            continue
         # the heading, the picture, then the tables: the picture shrinks (to 80 mm) so that the tables fit on
         # its page (their height is measured to within about 7 mm: 10 mm are kept); when they cannot, the picture
         # keeps 200 mm and the table of a part with many frames continues on the next page
         room = _PAGE_MM - 10.0 - _tables_height_mm(drawing, solid.assumed)
         fig, words = part_figure(drawing, solid, room if room >= 80.0 else 200.0)
-        pages.append({"part": drawing["part"], "svg": figure_svg(fig), "words": words, "solid": solid})
+        pages.append({"part": drawing["part"], "svg": figure_svg(fig), "words": words, "solid": solid,
+                      "error": None})
     return pages
 
 
@@ -672,8 +683,10 @@ def _page_html(drawing: dict, page: dict | None) -> str:
     frames = drawing.get("frames") or []
     words = _words_of(drawing)
     out = [f'<section class="part-page" id="part-{_e(part)}"><h3>Part drawing: {_e(part)}</h3>']
-    if page is not None:
+    if page is not None and page.get("svg"):
         out.append(f"<figure>{page['svg']}</figure>")
+    elif page is not None and page.get("error"):
+        out.append(f'<p class="note"><b>The views of this part could not be drawn</b>: {_e(page["error"])}</p>')
     if words["datums"]:
         out.append('<table class="part"><colgroup><col style="width:10%"><col style="width:15%"><col style="width:75%">'
                    "</colgroup><thead><tr><th>datum</th><th>precedence</th><th>datum feature</th></tr></thead><tbody>"
@@ -697,7 +710,7 @@ def _page_html(drawing: dict, page: dict | None) -> str:
     if words["notes"]:
         out.append('<ol class="part-notes">' + "".join(f"<li>{_e(text)} ({_e(', '.join(ids))})</li>"
                                                         for text, ids in words["notes"]) + "</ol>")
-    if page is not None and page["solid"].assumed:
+    if page is not None and page.get("solid") is not None and page["solid"].assumed:
         out.append('<p class="note">Geometry drawn: ' + _e("; ".join(page["solid"].assumed)) + ".</p>")
     out.append("</section>")
     return "".join(out)

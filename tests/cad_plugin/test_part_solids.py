@@ -23,8 +23,16 @@ def _points(face) -> np.ndarray:
     return np.array([v.toTuple() for v in vertices])
 
 
+def _assumed_diameter(drawing: dict) -> float:
+    """docs/step-pmi.md: 20 mm, or two thirds of the shortest distance between two of the part's axes if less."""
+    pts = [np.array(f["point_mm"], float) for f in drawing["features"] if f["kind"] == "axis"]
+    gaps = [np.linalg.norm(a - b) for i, a in enumerate(pts) for b in pts[i + 1:] if np.linalg.norm(a - b) > 1e-6]
+    return min([DEFAULT_DIAMETER_MM] + [g / 1.5 for g in gaps])
+
+
 def _check_part(drawing: dict, joint_types: dict) -> None:
     solid = part_solid(drawing, joint_types)
+    default = _assumed_diameter(drawing)
     assert solid.shape.isValid() and len(solid.shape.Solids()) == 1, drawing["part"]
     features = {f["id"]: f for f in drawing["features"]}
     axes = {(f["element"], f.get("side")): f for f in drawing["features"] if f["kind"] == "axis"}
@@ -40,10 +48,10 @@ def _check_part(drawing: dict, joint_types: dict) -> None:
             radial = np.linalg.norm(r - np.outer(along, n), axis=1)
             assert np.all(np.abs(along) <= 0.5 * f["length_mm"] + 1e-6), fid
             if joint_types.get(f["element"]) == "R":  # a bore or journal: a cylinder of the diameter
-                d = f["diameter_mm"] or DEFAULT_DIAMETER_MM
+                d = f["diameter_mm"] or default
                 assert np.allclose(radial, 0.5 * d, atol=1e-6), (fid, radial.min(), radial.max())
             else:  # a guide way's or slide's flanks and floor: within the width's half of the axis
-                assert np.all(radial <= 0.5 * np.sqrt(2) * (f["diameter_mm"] or DEFAULT_DIAMETER_MM) + 1e-6), fid
+                assert np.all(radial <= 0.5 * np.sqrt(2) * (f["diameter_mm"] or default) + 1e-6), fid
         elif f["kind"] == "plane":
             offsets = np.unique(np.round(along, 6))
             assert len(offsets) == 1, (fid, offsets)  # one plane normal to the feature's direction
@@ -52,7 +60,7 @@ def _check_part(drawing: dict, joint_types: dict) -> None:
             if host is not None and abs(abs(np.dot(host["direction"], n)) - 1) < 1e-9:
                 allowed.add(round(0.5 * host["length_mm"], 6))  # at its bore's, journal's or slide's end
             if host is not None and abs(np.dot(host["direction"], n)) < 1e-9:
-                allowed.add(round(0.5 * (host["diameter_mm"] or DEFAULT_DIAMETER_MM), 6))  # a flank
+                allowed.add(round(0.5 * (host["diameter_mm"] or default), 6))  # a flank
             assert abs(offsets[0]) in allowed, (fid, offsets, allowed)
         else:  # median plane: two faces symmetric about the plane through the point
             offsets = np.unique(np.round(along, 6))
@@ -82,4 +90,4 @@ def test_a_feature_the_solid_cannot_carry_is_one_sentence():
     # a small bore inside another bore's hole: the hole takes its boss away, no face of the solid realises it
     inner = {**good, "id": "p.bore2", "element": "2", "diameter_mm": 2.0, "point_mm": [0, 3, 0]}
     with pytest.raises(HyperstatError, match=r"no face of its solid realises feature 'p.bore2'"):
-        part_solid({"part": "p", "features": [good, inner]}, {"1": "R", "2": "R"})
+        part_solid({"part": "p", "features": [{**good, "diameter_mm": 20.0}, inner]}, {"1": "R", "2": "R"})
