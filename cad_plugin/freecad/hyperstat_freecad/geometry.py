@@ -375,8 +375,10 @@ def label_frames(skeleton, drawings: list) -> int:
     """Label every feature that carries a frame or a datum in the 3D view, at the feature (mm, base frame at home):
     the part and the feature, its datum letter, its frames as drawn (``rod-F2 |//|0.024|A|``).  Returns how many.
 
-    The labels of features at one point (a joint's bore on one part, its journal on the next) are stacked a
-    line apart, so that none hides another.
+    The labels start hidden (the Tripteor has about sixty: all at once they would bury the skeleton); selecting
+    frames or datums in the Results panel's *Part drawings* tab shows theirs (:func:`show_frame_labels`).  The
+    labels of features at one point (a joint's bore on one part, its journal on the next) are stacked a line
+    apart, so that none hides another.
     """
     import FreeCAD
 
@@ -401,4 +403,15 @@ def label_frames(skeleton, drawings: list) -> int:
         if FreeCAD.GuiUp and label.ViewObject is not None:
             label.ViewObject.TextColor = (0.1, 0.1, 0.45)
             label.ViewObject.FontSize = 11
+        label.Visibility = False
     return len(labels)
+
+
+def show_frame_labels(skeleton, features: set) -> list:
+    """Show the labels of ``features`` (feature ids), hide the others; returns the labels shown."""
+    shown = []
+    for fid, label in frame_labels(skeleton).items():
+        label.Visibility = fid in features
+        if fid in features:
+            shown.append(label)
+    return shown

@@ -523,24 +523,24 @@ class ResultsPanel(_NonModal):
         self.datum_feature = [x["feature"] for d in parts for x in d.get("datums") or []]
         reqs = sheets["assembly_requirements"]
         self.drawings_note.setText(
-            f"{len(parts)} part drawings, {len(self.frame_rows)} frames (ISO 1101; zones in mm), labelled at their "
-            "features in the 3D view" + (f"; assembly requirements: " + "; ".join(
+            f"{len(parts)} part drawings, {len(self.frame_rows)} frames (ISO 1101; zones in mm); select frames or "
+            "datums to label their features in the 3D view" + (f"; assembly requirements: " + "; ".join(
                 f"{r.get('id', '')} {r.get('statement', '')} ({', '.join(r.get('parts') or [])})" for r in reqs)
                                           if reqs else "") + "." if parts else
             "The report of this analysis carries no part drawings.")
 
     def _select_features(self, features: set) -> None:
+        """Show (and select) the 3D labels of ``features``, hide the other part-drawing labels."""
         import FreeCADGui
 
-        from .geometry import frame_labels
+        from .geometry import show_frame_labels
 
         if self.obj is None or not features:
             return
-        labels = frame_labels(self.obj)
+        shown = show_frame_labels(self.obj, features)
         FreeCADGui.Selection.clearSelection()
-        for fid in sorted(features):
-            if fid in labels:
-                FreeCADGui.Selection.addSelection(labels[fid])
+        for label in shown:
+            FreeCADGui.Selection.addSelection(label)
 
     def select_frame(self) -> None:
         """Select the 3D labels of the features of the selected frames."""

@@ -228,6 +228,20 @@ def test_the_panel_and_the_3d_view_show_the_part_drawings_of_the_report(clicks, 
             assert np.allclose(offset[:2], 0.0, atol=1e-6) and -2000.0 < offset[2] < 0.0, (fid, offset)
     if drawings:
         assert f"{len(drawings)} part drawings, {len(frames)} frames" in got["drawings_note"]
+    assert not any(label["visible"] for label in labels.values())  # hidden until a frame or a datum is selected
+
+
+def test_a_click_on_a_frame_labels_its_feature_in_the_3d_view(clicks):
+    """The Tripteor inserted by clicks: a click on the first row of the Part drawings tab shows and selects the
+    label of that frame's feature (its frames as the report draws them), and only that label."""
+    step = _steps(clicks)["frame_clicked"]
+    drawings = clicks["reports"]["tripteor_x7"]["drawings"]
+    part, frame_id = step["row"][:2]
+    frame = next(fr for d in drawings if d["part"] == part for fr in d["frames"] if fr["id"] == frame_id)
+    labels = step["state"]["frame_labels"]
+    assert [fid for fid, label in labels.items() if label["visible"]] == [frame["feature"]]
+    assert frame_id in "\n".join(labels[frame["feature"]]["text"])
+    assert step["selected"] == [f"frames {frame['feature']}"]
 
 
 def test_undo_one_transaction_per_action_and_edit_undo_enabled(clicks):
