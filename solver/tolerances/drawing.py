@@ -135,9 +135,9 @@ def _orientation_plane(ds, m: np.ndarray) -> dict | None:
     if abs(abs(m @ a) - 1) < 1e-9 or ds.nu_c is None:
         return None
     letter = ds.letter(ds.c)
-    if abs(abs(m @ ds.nu_c) - 1) < 1e-9:
+    if abs(abs(m @ ds.nu_c) - 1) < 1e-9:  # the zone's planes parallel to the plane through A and C
         return {"kind": "orientation plane", "datum": letter, "relation": "parallel"}
-    if abs(m @ ds.nu_c) < 1e-9:
+    if abs(abs(m @ np.cross(a, ds.nu_c)) - 1) < 1e-9:  # perpendicular to it, parallel to A
         return {"kind": "orientation plane", "datum": letter, "relation": "perpendicular"}
     return {"kind": "orientation plane", "datum": letter, "relation": "at an angle"}
 

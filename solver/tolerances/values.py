@@ -320,6 +320,10 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         from hyperstat.solver.tolerances.calibrated import calibrated_values
 
         info["with_calibration"] = calibrated_values(cl, mechanism, kin, q, spec_p, spec_o, workspace, share=reserve)
+        if info["with_calibration"]:
+            from hyperstat.solver.tolerances.calibrated_together import loss_together
+
+            info["with_calibration"]["together"] = loss_together(cl, mechanism, kin, q, workspace)
     info.update(_drawing_values(cl, mechanism, kin, qa, workspace))
     cl.allocation = info
     return cl
