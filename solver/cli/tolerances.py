@@ -255,7 +255,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
             else:
                 summary = monte_carlo_at_values(cl, mech, kin, q, args.samples, args.seed, args.distribution,
                                                 args.position_accuracy, args.orientation_accuracy)
-                drawn = "every accuracy tolerance at its value (hyperstat accuracy)"
+                drawn = summary.pop("drawn", "every accuracy tolerance at its drawing value")
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
            "workspace": _workspace_doc(mech, args.workspace_used),
            "drawn": drawn, "tolerance_counts": cl.counts(), **summary}

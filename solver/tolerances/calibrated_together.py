@@ -108,18 +108,21 @@ def loss_together(cl, mechanism, kin, configurations: np.ndarray, workspace=None
                         loss * extent, unit, members, f"{100 * loss:g} % of the task's extent ({extent:.4g} {unit})"))
     out = {"workspace_loss": loss, "declared": "workspace_loss" in decl.declared, "budgets": []}
     factor = np.ones(len(items))
-    for _ in range(8):  # scale until every budget holds (a value at its floor stays there)
-        vals = np.maximum(v * factor, floor)
-        worst = [(b, b[1](vals)) for b in budgets]
-        over = [(b, got) for b, got in worst if got > b[2] * (1 + 1e-9)]
-        if not over:
-            break
-        for b, got in over:
+    for _ in range(30):  # scale until every budget holds (a value at its floor stays there); a value in several
+        vals = np.maximum(v * factor, floor)  # budgets takes the smallest of their factors
+        step = np.ones(len(items))
+        for b in budgets:
+            got = b[1](vals)
+            if got <= b[2] * (1 + 1e-9):
+                continue
             members = b[4] & (v * factor > floor)
             fixed = b[1](np.where(members, 0.0, vals))
             grow = b[1](np.where(members, vals, 0.0))
             f = max((b[2] - fixed) / grow, 0.0) if grow > 0 else 1.0
-            factor[members] *= min(f, 1.0)
+            step[members] = np.minimum(step[members], min(f, 1.0))
+        if np.all(step >= 1.0 - 1e-12):
+            break
+        factor *= step
     vals = np.maximum(v * factor, floor)
     for b in budgets:
         alone = max(b[1](np.where(np.arange(len(v)) == i, v, 0.0)) for i in range(len(v)))

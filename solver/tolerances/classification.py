@@ -48,7 +48,7 @@ from hyperstat.solver.tolerances.accuracy import output_twist_maps
 from hyperstat.solver.tolerances.declaration import Declaration, declaration_of, n_rotation_rows, task_rows
 from hyperstat.solver.threads import limited_blas
 
-__all__ = ["CLASSES", "CLASS_MEANING", "Tolerance", "Classification", "classify", "format_terms",
+__all__ = ["CLASSES", "CLASS_MEANING", "Tolerance", "Classification", "classify", "format_terms", "redundant_text",
            "workspace_checkpoints", "WORKSPACE_CHECKPOINTS"]
 
 CLASSES = ("assembly", "accuracy-critical", "compensable", "non-influent")
@@ -356,6 +356,19 @@ def _merged_words(gauge: str, name: str, coefficients: dict) -> str:
     if set(coefficients) == {name} and abs(abs(coefficients[name]) - 1.0) < 1e-12:
         return f" ≡ {'-' if coefficients[name] < 0 else ''}{gauge}"
     return f" ({gauge} acts as {format_terms(coefficients, rhs=None)}: a shift along a skew axis)"
+
+
+def redundant_text(gauge: str, entry: dict) -> str:
+    """A merged shift in words: ``"dc2 ≡ dc3"`` for the identical shift, else the combination it acts as.
+
+    >>> redundant_text("dc2", {"equivalent": "dc3", "coefficients": {"dc3": 1.0}})
+    'dc2 ≡ dc3'
+    """
+    coeffs = entry.get("coefficients") or {entry["equivalent"]: 1.0}
+    if len(coeffs) == 1 and abs(abs(next(iter(coeffs.values()))) - 1.0) < 1e-12:
+        name, c = next(iter(coeffs.items()))
+        return f"{gauge} ≡ {'-' if c < 0 else ''}{name}"
+    return f"{gauge} acts as {format_terms(coeffs, rhs=None)}"
 
 
 def _physical_terms(terms: dict, redundant: dict, order: list) -> dict:

@@ -255,12 +255,12 @@ def part_drawings(cl, mechanism: Mechanism, kin=None) -> dict:
     calibrated = "measurements" in cl.declaration.declared
     carried = [t for t in cl.items if t.cls != "non-influent" and t.drawing_value]
     expr, not_drawn = {}, {}
-    invisible = {}
+    invisible, setups = {}, []
     for t in carried:
         s = statement_functional(mechanism, t.terms, gauges)
         a = _express(phi, s)
-        if a is None:
-            not_drawn[t.id] = "no feature of any part moves with it"
+        if a is None:  # it places a frame of the model (the base's, the tool's) relative to the parts: a setup
+            setups.append(t)
             continue
         resid = float(np.linalg.norm(phi.T @ a - s)) / max(float(np.linalg.norm(s)), 1e-300)
         if resid > 1e-6:
@@ -340,6 +340,7 @@ def part_drawings(cl, mechanism: Mechanism, kin=None) -> dict:
     for f in frames:
         f.bound = fixed.get(id(f), 0.0)
     out = _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, items, calibrated)
+    _setup_requirements(out, setups, mechanism)
     out["invisible"] = invisible
     out["expressions"] = expr
     return out
@@ -424,7 +425,7 @@ def _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, ite
                 + ", ".join(parts_of) + " (features " + ", ".join(feats) + "): the parts' own frames leave this "
                 "combination open (each carries a value with calibration), so it is met at assembly: measure the parts "
                 "and pair them, or adjust (shim) until it holds")
-        reqs.append({"id": f"AR{i + 1}", "tolerances": [t.id], "parts": parts_of, "features": feats,
+        reqs.append({"id": f"AR{i + 1}", "kind": "assembly", "tolerances": [t.id], "parts": parts_of, "features": feats,
                      "statement": t.statement, "value": t.drawing_value, "unit": t.unit, "text": text,
                      "terms": {k: v for k, v in a.items()}})
         by_tolerance.setdefault(t.id, []).append(
@@ -434,6 +435,33 @@ def _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, ite
              "part": None, "frame_id": f"AR{i + 1}", "value_kind": "assembly requirement"})
     return {"drawings": drawings, "assembly_requirements": reqs, "by_tolerance": by_tolerance,
             "not_drawn": not_drawn}
+
+
+def _setup_requirements(out: dict, setups: list, mechanism: Mechanism) -> None:
+    """Tolerances no feature of any part moves with: they place a frame of the model relative to the parts (the base
+    frame the task is measured in, relative to the base's reference bore; the tool frame, relative to the last
+    part): stated as setup requirements, met at installation and identified by the declared calibration."""
+    first = {ch.elements[0].name for ch in mechanism.chains if ch.start == mechanism.base and ch.elements}
+    where = {p.name: p.element for p in mechanism.parameters}
+    n = len(out["assembly_requirements"])
+    for t in setups:
+        elements = {where[p] for p in t.parameters if p in where}
+        if elements <= first:
+            what = (f"the base frame {mechanism.base} (where the task is measured) relative to the base's reference "
+                    "bore: the machine's installation")
+        else:
+            what = "the output (tool) frame relative to the last part: the tool's setting"
+        n += 1
+        text = (f"setup requirement {t.id}: {t.statement} within ± {t.drawing_value:g} {t.unit}; it is no geometry of "
+                f"any part: it places {what}, set at installation and identified by the declared calibration")
+        out["assembly_requirements"].append({"id": f"AR{n}", "kind": "setup", "tolerances": [t.id], "parts": [],
+                                             "features": [], "statement": t.statement, "value": t.drawing_value,
+                                             "unit": t.unit, "text": text, "terms": dict(t.terms)})
+        out["by_tolerance"].setdefault(t.id, []).append(
+            {"characteristic": "setup requirement", "symbol": "", "zone": t.drawing_value, "unit": t.unit,
+             "diameter_zone": False, "feature": what, "feature_length": None, "datums": [], "datum_features": {},
+             "text": text, "frame": f"{t.id} ± {t.drawing_value:g} {t.unit} (setup)", "part": None,
+             "frame_id": f"AR{n}", "value_kind": "setup requirement"})
 
 
 def _teds(ds, f: _Frame) -> list:

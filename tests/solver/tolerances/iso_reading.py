@@ -433,8 +433,9 @@ class DrawingReader:
             c = np.zeros(total)
             c[:self.n] = -sgn * s
             c = c * col
-            for method in ("highs-ds", "highs-ipm", "highs"):
-                res = linprog(c, A_ub=a_s, b_ub=b_ub / scale, bounds=[(None, None)] * total, method=method)
+            for method, opts in (("highs-ds", {}), ("highs-ipm", {}), ("highs", {}), ("highs-ds", {"presolve": False})):
+                res = linprog(c, A_ub=a_s, b_ub=b_ub / scale, bounds=[(None, None)] * total, method=method,
+                              options=opts)
                 if res.status in (0, 3):
                     break
             if res.status == 3:

@@ -134,3 +134,55 @@ def test_what_no_feature_sees_moves_nothing(drawn, reading):
     jac = own.task_jacobian(np.asarray(q, float), dirs)  # (K, 3, n): output position per unit
     scale = max(1.0, float(np.max(np.abs(rows))))
     assert np.max(np.abs(jac)) < 1e-6 * scale, (name, float(np.max(np.abs(jac))))
+
+
+def _corner_direction(rep: dict, names: list, signs: dict) -> dict:
+    """A defect with every assembly statement at ``sign * drawing value``: the least-norm solution of the statements
+    (their terms as printed), this test's own algebra."""
+    items = [t for t in rep["tolerances"]["items"] if t["class"] == "assembly" and t["drawing_value"]]
+    col = {n: i for i, n in enumerate(names)}
+    s = np.zeros((len(items), len(names)))
+    for k, t in enumerate(items):
+        for n, c in t["terms"].items():
+            s[k, col[n]] += c
+    target = np.array([signs[t["id"]] * t["drawing_value"] for t in items])
+    x = np.linalg.lstsq(s, target, rcond=None)[0]
+    assert np.allclose(s @ x, target, rtol=1e-9, atol=1e-12)
+    return {names[i]: float(x[i]) for i in np.nonzero(np.abs(x) > 0)[0]}
+
+
+@pytest.mark.parametrize("which", ["slider_crank", "tripteor_x7"])
+def test_the_drawing_assembles_as_a_whole(drawn, which):
+    """Every assembly condition at a corner of its tolerance at once (the frames bound each statement by its value,
+    test above): the independent model's own programme of the plays absorbs the corner at the report's worst
+    configuration and more (the slider-crank: all 64 sign patterns at 13 crank angles); the report's nonlinear
+    re-assembly closes it scaled by at least 1; the single values together did not assemble."""
+    from tests.solver.tolerances.independent import OwnModel
+
+    name, mech, cl, rep = drawn
+    if name != which:
+        pytest.skip("one template per run")
+    whole = rep["whole_drawing"]
+    assert whole["single_condition_need"] > 1.5  # the former drawing (each condition alone) needed more play
+    assert whole["clearance_need"] <= 1.0 + 1e-9
+    assert whole["nonlinear"]["scale_factor"] >= 1.0
+    names = [p.name for p in mech.parameters]
+    own = OwnModel(mech, {j.name: cl.declaration.clearance(j.name, j.type) for j in mech.joints})
+    ids = [t["id"] for t in rep["tolerances"]["items"] if t["class"] == "assembly" and t["drawing_value"]]
+    worst_q = np.asarray(whole["worst"]["configuration"], float)
+    rng = np.random.default_rng(0)
+    if name == "slider_crank":
+        patterns = [dict(zip(ids, s)) for s in itertools.product((-1.0, 1.0), repeat=len(ids))]
+        home = np.asarray(mech.home, float)
+        targets = np.linspace(-math.pi, math.pi, 13)[:, None]
+        qs, ok = own.track(home, targets)
+        qs = np.vstack([qs[ok], worst_q[None]])
+    else:
+        patterns = [whole["worst"]["signs"]] + [dict(zip(ids, rng.choice([-1.0, 1.0], len(ids)))) for _ in range(12)]
+        qs = np.vstack([worst_q[None], np.asarray(cl.configurations[:2], float)])
+    dirs = [_corner_direction(rep, names, p) for p in patterns]
+    t = own.violations(qs, dirs)  # the largest factor on each corner the plays absorb there (first order)
+    assert np.all(np.isfinite(t)), (name, t)
+    assert float(np.min(t)) >= 1.0 - 1e-6, (name, float(np.min(t)))
+    # the worst corner at the worst configuration is tight: the values were not left loose either
+    assert float(np.min(t[-1 if name == "slider_crank" else 0])) < 1.02 or name == "slider_crank"
