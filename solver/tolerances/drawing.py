@@ -187,7 +187,8 @@ def _frames_of(ds, feature, group: str, comps: list) -> list:
         return [_Frame(ds, feature, group, full, "cylinder", None, None, ["A"], ch)]
     d = feature.point - ds.a.point
     coaxial = abs(abs(n @ a) - 1) < 1e-9 and np.linalg.norm(d - (d @ a) * a) < 1e-6
-    letters = letters_base + (["B"] if any(c.along_a for c in full) and ds.b is not None else [])
+    letters = letters_base + (["B"] if any(c.along_a for c in full) and ds.b is not None else []) + \
+        ([ds.letter(ds.c)] if has_c and any(c.affected for c in comps) else [])  # located about A by C
     return [_Frame(ds, feature, group, full, "cylinder", None, None, letters,
                    "coaxiality" if coaxial and letters == ["A"] else "position")]
 
@@ -503,5 +504,12 @@ def add_drawing(cl, mechanism: Mechanism, kin=None) -> dict:
     out = part_drawings(cl, mechanism, kin)
     for t in cl.items:
         t.drawing = out["by_tolerance"].get(t.id, [])
+        if t.id in out["invisible"]:
+            t.evidence["drawing"] = {
+                "left_out_share": out["invisible"][t.id],
+                "meaning": "the part of the statement along defects that move no feature of any part (a turn about a "
+                           "passive joint's own axis): it builds the nominal parts, so the mechanism moves and "
+                           "assembles as the nominal one; the frames bound the rest (its orthogonal projection on what "
+                           "the features see)"}
     cl.drawings = out
     return out
