@@ -64,8 +64,8 @@ class Parameters:
                                    exclusive_minimum=True)
     proximal: float = param(120.0, "mm", "length of the links A_i B_i", minimum=0.0, exclusive_minimum=True)
     distal: float = param(120.0, "mm", "length of the links B_i C_i", minimum=0.0, exclusive_minimum=True)
-    stroke: float = param(0.1, "rad", "actuated range on each side of the home angle (the box stays away from the singular configurations)", minimum=0.0,
-                          exclusive_minimum=True, maximum=1.0)
+    stroke: float = param(0.1, "rad", "actuated range on each side of the home angle (the box stays away from the "
+                          "singular configurations)", minimum=0.0, exclusive_minimum=True, maximum=1.0)
     section: float = param(5.0, "mm", "radius of the link bars drawn in CAD", minimum=0.0, exclusive_minimum=True)
 
 

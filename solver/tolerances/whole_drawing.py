@@ -579,6 +579,9 @@ def whole_drawing_summary(evidence: dict, cl) -> dict:
     return {"clearance_need": need, "scale_factor": 1.0 / need if need > 0 else None,
             "single_condition_need": evidence["single_condition_need"],
             "configurations": {"total": evidence["configurations"], **evidence.get("from", {})},
+            "method": evidence.get("method"), "exact": evidence.get("exact"),
+            "need_lower_bound": evidence.get("need_lower_bound"),
+            "unsolved_lower_bound": evidence.get("unsolved_lower_bound"),
             "worst": evidence.get("worst"), "factors": evidence.get("factors"), "values": evidence.get("values"),
             "values_alone": evidence.get("values_alone"),
             "nonlinear": nl or None, "accuracy": acc, "spec": spec, "statement": words}
