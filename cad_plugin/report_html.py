@@ -234,8 +234,13 @@ def _assembly(doc: dict) -> str:
     out.append(f"<p class=\"note\">Value: {_e(conditions[0]['value_source'])}.</p>")
     red = tol.get("redundant", {})
     if red:
-        out.append("<p>Redundant shifts shown with their equivalent (the same physical shift): "
-                   + ", ".join(f"{_e(g)} &equiv; {_e(r['equivalent'])}" for g, r in red.items()) + ".</p>")
+        from hyperstat.solver.tolerances.classification import redundant_text
+
+        out.append("<p>Redundant shifts shown with their equivalent (the same physical shift, or the combination it "
+                   "acts as along a skew axis): " + ", ".join(_e(redundant_text(g, r)) for g, r in red.items()) + ".</p>")
+    whole = (doc.get("whole_drawing") or {}).get("statement")
+    if whole:
+        out.append(f"<p class=\"note\">The drawing as a whole: {_e(whole)}.</p>")
     clear = tol["declaration"].get("clearances", {})
     out.append('<p class="note">Clearances: ' + "; ".join(
         f"{k}: radial {c['radial_mm']:g} mm, axial {c['axial_mm']:g} mm, tilt {c['tilt_rad']:g} rad "
@@ -309,10 +314,12 @@ def _montecarlo(doc: dict) -> str:
     mc = doc.get("montecarlo")
     if not mc:
         return _head("montecarlo", "Monte Carlo", "<p>Not run for this report.</p>") + "</section>"
+    cal_words = (mc.get("calibrated") or {}).get("method") or (mc.get("calibrated") or {}).get("note") or ""
     intro = (f"<p>{mc['samples']} samples through the nonlinear model, every accuracy-critical and compensable "
-             f"tolerance drawn within ± its value ({_e(mc.get('distribution', 'uniform'))}), errors on the task "
-             f"components ({_e(', '.join(mc.get('task', [])))}); {mc.get('not_assembled', 0)} did not assemble. "
-             "Assembly conditions are not drawn: violating one deforms the structure.</p>")
+             f"tolerance drawn within ± its drawing value ({_e(mc.get('distribution', 'uniform'))}: parts made to the "
+             f"drawing), errors on the task components ({_e(', '.join(mc.get('task', [])))}); "
+             f"{mc.get('not_assembled', 0)} did not assemble. Assembly conditions are not drawn: violating one deforms "
+             f"the structure. Calibrated: {_e(cal_words)}.</p>")
     cal = mc.get("calibrated") or {}
     rows = []
     for key, unit, spec_key in (("position_mm", "mm", "out_of_spec_position_percent"),

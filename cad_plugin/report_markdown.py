@@ -61,7 +61,12 @@ def render_markdown(doc: dict) -> str:
               for a in doc["assembly_conditions"]] or ["* none"]
     red = tol.get("redundant", {})
     if red:
-        lines += ["", "Redundant shifts: " + ", ".join(f"{g} ≡ {r['equivalent']}" for g, r in red.items())]
+        from hyperstat.solver.tolerances.classification import redundant_text
+
+        lines += ["", "Redundant shifts: " + ", ".join(redundant_text(g, r) for g, r in red.items())]
+    whole = (doc.get("whole_drawing") or {}).get("statement")
+    if whole and doc["assembly_conditions"]:
+        lines += ["", f"The drawing as a whole: {whole}."]
     types = {str(j["element"]): j.get("type", "") for j in doc.get("joints", [])}
     alloc = tol.get("allocation") or {}
     if doc.get("worst_cases"):

@@ -25,8 +25,8 @@ perpendicularity or angularity zone to ``A`` states it), the tilt that is a rota
 by ``A``; by ``C`` when a rotation about ``A`` moves it).
 
 >>> import numpy as np
->>> _basis(np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))[0].round(3).tolist()
-[0.0, 1.0, 0.0]
+>>> _basis(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 0.0]))[0].round(3).tolist()
+[0.707, 0.707, 0.0]
 """
 
 from __future__ import annotations

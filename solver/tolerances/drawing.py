@@ -135,9 +135,9 @@ def _orientation_plane(ds, m: np.ndarray) -> dict | None:
     if abs(abs(m @ a) - 1) < 1e-9 or ds.nu_c is None:
         return None
     letter = ds.letter(ds.c)
-    if abs(abs(m @ ds.nu_c) - 1) < 1e-9:
+    if abs(abs(m @ ds.nu_c) - 1) < 1e-9:  # the zone's planes parallel to the plane through A and C
         return {"kind": "orientation plane", "datum": letter, "relation": "parallel"}
-    if abs(m @ ds.nu_c) < 1e-9:
+    if abs(abs(m @ np.cross(a, ds.nu_c)) - 1) < 1e-9:  # perpendicular to it, parallel to A
         return {"kind": "orientation plane", "datum": letter, "relation": "perpendicular"}
     return {"kind": "orientation plane", "datum": letter, "relation": "at an angle"}
 
@@ -187,7 +187,8 @@ def _frames_of(ds, feature, group: str, comps: list) -> list:
         return [_Frame(ds, feature, group, full, "cylinder", None, None, ["A"], ch)]
     d = feature.point - ds.a.point
     coaxial = abs(abs(n @ a) - 1) < 1e-9 and np.linalg.norm(d - (d @ a) * a) < 1e-6
-    letters = letters_base + (["B"] if any(c.along_a for c in full) and ds.b is not None else [])
+    letters = letters_base + (["B"] if any(c.along_a for c in full) and ds.b is not None else []) + \
+        ([ds.letter(ds.c)] if has_c and any(c.affected for c in comps) else [])  # located about A by C
     return [_Frame(ds, feature, group, full, "cylinder", None, None, letters,
                    "coaxiality" if coaxial and letters == ["A"] else "position")]
 
@@ -255,12 +256,12 @@ def part_drawings(cl, mechanism: Mechanism, kin=None) -> dict:
     calibrated = "measurements" in cl.declaration.declared
     carried = [t for t in cl.items if t.cls != "non-influent" and t.drawing_value]
     expr, not_drawn = {}, {}
-    invisible = {}
+    invisible, setups = {}, []
     for t in carried:
         s = statement_functional(mechanism, t.terms, gauges)
         a = _express(phi, s)
-        if a is None:
-            not_drawn[t.id] = "no feature of any part moves with it"
+        if a is None:  # it places a frame of the model (the base's, the tool's) relative to the parts: a setup
+            setups.append(t)
             continue
         resid = float(np.linalg.norm(phi.T @ a - s)) / max(float(np.linalg.norm(s)), 1e-300)
         if resid > 1e-6:
@@ -340,6 +341,7 @@ def part_drawings(cl, mechanism: Mechanism, kin=None) -> dict:
     for f in frames:
         f.bound = fixed.get(id(f), 0.0)
     out = _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, items, calibrated)
+    _setup_requirements(out, setups, mechanism)
     out["invisible"] = invisible
     out["expressions"] = expr
     return out
@@ -424,7 +426,7 @@ def _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, ite
                 + ", ".join(parts_of) + " (features " + ", ".join(feats) + "): the parts' own frames leave this "
                 "combination open (each carries a value with calibration), so it is met at assembly: measure the parts "
                 "and pair them, or adjust (shim) until it holds")
-        reqs.append({"id": f"AR{i + 1}", "tolerances": [t.id], "parts": parts_of, "features": feats,
+        reqs.append({"id": f"AR{i + 1}", "kind": "assembly", "tolerances": [t.id], "parts": parts_of, "features": feats,
                      "statement": t.statement, "value": t.drawing_value, "unit": t.unit, "text": text,
                      "terms": {k: v for k, v in a.items()}})
         by_tolerance.setdefault(t.id, []).append(
@@ -434,6 +436,33 @@ def _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, ite
              "part": None, "frame_id": f"AR{i + 1}", "value_kind": "assembly requirement"})
     return {"drawings": drawings, "assembly_requirements": reqs, "by_tolerance": by_tolerance,
             "not_drawn": not_drawn}
+
+
+def _setup_requirements(out: dict, setups: list, mechanism: Mechanism) -> None:
+    """Tolerances no feature of any part moves with: they place a frame of the model relative to the parts (the base
+    frame the task is measured in, relative to the base's reference bore; the tool frame, relative to the last
+    part): stated as setup requirements, met at installation and identified by the declared calibration."""
+    first = {ch.elements[0].name for ch in mechanism.chains if ch.start == mechanism.base and ch.elements}
+    where = {p.name: p.element for p in mechanism.parameters}
+    n = len(out["assembly_requirements"])
+    for t in setups:
+        elements = {where[p] for p in t.parameters if p in where}
+        if elements <= first:
+            what = (f"the base frame {mechanism.base} (where the task is measured) relative to the base's reference "
+                    "bore: the machine's installation")
+        else:
+            what = "the output (tool) frame relative to the last part: the tool's setting"
+        n += 1
+        text = (f"setup requirement {t.id}: {t.statement} within ± {t.drawing_value:g} {t.unit}; it is no geometry of "
+                f"any part: it places {what}, set at installation and identified by the declared calibration")
+        out["assembly_requirements"].append({"id": f"AR{n}", "kind": "setup", "tolerances": [t.id], "parts": [],
+                                             "features": [], "statement": t.statement, "value": t.drawing_value,
+                                             "unit": t.unit, "text": text, "terms": dict(t.terms)})
+        out["by_tolerance"].setdefault(t.id, []).append(
+            {"characteristic": "setup requirement", "symbol": "", "zone": t.drawing_value, "unit": t.unit,
+             "diameter_zone": False, "feature": what, "feature_length": None, "datums": [], "datum_features": {},
+             "text": text, "frame": f"{t.id} ± {t.drawing_value:g} {t.unit} (setup)", "part": None,
+             "frame_id": f"AR{n}", "value_kind": "setup requirement"})
 
 
 def _teds(ds, f: _Frame) -> list:
@@ -475,5 +504,12 @@ def add_drawing(cl, mechanism: Mechanism, kin=None) -> dict:
     out = part_drawings(cl, mechanism, kin)
     for t in cl.items:
         t.drawing = out["by_tolerance"].get(t.id, [])
+        if t.id in out["invisible"]:
+            t.evidence["drawing"] = {
+                "left_out_share": out["invisible"][t.id],
+                "meaning": "the part of the statement along defects that move no feature of any part (a turn about a "
+                           "passive joint's own axis): it builds the nominal parts, so the mechanism moves and "
+                           "assembles as the nominal one; the frames bound the rest (its orthogonal projection on what "
+                           "the features see)"}
     cl.drawings = out
     return out

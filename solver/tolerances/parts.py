@@ -341,7 +341,7 @@ def _mounting_face(part: Part, m: Mechanism) -> None:
         return
     normal = axes[-1]
     part.features.append(Feature(f"{part.id}.mounting", part.id, "mounting", "plane",
-                                 _ROLE_WORDS["mounting"].format(j=m.base), first.name, "fixed", m.base,
+                                 _ROLE_WORDS["mounting"].format(j=m.base), first.name, "fixed", f"L:{first.name}",
                                  bore.point.copy(), normal, None, None, None))
 
 

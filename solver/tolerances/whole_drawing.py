@@ -34,7 +34,15 @@ import math
 
 import numpy as np
 
-__all__ = ["clearance_need", "allocate_together", "confirm_corner"]
+__all__ = ["clearance_need", "allocate_together", "confirm_corner", "whole_drawing_summary", "EXACT_TOP"]
+
+#: where the plays leave more than three closure rows (a spatial model of a planar parallel robot): the clearance
+#: need is solved exactly (mixed-integer programme) at this many worst configurations of a local search, which
+#: gives a lower bound elsewhere
+EXACT_TOP = 4
+#: where more than three rows are left: the upper bound is solved at this many configurations of largest lower bound
+#: and this many of largest triangle bound
+GENERAL_SOLVED = 6
 
 
 def _pieces_matrix(model, f: np.ndarray) -> np.ndarray:
@@ -180,23 +188,39 @@ def _support(pieces: np.ndarray, u: np.ndarray) -> np.ndarray:
 class _Block:
     """One configuration: the play pieces, and for m <= 3 the polar's vertex directions (cached)."""
 
-    def __init__(self, model, f: np.ndarray, ua: np.ndarray, dirs: np.ndarray) -> None:
+    def __init__(self, model, f: np.ndarray, ua: np.ndarray, dirs: np.ndarray, alone: np.ndarray | None = None) -> None:
         self.model = model
         self.f = f
         self.w = ua @ dirs  # (m, n)
         self.m = f.shape[0]
         self.pieces = _pieces_matrix(model, f) if self.m else np.zeros((0, 0, 0))
         self.rows = None
-        if 0 < self.m <= 3:
+        self.bound = "exact"
+        if self.m > 3 and alone is not None:
+            # more than three closure rows: the triangle bound sum_i v_i / t_i (t_i: condition i alone here), an
+            # upper bound of the need (safe); the local search gives a lower bound beside it
+            with np.errstate(divide="ignore"):
+                self.rows = np.where(np.isfinite(alone) & (alone > 0), 1.0 / alone, 0.0)[None, :]
+            self.u = np.full((1, self.m), np.nan)
+            self.bound = "triangle"
+        elif 0 < self.m <= 3:
             u = _facet_directions(self.pieces)
             h = _support(self.pieces, u)
             ok = h > 1e-300
             self.u = u[ok] / h[ok][:, None]  # polar vertices (a superset): h(u) = 1
             self.rows = np.abs(self.u @ self.w)  # (C, n): sum_i v_i rows_ci <= 1 for every c
 
-    def need(self, v: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        self.known: list = []  # polar points found before (m > 3)
+
+    def need(self, v: np.ndarray, exact: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
+        """``alpha`` here, the worst signs and the polar point reaching it.  For m > 3 without ``exact``: a lower
+        bound by alternating sign patterns and polar linear programmes (a local search)."""
         if self.m == 0 or not np.any(v * np.linalg.norm(self.w, axis=0) > 0):
             return 0.0, np.ones(len(v)), np.zeros(self.m)
+        if self.rows is not None and self.bound == "triangle":
+            low, s, u = self._local(v)
+            self.low = low
+            return float((self.rows @ v)[0]), s, u
         if self.rows is not None:
             val = self.rows @ v
             c = int(np.argmax(val))
@@ -204,11 +228,67 @@ class _Block:
             s = np.sign(self.w.T @ u)
             s[s == 0] = 1.0
             return float(val[c]), s, u
-        return _need_at(self.model, self.f, self.w, v)
+        if exact:
+            out = _need_at(self.model, self.f, self.w, v)
+        else:
+            out = self._local(v)
+        self.known.append(out[2])
+        return out
+
+    def _local(self, v: np.ndarray, starts: int = 4) -> tuple[float, np.ndarray, np.ndarray]:
+        """A lower bound: from polar points (a condition's own direction, the points found before), alternate the
+        worst signs ``s = sign(W^T u)`` and the point ``u = r / h(r)`` on the polar's boundary along ``r = W (s v)``."""
+        scores = v * np.linalg.norm(self.w, axis=0)
+        seeds = [self.w[:, i] for i in np.argsort(-scores)[:starts]] + list(self.known[-4:])
+        best = (0.0, np.ones(len(v)), np.zeros(self.m))
+        for u in seeds:
+            h = float(_support(self.pieces, u[None])[0])
+            if not h > 0:
+                continue
+            u = u / h
+            for _ in range(20):
+                s = np.sign(self.w.T @ u)
+                s[s == 0] = 1.0
+                r = self.w @ (s * v)
+                h = float(_support(self.pieces, r[None])[0])
+                if not h > 0:
+                    break
+                u_new = r / h
+                if np.allclose(u_new, u, rtol=1e-12, atol=0):
+                    break
+                u = u_new
+            val = float(np.sum(v * np.abs(self.w.T @ u)))
+            if val > best[0]:
+                s = np.sign(self.w.T @ u)
+                s[s == 0] = 1.0
+                best = (val, s, u)
+        return best
 
 
-def _blocks(model, raw: list, dirs: np.ndarray) -> list:
-    return [_Block(model, cg, ua, dirs) for cg, ua in raw]
+def _polar_lp(pieces: np.ndarray, r: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """``max u . r`` over the polar set ``h(u) <= 1``: the clearance need of the one violation ``r``, and ``u``."""
+    from scipy.optimize import linprog
+
+    m, n_t, n_p = pieces.shape
+    nv = m + n_t
+    a = np.zeros((n_t * n_p + 1, nv))
+    for t in range(n_t):
+        a[t * n_p:(t + 1) * n_p, :m] = pieces[:, t, :].T
+        a[t * n_p:(t + 1) * n_p, m + t] = -1.0
+    a[-1, m:] = 1.0
+    b = np.zeros(len(a))
+    b[-1] = 1.0
+    c = np.zeros(nv)
+    c[:m] = -r
+    res = linprog(c, A_ub=a, b_ub=b, bounds=[(None, None)] * nv, method="highs")
+    if not res.success:
+        return math.inf, None
+    return float(-res.fun), res.x[:m]
+
+
+def _blocks(model, raw: list, dirs: np.ndarray, alone: np.ndarray | None = None) -> list:
+    """One :class:`_Block` per configuration; ``alone`` (K, n): each condition's single value there (m > 3)."""
+    return [_Block(model, cg, ua, dirs, None if alone is None else alone[k]) for k, (cg, ua) in enumerate(raw)]
 
 
 def clearance_need(model, blocks: list, dirs: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray,
@@ -222,8 +302,12 @@ def clearance_need(model, blocks: list, dirs: np.ndarray, values: np.ndarray) ->
     signs = np.ones((len(blocks), dirs.shape[1]))
     us = []
     for k, b in enumerate(blocks):
-        alpha[k], signs[k], u = b.need(values)
+        alpha[k], signs[k], u = b.need(values, exact=False)
         us.append(u)
+    # where the plays leave more than three closure rows: exact (mixed-integer) at the worst configurations found
+    general = [k for k, b in enumerate(blocks) if b.rows is None and b.m > 3]
+    for k in sorted(general, key=lambda k: -alpha[k])[:EXACT_TOP]:
+        alpha[k], signs[k], us[k] = blocks[k].need(values, exact=True)
     return alpha, signs, us
 
 
@@ -252,14 +336,25 @@ def allocate_together(cl, mechanism, kin, configurations: np.ndarray, workspace=
     kin_aug = Kinematics(model.mechanism)
     ws = workspace or workspace_of(mechanism)
     q = np.atleast_2d(configurations)
-    cand, _ = workspace_candidates(kin, ws, q)
+    probe = _constraint_blocks(model, q[:1], kin_aug)
+    few = not probe or probe[0][0].shape[0] <= 3  # at most three closure rows left: every configuration exactly
+    cand = workspace_candidates(kin, ws, q)[0] if few else np.zeros((0, q.shape[1]))
     worst = [np.asarray(t.evidence.get("assemblability", {}).get("worst_configuration"), float) for t in items
              if t.evidence.get("assemblability", {}).get("worst_configuration") is not None]
     qq = np.vstack([q] + ([cand] if len(cand) else []) + ([np.array(worst)] if worst else []))
     qq = np.unique(np.round(qq, 12), axis=0)
     dirs = np.stack([_lift(model, t.direction) for t in items], axis=1)
-    blocks = _blocks(model, _constraint_blocks(model, qq, kin_aug), dirs)
+    at = None
+    if not few:  # each condition alone at each configuration: the triangle bound's terms
+        from hyperstat.solver.tolerances.clearance import AssemblyConditions
+
+        vals = AssemblyConditions(model, items, kin_aug).values(qq)
+        at = np.stack([vals[t.id] for t in items], axis=1)
     alone = np.array([float(t.value) for t in items])
+    if not few:
+        return _allocate_general(cl, mechanism, items, model, _constraint_blocks(model, qq, kin_aug), dirs, at, alone,
+                                 qq, q, worst)
+    blocks = _blocks(model, _constraint_blocks(model, qq, kin_aug), dirs)
     need, signs, _ = clearance_need(model, blocks, dirs, alone)
     single = float(np.max(need))
     k_single = int(np.argmax(need))
@@ -273,7 +368,7 @@ def allocate_together(cl, mechanism, kin, configurations: np.ndarray, workspace=
         rows = np.vstack([b.rows for b in blocks if b.rows is not None and len(b.rows)]) * alone[None, :]
         rows = rows[rows.sum(axis=1) * factors[0] > 1e-3]
         cuts = list(np.unique(np.round(rows, 12), axis=0))
-    for _ in range(rounds):
+    for _ in range(rounds if exact else min(rounds, 4)):
         if frozen.all():
             break
         v = factors * alone
@@ -317,7 +412,15 @@ def allocate_together(cl, mechanism, kin, configurations: np.ndarray, workspace=
         t.value = float(f * a)
         t.value_source += (f"; together with the other assembly conditions (every one at a corner of its tolerance at "
                            f"once): {100 * f:.1f} % of its single value {a:.4g} {t.unit}")
-    return {"single_condition_need": single, "clearance_need": worst_need,
+    method = ("exact at every configuration: every vertex of the polar of the set the plays reach (at most three "
+              "closure rows left to the plays)" if few else
+              "an upper bound at every configuration: more than three closure rows are left to the plays, where the "
+              "exact need is a mixed-integer programme too slow to run (minutes per configuration); the values are "
+              "allocated on the triangle bound sum_i v_i / t_i (t_i: the condition alone there), which is safe, and a "
+              "local search gives a lower bound beside it (need_lower_bound)")
+    low = max((getattr(b, "low", 0.0) for b in blocks), default=0.0) if not few else None
+    return {"single_condition_need": single, "clearance_need": worst_need, "method": method, "exact": few,
+            "need_lower_bound": low,
             "configurations": int(len(qq)), "from": {"given": int(len(q)), "workspace_candidates": int(len(cand)),
                                                       "single_worst_cases": len(worst)},
             "worst": {"configuration": qq[k].tolist(), "signs": {t.id: float(s) for t, s in zip(items, signs[k])},
@@ -326,6 +429,90 @@ def allocate_together(cl, mechanism, kin, configurations: np.ndarray, workspace=
             "factors": {t.id: float(f) for t, f in zip(items, factors)},
             "values": {t.id: float(t.value) for t in items}, "values_alone": {t.id: float(a) for t, a in
                                                                                zip(items, alone)}}
+
+
+def _decision_rule(model, f: np.ndarray, w: np.ndarray, v: np.ndarray) -> float:
+    """An upper bound of the clearance need at one configuration: each condition's violation ``v_i W_i`` absorbed by
+    plays ``y_i`` of its own (``F y_i = -v_i W_i``), every support's polygon row holding the sum of their absolute
+    values (``sum_i |P y_i| <= alpha c``, ``sum_i |y_i| <= alpha``): then every sign pattern ``sum_i s_i y_i`` lies in
+    ``alpha Y``.  A linear programme; exact for one condition."""
+    from scipy.optimize import linprog
+    from scipy.sparse import csr_matrix, hstack, identity, kron, vstack
+
+    m, n_g = f.shape
+    n = w.shape[1]
+    p = model.polygon
+    n_r = p.shape[0]
+    boxed = np.nonzero(~np.any(p != 0, axis=0))[0] if n_r else np.arange(n_g)  # plays no polygon bounds (segments)
+    n_b = len(boxed)
+    ny, nzp, nzy = n * n_g, n * n_r, n * n_b
+    sel = csr_matrix((np.ones(n_b), (np.arange(n_b), boxed)), shape=(n_b, n_g))
+    a_eq = hstack([kron(identity(n), csr_matrix(f)), csr_matrix((n * m, nzp + nzy + 1))])
+    b_eq = -(w * v).T.reshape(-1)
+    py = kron(identity(n), csr_matrix(p)) if n_r else csr_matrix((0, ny))
+    sy = kron(identity(n), sel)
+    blocks = [hstack([py, -identity(nzp), csr_matrix((nzp, nzy + 1))]),
+              hstack([-py, -identity(nzp), csr_matrix((nzp, nzy + 1))]),
+              hstack([sy, csr_matrix((nzy, nzp)), -identity(nzy), csr_matrix((nzy, 1))]),
+              hstack([-sy, csr_matrix((nzy, nzp)), -identity(nzy), csr_matrix((nzy, 1))]),
+              hstack([csr_matrix((n_r, ny)), kron(csr_matrix(np.ones((1, n))), identity(n_r)), csr_matrix((n_r, nzy)),
+                      csr_matrix(-model.limit * np.ones((n_r, 1)))]),
+              hstack([csr_matrix((n_b, ny + nzp)), kron(csr_matrix(np.ones((1, n))), identity(n_b)),
+                      csr_matrix(-np.ones((n_b, 1)))])]
+    a_ub = vstack(blocks).tocsr()
+    c = np.zeros(ny + nzp + nzy + 1)
+    c[-1] = 1.0
+    # a play of a polygon-bounded group is within [-1, 1] by its polygon; the others by the box rows above
+    res = linprog(c, A_ub=a_ub, b_ub=np.zeros(a_ub.shape[0]), A_eq=a_eq, b_eq=b_eq,
+                  bounds=[(None, None)] * ny + [(0, None)] * (nzp + nzy + 1), method="highs-ds")
+    return float(res.fun) if res.success else math.inf
+
+
+def _allocate_general(cl, mechanism, items, model, raw, dirs, at, alone, qq, q, worst) -> dict:
+    """More than three closure rows left to the plays: every value scaled by one factor, on a safe upper bound of
+    the need (:func:`_decision_rule`), evaluated in decreasing order of the triangle bound ``sum_i v_i / t_i``
+    (t_i: condition i alone there) until no configuration left can exceed the worst found (the triangle bound is an
+    upper bound of the decision rule's)."""
+    with np.errstate(divide="ignore"):
+        inv = np.where(np.isfinite(at) & (at > 0), 1.0 / at, 0.0)
+    tri = inv @ alone
+    lows = np.array([_Block(model, f, ua, dirs)._local(alone, starts=2)[0] for f, ua in raw])
+    own = [int(np.argmin(np.linalg.norm(qq - w_q[None, :], axis=1))) for w_q in worst]  # each condition's worst
+    picks = list(dict.fromkeys([int(k) for k in np.argsort(-lows)[:GENERAL_SOLVED]] +
+                               [int(k) for k in np.argsort(-tri)[:GENERAL_SOLVED]] + own))
+    best, k_best, evaluated = 0.0, picks[0], 0
+    for k in picks:
+        f, ua = raw[k]
+        val = _decision_rule(model, f, ua @ dirs, alone)
+        evaluated += 1
+        if val > best:
+            best, k_best = val, int(k)
+    unsolved_low = max((float(lows[k]) for k in range(len(raw)) if k not in picks), default=0.0)
+    factor = 1.0 / max(best, 1.0)
+    block = _Block(model, raw[k_best][0], raw[k_best][1], dirs)
+    low, signs, _ = block._local(alone * factor)
+    for t, a in zip(items, alone):
+        t.evidence.setdefault("assemblability", {})["value_alone"] = float(a)
+        t.evidence["assemblability"]["together_factor"] = factor
+        t.value = float(factor * a)
+        t.value_source += (f"; together with the other assembly conditions (every one at a corner of its tolerance at "
+                           f"once): {100 * factor:.1f} % of its single value {a:.4g} {t.unit}")
+    method = ("an upper bound where it matters most: more than three closure rows are left to the plays, where the "
+              "exact need is a mixed-integer programme of minutes per configuration; each condition's violation is "
+              "absorbed by plays of its own whose absolute values add up within the clearances (a linear programme, "
+              f"safe), at the {evaluated} configurations (of {len(qq)}) where a local search's lower bound or the triangle "
+              "bound sum_i v_i / t_i (t_i: condition i alone there) is largest and at every condition's own worst "
+              "configuration; at the others only a lower bound is computed, and it stays at "
+              f"{unsolved_low / max(best, 1e-300):.2f} of the worst upper bound; every value scaled by one factor")
+    return {"single_condition_need": best, "clearance_need": best * factor, "method": method, "exact": False,
+            "need_lower_bound": low, "configurations": int(len(qq)), "solved": evaluated,
+            "unsolved_lower_bound": unsolved_low * factor,
+            "from": {"given": int(len(q)), "workspace_candidates": 0, "single_worst_cases": len(worst)},
+            "worst": {"configuration": qq[k_best].tolist(), "signs": {t.id: float(s) for t, s in zip(items, signs)},
+                      "actuated": {mechanism.joints[i].name: float(qq[k_best][i]) for i in mechanism.actuated}},
+            "single_worst": {"configuration": qq[k_best].tolist()},
+            "factors": {t.id: factor for t in items}, "values": {t.id: float(t.value) for t in items},
+            "values_alone": {t.id: float(a) for t, a in zip(items, alone)}}
 
 
 def confirm_corner(cl, mechanism, evidence: dict, others: bool = True, seed: int = 0) -> dict:
@@ -392,6 +579,9 @@ def whole_drawing_summary(evidence: dict, cl) -> dict:
     return {"clearance_need": need, "scale_factor": 1.0 / need if need > 0 else None,
             "single_condition_need": evidence["single_condition_need"],
             "configurations": {"total": evidence["configurations"], **evidence.get("from", {})},
+            "method": evidence.get("method"), "exact": evidence.get("exact"),
+            "need_lower_bound": evidence.get("need_lower_bound"),
+            "unsolved_lower_bound": evidence.get("unsolved_lower_bound"),
             "worst": evidence.get("worst"), "factors": evidence.get("factors"), "values": evidence.get("values"),
             "values_alone": evidence.get("values_alone"),
             "nonlinear": nl or None, "accuracy": acc, "spec": spec, "statement": words}
