@@ -739,7 +739,7 @@ def parts_html(doc: dict, pages: list | None) -> str:
                "mechanism's base frame at its home configuration.</p>")
     reqs = doc.get("assembly_requirements") or []
     if reqs:
-        out.append("<h3>Assembly requirements (conditions across parts)</h3><ul>"
+        out.append("<h3>Assembly and setup requirements (conditions no single part drawing carries)</h3><ul>"
                    + "".join(f"<li>{_e(_requirement_words(r))}</li>" for r in reqs) + "</ul>")
     by_part = {p["part"]: p for p in pages or []}
     out += [_page_html(d, by_part.get(d["part"])) for d in drawings]
