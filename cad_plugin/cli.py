@@ -130,6 +130,10 @@ def _cmd_report(args) -> int:
     from hyperstat.cad_plugin.report import skeleton_views, write_report
 
     date = _report_date(args.date)  # a bad date is refused before any work
+    if args.workspace_loss is not None:  # and a bad budget
+        from hyperstat.solver.tolerances.declaration import check_workspace_loss
+
+        check_workspace_loss(args.workspace_loss, "--workspace-loss")
     stages = ["stationarity analysis", "verification", "calibration and diagnosis", "tolerances and accuracy",
               "layout and pictures"]
     with solver_cli.stages(args, stages) as progress:
@@ -138,6 +142,9 @@ def _cmd_report(args) -> int:
         # the tolerance classes colour the skeleton views: classified now, the views are drawn by a forked
         # child (pyvista import and rendering) while this process verifies, diagnoses and allocates
         tolerances = classify(mech, result, kin)
+        from hyperstat.solver.cli.tolerances import with_workspace_loss
+
+        with_workspace_loss(tolerances, args.workspace_loss)
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
         views = Background(skeleton_views, mech, early)
         data = read_measurements(args.data, mech) if args.data else None
@@ -187,7 +194,8 @@ def _cmd_report(args) -> int:
         drawn = views.result()
         if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
             images["rendered"] = drawn
-        written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images)
+        written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
+                               step_drawings=args.step_drawings)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
@@ -311,9 +319,14 @@ def build_parser():
                    "overrides the template's")
     p.add_argument("--orientation-accuracy", type=float, metavar="RAD", help="spec: required orientation accuracy "
                    "(rad), overrides the template's")
+    from hyperstat.solver.cli.tolerances import workspace_loss_option
+
+    workspace_loss_option(p)
     p.add_argument("--configurations", type=int, default=24, help="configurations sampled (default 24)")
     p.add_argument("--seed", type=int, default=0, help="seed of the configuration sample")
     p.add_argument("--revision", default="-", metavar="TEXT", help="revision printed in the title block (default '-')")
+    p.add_argument("--step-drawings", action="store_true", help="also write each part drawing as DIR/parts/PART.step: "
+                   "STEP AP242 with its datums and geometric tolerances as semantic PMI")
     p.add_argument("--date", metavar="YYYY-MM-DD", help="date printed in the title block (default: today, or "
                    "SOURCE_DATE_EPOCH when set)")
     p.add_argument("--quiet", action="store_true", help="print nothing")

@@ -22,7 +22,20 @@ from hyperstat.solver.atomic import all_or_nothing, dumps_json, write_bytes, wri
 from hyperstat.cad_plugin.report_html import SECTIONS, render_html
 from hyperstat.cad_plugin.report_markdown import render_markdown
 
-__all__ = ["write_report", "skeleton_views", "skeleton_drawing", "render_html", "render_markdown", "SECTIONS"]
+__all__ = ["write_report", "skeleton_views", "skeleton_drawing", "render_html", "render_markdown", "SECTIONS",
+           "step_name"]
+
+
+def step_name(part: str) -> str:
+    """The file name (without ``.step``) of a part's STEP file: its name with anything but letters, digits,
+    ``-`` and ``_`` replaced by ``_``.
+
+    >>> step_name("cross 21/a")
+    'cross_21_a'
+    """
+    import re
+
+    return re.sub(r"[^A-Za-z0-9_-]", "_", part) or "part"
 
 
 def skeleton_views(mechanism, analysis_json: dict | None = None) -> dict:
@@ -41,11 +54,14 @@ def skeleton_drawing(rendered: dict, items: list, title: str) -> tuple[str, byte
 
 
 def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: dict | None = None,
-                 images: dict | None = None) -> list[Path]:
+                 images: dict | None = None, step_drawings: bool = False) -> list[Path]:
     """Draw the skeleton and write the report's files atomically into ``out_dir``.
 
     ``images`` may hold ``rendered`` (views already rendered, e.g. by a background process), or a
-    finished ``views`` picture; otherwise the views of ``mechanism`` are rendered here.
+    finished ``views`` picture; otherwise the views of ``mechanism`` are rendered here.  The part
+    drawings of ``doc["drawings"]`` get a page each (:mod:`hyperstat.cad_plugin.report_parts`); with
+    ``step_drawings``, each part is also written as ``parts/<part>.step``, STEP AP242 with its datums
+    and frames as semantic PMI (:mod:`hyperstat.cad_plugin.pmi`), with the report's files or not at all.
     """
     out_dir = Path(out_dir)
     images = dict(images or {})
@@ -53,10 +69,29 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
     if rendered is None and mechanism is not None and "views" not in images:
         rendered = skeleton_views(mechanism, analysis_json)
     extra = []
+    if doc.get("drawings") and "parts" not in images:
+        from hyperstat.cad_plugin.report_parts import part_pages
+
+        images["parts"] = part_pages(doc)
+    if step_drawings:
+        from hyperstat.cad_plugin.pmi import part_step_bytes
+
+        for page in images.get("parts") or []:
+            if page.get("error"):
+                from hyperstat.solver.errors import HyperstatError
+
+                raise HyperstatError(f"--step-drawings: part '{page['part']}' cannot be written as STEP: "
+                                     f"{page['error'].rstrip('.')}; no output was written.")
+            drawing = next(d for d in doc["drawings"] if d["part"] == page["part"])
+            extra.append((out_dir / "parts" / f"{step_name(page['part'])}.step",
+                          part_step_bytes(page["solid"], drawing)))
     if rendered is not None:
-        svg, png, words = skeleton_drawing(rendered, doc["tolerances"]["items"], f"Skeleton of {doc['mechanism']}")
+        items = doc["tolerances"]["items"]
+        if doc.get("drawings"):  # the frames are on the part drawings' pages; the skeleton calls out the ids
+            items = [{**t, "drawing": []} for t in items]
+        svg, png, words = skeleton_drawing(rendered, items, f"Skeleton of {doc['mechanism']}")
         images["views"] = svg
-        extra = [(out_dir / "skeleton_views.png", png), (out_dir / "skeleton_views.png.json", dumps_json(words))]
+        extra += [(out_dir / "skeleton_views.png", png), (out_dir / "skeleton_views.png.json", dumps_json(words))]
     with all_or_nothing():  # every file of the report or none
         written = [write_text(out_dir / "report.json", dumps_json(doc)),
                    write_text(out_dir / "report.md", render_markdown(doc)),

@@ -27,7 +27,7 @@ from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, c
 __all__ = ["render_html", "SECTIONS", "CSS"]
 
 SECTIONS = ("summary", "skeleton", "assembly", "accuracy", "montecarlo", "calibration", "hypotheses", "identification",
-            "diagnosis", "joints", "glossary", "appendix")
+            "diagnosis", "joints", "glossary", "appendix", "parts")
 
 CSS = """
 body { font-family: "DejaVu Sans", Arial, sans-serif; font-size: 17px; color: #111; margin: 2em auto;
@@ -202,13 +202,14 @@ def _breakable(mathml: str) -> str:
                     for g in groups)
 
 
-def _skeleton(images: dict) -> str:
+def _skeleton(images: dict, parts: bool = False) -> str:
     out = [_head("skeleton", "Skeleton and tolerances")]
     if "views" in images:
+        called = ("its tolerance ids (the feature control frames are on the part drawings, one page per part, at the "
+                  "end)" if parts else "its tolerance ids and feature control frames")
         out.append(f"<figure>{_image(images['views'], 'skeleton views')}<figcaption>The template's links at home, "
                    "four orthographic views (none edge-on to a planar mechanism's plane). Each joint is coloured by "
-                   "the most severe class of its defects and called out once with its tolerance ids and feature "
-                   "control frames.</figcaption></figure>")
+                   f"the most severe class of its defects and called out once with {called}.</figcaption></figure>")
     out.append("</section>")
     return "".join(out)
 
@@ -233,8 +234,13 @@ def _assembly(doc: dict) -> str:
     out.append(f"<p class=\"note\">Value: {_e(conditions[0]['value_source'])}.</p>")
     red = tol.get("redundant", {})
     if red:
-        out.append("<p>Redundant shifts shown with their equivalent (the same physical shift): "
-                   + ", ".join(f"{_e(g)} &equiv; {_e(r['equivalent'])}" for g, r in red.items()) + ".</p>")
+        from hyperstat.solver.tolerances.classification import redundant_text
+
+        out.append("<p>Redundant shifts shown with their equivalent (the same physical shift, or the combination it "
+                   "acts as along a skew axis): " + ", ".join(_e(redundant_text(g, r)) for g, r in red.items()) + ".</p>")
+    whole = (doc.get("whole_drawing") or {}).get("statement")
+    if whole:
+        out.append(f"<p class=\"note\">The drawing as a whole: {_e(whole)}.</p>")
     clear = tol["declaration"].get("clearances", {})
     out.append('<p class="note">Clearances: ' + "; ".join(
         f"{k}: radial {c['radial_mm']:g} mm, axial {c['axial_mm']:g} mm, tilt {c['tilt_rad']:g} rad "
@@ -308,10 +314,12 @@ def _montecarlo(doc: dict) -> str:
     mc = doc.get("montecarlo")
     if not mc:
         return _head("montecarlo", "Monte Carlo", "<p>Not run for this report.</p>") + "</section>"
+    cal_words = (mc.get("calibrated") or {}).get("method") or (mc.get("calibrated") or {}).get("note") or ""
     intro = (f"<p>{mc['samples']} samples through the nonlinear model, every accuracy-critical and compensable "
-             f"tolerance drawn within ± its value ({_e(mc.get('distribution', 'uniform'))}), errors on the task "
-             f"components ({_e(', '.join(mc.get('task', [])))}); {mc.get('not_assembled', 0)} did not assemble. "
-             "Assembly conditions are not drawn: violating one deforms the structure.</p>")
+             f"tolerance drawn within ± its drawing value ({_e(mc.get('distribution', 'uniform'))}: parts made to the "
+             f"drawing), errors on the task components ({_e(', '.join(mc.get('task', [])))}); "
+             f"{mc.get('not_assembled', 0)} did not assemble. Assembly conditions are not drawn: violating one deforms "
+             f"the structure. Calibrated: {_e(cal_words)}.</p>")
     cal = mc.get("calibrated") or {}
     rows = []
     for key, unit, spec_key in (("position_mm", "mm", "out_of_spec_position_percent"),
@@ -479,12 +487,17 @@ def render_html(doc: dict, images: dict) -> str:
     """The report as one self-contained HTML page (page 1: title block, counts, tolerance table).
 
     ``images`` maps names to SVG text or PNG bytes: ``views`` (the skeleton drawing), the
-    diagnosis plots, ``accuracy_map``.
+    diagnosis plots, ``accuracy_map``; ``parts`` the part drawings' pages
+    (:func:`hyperstat.cad_plugin.report_parts.part_pages`), one A4 page each after the appendix.
     """
+    from hyperstat.cad_plugin.report_parts import PARTS_CSS, parts_html
+
     head = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-            f"<title>hyperstat tolerance report: {_e(doc['mechanism'])}</title>", f"<style>{CSS}</style></head><body>",
+            f"<title>hyperstat tolerance report: {_e(doc['mechanism'])}</title>",
+            f"<style>{CSS}{PARTS_CSS}</style></head><body>",
             f"<h1>Tolerance report: {_e(doc['mechanism'])}</h1>"]
-    body = [_summary(doc), _skeleton(images), _assembly(doc), _accuracy(doc, images), _montecarlo(doc),
+    parts = bool(doc.get("drawings"))
+    body = [_summary(doc), _skeleton(images, parts), _assembly(doc), _accuracy(doc, images), _montecarlo(doc),
             _calibration(doc), _hypotheses(doc), _identification(doc), _diagnosis(doc, images), _joints(doc),
-            _glossary(doc), _appendix(doc)]
+            _glossary(doc), _appendix(doc), parts_html(doc, images.get("parts"))]
     return "\n".join(head + body + ["</body></html>"]) + "\n"

@@ -61,7 +61,12 @@ def render_markdown(doc: dict) -> str:
               for a in doc["assembly_conditions"]] or ["* none"]
     red = tol.get("redundant", {})
     if red:
-        lines += ["", "Redundant shifts: " + ", ".join(f"{g} ≡ {r['equivalent']}" for g, r in red.items())]
+        from hyperstat.solver.tolerances.classification import redundant_text
+
+        lines += ["", "Redundant shifts: " + ", ".join(redundant_text(g, r) for g, r in red.items())]
+    whole = (doc.get("whole_drawing") or {}).get("statement")
+    if whole and doc["assembly_conditions"]:
+        lines += ["", f"The drawing as a whole: {whole}."]
     types = {str(j["element"]): j.get("type", "") for j in doc.get("joints", [])}
     alloc = tol.get("allocation") or {}
     if doc.get("worst_cases"):
@@ -132,4 +137,7 @@ def render_markdown(doc: dict) -> str:
     lines += ["", "## Glossary", ""] + [f"* **{k}**: {v}" for k, v in glossary(doc)]
     lines += ["", "## Appendix: normalisation components (not tolerances)", ""]
     lines += [f"* {a['name']} (joint {a['element']})" for a in tol["appendix"]["normalisation"]] or ["* none"]
+    from hyperstat.cad_plugin.report_parts import parts_markdown
+
+    lines += parts_markdown(doc)
     return micro("\n".join(lines) + "\n")

@@ -411,6 +411,8 @@ CASES = [
          lambda t, g: ["simulate", str(SC), "--noise", "5 um", "--out", str(t / "out.csv")], "--noise"),
     Case("option-effect", "option", "unknown effect",
          lambda t, g: ["simulate", str(SC), "--effect", "gravity", "--out", str(t / "out.csv")], "gravity"),
+    Case("option-workspace-loss", "option", "workspace-loss budget of 100 % or more",
+         lambda t, g: ["report", str(SC), "--workspace-loss", "1.5", "--out", str(t / "out")], "--workspace-loss"),
 ]
 
 

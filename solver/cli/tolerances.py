@@ -43,6 +43,10 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
     if unknown:
         raise HyperstatError(f"--range: '{unknown[0]}' is not an actuated joint of '{mech.name}' "
                              f"({', '.join(sorted(actuated))}).")
+    if getattr(args, "workspace_loss", None) is not None:  # refused before any work
+        from hyperstat.solver.tolerances.declaration import check_workspace_loss
+
+        check_workspace_loss(args.workspace_loss, "--workspace-loss")
     if args.configurations_workspace < 1:
         raise HyperstatError(f"--workspace-configurations must be at least 1, got {args.configurations_workspace}.")
     ws = workspace_of(mech, ranges)
@@ -65,8 +69,30 @@ def _classes(args: argparse.Namespace, mech, kin):
     from hyperstat.solver.tolerances.classification import classify
 
     cl = classify(mech, args._stationarity, kin)
+    with_workspace_loss(cl, getattr(args, "workspace_loss", None))
     influential = [t for t in cl.items if t.cls in ("accuracy-critical", "compensable")]  # as assign_values
     return cl, (np.stack([t.direction for t in influential], axis=1) if influential else None)
+
+
+def with_workspace_loss(cl, value: float | None) -> None:
+    """``--workspace-loss`` over the declaration's ``workspace_loss`` (a fraction, 0.001 = 0.1 %), in place."""
+    import dataclasses
+
+    from hyperstat.solver.tolerances.declaration import check_workspace_loss
+
+    if value is None:
+        return
+    loss = check_workspace_loss(value, "--workspace-loss")
+    declared = tuple(dict.fromkeys(cl.declaration.declared + ("workspace_loss",)))
+    cl.declaration = dataclasses.replace(cl.declaration, workspace_loss=loss, declared=declared)
+
+
+def workspace_loss_option(p: argparse.ArgumentParser) -> None:
+    """The ``--workspace-loss`` option of report, accuracy and montecarlo."""
+    p.add_argument("--workspace-loss", type=float, metavar="FRACTION",
+                   help="share of each actuator's range (or of the task's extent at a dead centre) the compensation of "
+                        "every compensable defect together may cost, e.g. 0.001 = 0.1 %% (default: the template's "
+                        "TOLERANCING workspace_loss, else 0.001)")
 
 
 def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True, cl=None, task_maps_at=None):
@@ -81,7 +107,7 @@ def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True, c
     cl = _classes(args, mech, kin)[0] if cl is None else cl
     assign_values(cl, mech, kin, q, args.position_accuracy, args.orientation_accuracy, assembly=assembly,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE],
-                  workspace=args.workspace_used if args.range else None, calibrate=assembly,
+                  workspace=args.workspace_used if args.range else None, calibrate=True,
                   task_maps_at=task_maps_at)
     return cl
 
@@ -229,7 +255,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
             else:
                 summary = monte_carlo_at_values(cl, mech, kin, q, args.samples, args.seed, args.distribution,
                                                 args.position_accuracy, args.orientation_accuracy)
-                drawn = "every accuracy tolerance at its value (hyperstat accuracy)"
+                drawn = summary.pop("drawn", "every accuracy tolerance at its drawing value")
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
            "workspace": _workspace_doc(mech, args.workspace_used),
            "drawn": drawn, "tolerance_counts": cl.counts(), **summary}
@@ -334,6 +360,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                        help="spec: required |dphi|max (rad), overrides the template's")
         p.add_argument("--position-accuracy", type=float, metavar="MM",
                        help="spec: required ||dO_p||max (mm), overrides the template's")
+        workspace_loss_option(p)
         if name == "accuracy":
             p.add_argument("--no-refine", action="store_true",
                            help="report the sampled extremes only (no local optimisation of the worst cases)")

@@ -191,7 +191,18 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
             k: v for k, v in identification.to_dict().items() if k != "correlations"},
         "diagnosis": None if diagnosis is None else _diagnosis_summary(diagnosis),
     }
+    doc.update(_part_drawings(tolerances, alloc))
     return doc
+
+
+def _part_drawings(tolerances, alloc: dict) -> dict:
+    """``drawings``, ``assembly_requirements`` and ``whole_drawing`` of ``docs/drawing-format.md``."""
+    from hyperstat.solver.tolerances.whole_drawing import whole_drawing_summary
+
+    drawn = getattr(tolerances, "drawings", None) or {}
+    return {"drawings": list(drawn.get("drawings") or []),
+            "assembly_requirements": list(drawn.get("assembly_requirements") or []),
+            "whole_drawing": whole_drawing_summary(alloc.get("whole_drawing") or {}, tolerances)}
 
 
 def _diagnosis_summary(diag) -> dict:

@@ -75,8 +75,10 @@ def format_tolerances(tolerances: dict, limit: int | None = None) -> str:
                      "adding up: no machine need reach it)")
     red = tolerances.get("redundant", {})
     if red:
-        lines.append("redundant shifts, merged with their equivalent (the same physical shift): "
-                     + ", ".join(f"{g} ≡ {r['equivalent']}" for g, r in red.items()))
+        from hyperstat.solver.tolerances.classification import redundant_text
+
+        lines.append("redundant shifts, merged with their equivalent (the same physical shift, or the combination it "
+                     "acts as along a skew axis): " + ", ".join(redundant_text(g, r) for g, r in red.items()))
     normal = tolerances.get("appendix", {}).get("normalisation", [])
     if normal:
         lines.append("not tolerances (normalisation components along the nominal axis, no geometric meaning): "

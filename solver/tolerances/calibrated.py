@@ -273,6 +273,7 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
         return {}
     m = mechanism
     decl = cl.declaration
+    loss = float(getattr(decl, "workspace_loss", WORKSPACE_LOSS))  # the declared budget (default 0.1 %)
     cal = cl.calibration
     share = dict(share or {})
     budget = {"position_mm": share.get("position_mm", None if spec_p is None else spec_p - cal.get("position_mm", 0.0)),
@@ -359,7 +360,7 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     corr = np.abs(np.linalg.pinv(sel @ k_a, rcond=1e-8) @ (sel @ k_xi @ dirs.T))  # (K, n_a, n)
     per_actuator = corr.max(axis=0)  # (n_a, n) actuator motion per unit of each tolerance
     has_margin = margin > 1e-12 * np.maximum(width, 1e-300)
-    room = np.where(turn, np.inf, np.where(has_margin, margin, WORKSPACE_LOSS * width))
+    room = np.where(turn, np.inf, np.where(has_margin, margin, loss * width))
     with np.errstate(divide="ignore", invalid="ignore"):
         per_unit = np.where(per_actuator > 0, room[:, None] / per_actuator, np.inf)
     stroke, which = per_unit.min(axis=0), per_unit.argmin(axis=0)
@@ -369,16 +370,20 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     loss_task, loss_where = _task_space_loss(kin, decl, q_all, dirs, cl)
     extent = _task_extent(kin, decl, q_all)
     with np.errstate(divide="ignore"):
-        task_limit = np.where(loss_task > 0, WORKSPACE_LOSS * extent / loss_task, np.inf)
+        task_limit = np.where(loss_task > 0, loss * extent / loss_task, np.inf)
     evidence = {"budget": budget, "probe": {"rad": PROBE, "mm": PROBE * ls}, "validity": {"rad": VALIDITY,
                                                                                          "mm": VALIDITY * ls},
                 "machines_combined": int(len(signs)), "combined_worst_at_the_values": worst,
-                "workspace_loss_allowed": WORKSPACE_LOSS, "task_extent": extent,
+                "workspace_loss_allowed": loss, "task_extent": extent,
                 "configurations": {"calibration": int(len(q_cal)), "task": int(len(q_task)),
                                    "task_singular_left_out": int(np.sum(~regular)),
                                    "task_dead_centres": loss_where,
                                    "not_reached_in_the_combined_machines": unreached}, "items": {}}
     unit_of = lambda a: "rad" if rev[a] else "mm"  # noqa: E731
+    task_unit = "mm" if len(task_rows(decl.task, np.eye(4)[None])[0]) > n_rot else "rad"
+    budget_words = (f"the workspace-loss budget, {100 * loss:g} % ("
+                    + ("declared" if "workspace_loss" in decl.declared else "the default, assumed")
+                    + "; TOLERANCING workspace_loss or --workspace-loss)")
     for i, t in enumerate(items):
         a = int(which[i])
         actuator = m.joints[m.actuated[a]].name
@@ -414,17 +419,18 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
                          f"noise ({budget[limiting_kind]:.3g} {limiting_kind.split('_')[1]})")
             elif limit == "actuator stroke":
                 words = (f"actuator stroke: compensating it moves actuator {actuator} by {per_actuator[a, i]:.3g} "
-                         f"{unit_of(a)} per unit, within the {margin[a]:.3g} {unit_of(a)} its range leaves around the "
-                         "workspace")
+                         f"{unit_of(a)} per {t.unit} of the defect, within the {margin[a]:.3g} {unit_of(a)} its range "
+                         "leaves around the workspace")
             elif math.isfinite(task_limit[i]) and limits["workspace loss"] == float(task_limit[i]):
                 words = (f"workspace loss: at the task's dead centres the actuators cannot follow it, and the reachable "
-                         f"task space moves by {loss_task[i]:.3g} per unit; the loss is held to "
-                         f"{100 * WORKSPACE_LOSS:g} % of the task's extent ({WORKSPACE_LOSS * extent:.3g}, assumed)")
+                         f"task space moves by {loss_task[i]:.3g} {task_unit} per {t.unit} of the defect; the loss is "
+                         f"held to {loss * extent:.3g} {task_unit}, {budget_words} of the task's extent "
+                         f"({extent:.4g} {task_unit})")
             else:
                 words = (f"workspace loss: compensating it moves actuator {actuator} by {per_actuator[a, i]:.3g} "
-                         f"{unit_of(a)} per unit and its range leaves no margin around the workspace: the loss is held "
-                         f"to {100 * WORKSPACE_LOSS:g} % of its range ({WORKSPACE_LOSS * width[a]:.3g} {unit_of(a)}, "
-                         "assumed)")
+                         f"{unit_of(a)} per {t.unit} of the defect and its range leaves no margin around the "
+                         f"workspace: the loss is held to {loss * width[a]:.3g} {unit_of(a)}, {budget_words} of its "
+                         f"range ({width[a]:.4g} {unit_of(a)})")
         if value < t.value:
             value, words = t.value, words + "; calibration does not open it beyond the value without calibration"
         t.value_with_calibration = float(value)

@@ -48,7 +48,7 @@ from hyperstat.solver.tolerances.accuracy import output_twist_maps
 from hyperstat.solver.tolerances.declaration import Declaration, declaration_of, n_rotation_rows, task_rows
 from hyperstat.solver.threads import limited_blas
 
-__all__ = ["CLASSES", "CLASS_MEANING", "Tolerance", "Classification", "classify", "format_terms",
+__all__ = ["CLASSES", "CLASS_MEANING", "Tolerance", "Classification", "classify", "format_terms", "redundant_text",
            "workspace_checkpoints", "WORKSPACE_CHECKPOINTS"]
 
 CLASSES = ("assembly", "accuracy-critical", "compensable", "non-influent")
@@ -229,6 +229,7 @@ class Classification:
     checked: dict = field(default_factory=dict)
     configurations: np.ndarray | None = field(default=None, repr=False)
     analysis: object = field(default=None, repr=False)
+    drawings: dict = field(default_factory=dict, repr=False)
 
     def counts(self) -> dict:
         """Number of tolerances per class (every class present, in :data:`CLASSES` order)."""
@@ -338,6 +339,36 @@ def _redundant(mechanism: Mechanism, names: list) -> tuple[dict, dict]:
         if not changed:
             break
     return normal, redundant
+
+
+def _merged_words(gauge: str, name: str, coefficients: dict) -> str:
+    """How a merged shift is printed: ``" ≡ dc3"`` only when it is the identical shift (one coefficient of +-1 on
+    ``name``); along skew axes, the relation with its coefficients (``db4`` builds the same mechanism as a
+    combination of shifts of other elements).
+
+    >>> _merged_words("dc3", "dc2", {"dc2": 1.0})
+    ' ≡ dc3'
+    >>> _merged_words("da52", "dc62", {"dc62": -1.0})
+    ' ≡ -da52'
+    >>> _merged_words("db4", "dc5", {"dc5": 1.3624, "dc4": -0.5131})
+    ' (db4 acts as 1.3624*dc5 - 0.5131*dc4: a shift along a skew axis)'
+    """
+    if set(coefficients) == {name} and abs(abs(coefficients[name]) - 1.0) < 1e-12:
+        return f" ≡ {'-' if coefficients[name] < 0 else ''}{gauge}"
+    return f" ({gauge} acts as {format_terms(coefficients, rhs=None)}: a shift along a skew axis)"
+
+
+def redundant_text(gauge: str, entry: dict) -> str:
+    """A merged shift in words: ``"dc2 ≡ dc3"`` for the identical shift, else the combination it acts as.
+
+    >>> redundant_text("dc2", {"equivalent": "dc3", "coefficients": {"dc3": 1.0}})
+    'dc2 ≡ dc3'
+    """
+    coeffs = entry.get("coefficients") or {entry["equivalent"]: 1.0}
+    if len(coeffs) == 1 and abs(abs(next(iter(coeffs.values()))) - 1.0) < 1e-12:
+        name, c = next(iter(coeffs.items()))
+        return f"{gauge} ≡ {'-' if c < 0 else ''}{name}"
+    return f"{gauge} acts as {format_terms(coeffs, rhs=None)}"
 
 
 def _physical_terms(terms: dict, redundant: dict, order: list) -> dict:
@@ -513,7 +544,7 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
     for (p, d), infl in zip(directions, influence):
         el, kind, comp = where[p.name]
         eqs = merged_into.get(p.name, [])
-        statement = p.name + "".join(f" ≡ {g}" for g in eqs)
+        statement = p.name + "".join(_merged_words(g, p.name, redundant[g]["coefficients"]) for g in eqs)
         params = [p.name] + eqs
         words = _COMPONENT_WORDS[comp]
         if eqs:
@@ -589,10 +620,11 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
             # direction is never read as the parameter alone (whose class is its relation's, assembly)
             followers = [(names[k], _clean(float(direction[k]))) for k in np.argsort(-np.abs(d))
                          if names[k] not in params and abs(direction[k]) > 1e-9]
-            shown = [f"{n} = {'' if c == 1 else '-' if c == -1 else f'{c:.4g}*'}{p.name}" for n, c in followers[:3]
+            # every follower, written out (a statement a workshop reads is never cut short)
+            shown = [f"{n} = {'' if c == 1 else '-' if c == -1 else f'{c:.4g}*'}{p.name}" for n, c in followers
                      if c != 0.0]
             if shown:
-                statement += " with " + ", ".join(shown) + (", ..." if len(followers) > 3 else "")
+                statement += " with " + ", ".join(shown)
         t = Tolerance("", cls, "direction", statement, {p.name: 1.0}, params, unit[p.name], feature_of(params), words,
                       why, evidence=ev, direction=direction)
         if p.verdict == "coupled":

@@ -54,8 +54,8 @@ import numpy as np
 
 from hyperstat.solver.errors import ModelError
 
-__all__ = ["TASK_COMPONENTS", "DEFAULT_CLEARANCES", "MACHINE_TOOL_CLEARANCES", "DEFAULT_SPEC", "Declaration", "parse_declaration",
-           "declaration_of", "task_rows"]
+__all__ = ["TASK_COMPONENTS", "DEFAULT_CLEARANCES", "MACHINE_TOOL_CLEARANCES", "DEFAULT_SPEC", "DEFAULT_WORKSPACE_LOSS",
+           "Declaration", "parse_declaration", "declaration_of", "task_rows", "check_workspace_loss"]
 
 #: task component -> meaning
 TASK_COMPONENTS = {
@@ -101,6 +101,10 @@ MACHINE_TOOL_CLEARANCES = {
                     "base joint), so 20 µrad of tilt, and 20 µrad of twist"},
 }
 DEFAULT_SPEC = {"position_mm": 0.05, "orientation_rad": 5e-4}
+#: the share of an actuator's range (or of the task's extent at a dead centre) a calibrated machine may lose to the
+#: compensation of its compensable defects, all together: 0.1 % (assumed; ``workspace_loss`` of the declaration,
+#: ``--workspace-loss`` of report, accuracy and montecarlo)
+DEFAULT_WORKSPACE_LOSS = 1e-3
 _CLEARANCE_KEYS = ("radial_mm", "axial_mm", "tilt_rad", "twist_rad", "span_mm", "centre_mm")
 _CLEARANCE_WORDS = ("side",)  # "fixed" or "moving"
 
@@ -121,6 +125,7 @@ class Declaration:
     orientation_rad: float | None = DEFAULT_SPEC["orientation_rad"]
     clearances: dict = field(default_factory=dict)
     declared: tuple = ()
+    workspace_loss: float = DEFAULT_WORKSPACE_LOSS
 
     def clearance(self, joint_name: str, joint_type: str) -> dict:
         """Clearance of one joint, resolved: the default, then its kind's entry, then its own (with the source).
@@ -165,7 +170,7 @@ class Declaration:
                 "spec": {"position_mm": self.position_mm, "orientation_rad": self.orientation_rad},
                 "clearances": {"R": _declared_form(self.clearance("", "R")), "P": _declared_form(self.clearance("", "P")),
                                "joints": dict(self.clearances.get("joints", {}))},
-                "declared": list(self.declared)}
+                "workspace_loss": self.workspace_loss, "declared": list(self.declared)}
 
 
 def _number(value, where: str, positive: bool = False) -> float:
@@ -187,12 +192,14 @@ def parse_declaration(doc: dict | None, source: str = "model") -> Declaration:
         On an unknown task component, measurement kind or clearance key, or a bad number.
     """
     doc = dict(doc or {})
-    declared = tuple(k for k in ("task", "measurements", "spec", "clearances") if k in doc)
-    unknown = [k for k in doc if k not in ("task", "measurements", "spec", "clearances", "declared")]
+    declared = tuple(k for k in ("task", "measurements", "spec", "clearances", "workspace_loss") if k in doc)
+    unknown = [k for k in doc if k not in ("task", "measurements", "spec", "clearances", "workspace_loss", "declared")]
     if unknown:
         raise ModelError(f"{source}: tolerancing field '{unknown[0]}' is not part of the format "
-                         "(task, measurements, spec, clearances).")
+                         "(task, measurements, spec, clearances, workspace_loss).")
     kw: dict = {"declared": declared}
+    if "workspace_loss" in doc:
+        kw["workspace_loss"] = check_workspace_loss(doc["workspace_loss"], f"{source}: tolerancing.workspace_loss")
     if "task" in doc:
         task = doc["task"]
         if isinstance(task, str) or not task:
@@ -246,6 +253,18 @@ def parse_declaration(doc: dict | None, source: str = "model") -> Declaration:
             raise ModelError(f"{source}: tolerancing.clearances key '{kind}' must be 'R', 'P' or 'joints'.")
     kw["clearances"] = out_clear
     return Declaration(**kw)
+
+
+def check_workspace_loss(value, where: str) -> float:
+    """A workspace-loss budget: a fraction strictly between 0 and 1 (0.001 = 0.1 %); ``where`` names it in the error.
+
+    >>> check_workspace_loss(0.002, "--workspace-loss")
+    0.002
+    """
+    v = _number(value, where, positive=True)
+    if not v < 1.0:
+        raise ModelError(f"{where} must be a fraction below 1 (0.001 = 0.1 % of an actuator's range), got {value!r}.")
+    return v
 
 
 def _clearance_entry(entry, where: str) -> dict:

@@ -270,6 +270,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         if t.cls == "non-influent":
             t.value = None
             t.value_source = "not limited by accuracy (moves nothing the task uses)"
+    qa = None
     if assembly:
         from hyperstat.solver.tolerances.clearance import assembly_tolerances
 
@@ -318,8 +319,17 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
     if calibrate and influential:
         from hyperstat.solver.tolerances.calibrated import calibrated_values
 
-        info["with_calibration"] = calibrated_values(cl, mechanism, kin, q, spec_p, spec_o, workspace, share=reserve)
-    _drawing_values(cl, mechanism)
+        # on the fixed workspace checkpoints (the same whatever the command's sample: one value per tolerance in
+        # report, accuracy and montecarlo)
+        q_fixed = workspace_checkpoints(mechanism, kin, workspace)[0]
+        q_fixed = q_fixed if len(q_fixed) else q
+        info["with_calibration"] = calibrated_values(cl, mechanism, kin, q_fixed, spec_p, spec_o, workspace,
+                                                     share=reserve)
+        if info["with_calibration"]:
+            from hyperstat.solver.tolerances.calibrated_together import loss_together
+
+            info["with_calibration"]["together"] = loss_together(cl, mechanism, kin, q_fixed, workspace)
+    info.update(_drawing_values(cl, mechanism, kin, qa, workspace))
     cl.allocation = info
     return cl
 
@@ -365,16 +375,27 @@ def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, s
                 t.bounds = {k: bounds[k] for k in ("attainable_linear_worst_case", "triangle_bound", "unit")}
 
 
-def _drawing_values(cl, mechanism) -> None:
-    """The value a drawing carries (rounded to the safe side) and the ISO 1101 callouts."""
+def _drawing_values(cl, mechanism, kin=None, assembly_q=None, workspace=None) -> dict:
+    """The assembly values together (the drawing read as a whole), the values a drawing carries (rounded to the safe
+    side) and the part drawings (:mod:`hyperstat.solver.tolerances.drawing`); returns the whole drawing's evidence."""
     from hyperstat.solver.tolerances.drawing import add_drawing, safe_round
 
+    out = {}
+    if assembly_q is not None and kin is not None:
+        from hyperstat.solver.tolerances.whole_drawing import allocate_together
+
+        out["whole_drawing"] = allocate_together(cl, mechanism, kin, assembly_q, workspace)
     calibrated = "measurements" in cl.declaration.declared
     for t in cl.items:
         v = t.value_with_calibration if calibrated and t.cls == "compensable" and \
             t.value_with_calibration is not None else t.value
         t.drawing_value = safe_round(v)
-    add_drawing(cl, mechanism)
+    add_drawing(cl, mechanism, kin)
+    if out.get("whole_drawing"):
+        from hyperstat.solver.tolerances.whole_drawing import confirm_corner
+
+        out["whole_drawing"]["nonlinear"] = confirm_corner(cl, mechanism, out["whole_drawing"])
+    return out
 
 
 def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
@@ -412,7 +433,9 @@ def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinemat
     names = [t.id for t in drawn]
     matrix = np.stack([t.direction for t in drawn], axis=1)
     units = [t.unit for t in drawn]
-    tol = {t.id: float(t.value) for t in drawn}
+    # parts made to the drawing: each tolerance within its drawing value (with calibration where the template declares
+    # its measurements), the value report and accuracy print
+    tol = {t.id: float(t.drawing_value if t.drawing_value else t.value) for t in drawn}
     res = monte_carlo(mechanism, configurations, tol, samples, distribution, seed, kinematics=kin,
                       directions=(names, matrix, units), task=decl.task)
     out = res.summary(spec_o, spec_p)
@@ -436,7 +459,13 @@ def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinemat
         "meaning": "the worst sign pattern of the tolerances at their values, at the worst configuration sampled"}
     crit = [t for t in drawn if t.cls == "accuracy-critical"]
     calibrated = {}
-    if crit:
+    declared = "measurements" in decl.declared and any(t.cls == "compensable" for t in drawn)
+    if declared:  # the machines calibrated as declared, by simulation (montecarlo_drawing)
+        from hyperstat.solver.tolerances.montecarlo_drawing import calibrated_machines
+
+        calibrated = calibrated_machines(cl, mechanism, kin, configurations, drawn, tol, seed=seed + 1,
+                                         distribution=distribution, spec_p=spec_p, spec_o=spec_o)
+    elif crit:
         cn = [t.id for t in crit]
         res_c = monte_carlo(mechanism, configurations, {t.id: float(t.value) for t in crit}, samples, distribution,
                             seed + 1, kinematics=kin, directions=(cn, np.stack([t.direction for t in crit], axis=1),
@@ -455,7 +484,14 @@ def monte_carlo_at_values(cl: Classification, mechanism: Mechanism, kin: Kinemat
         calibrated = {"out_of_spec_position_percent": 0.0 if spec_p is not None else None,
                       "out_of_spec_orientation_percent": 0.0 if spec_o is not None else None,
                       "note": "no accuracy-critical tolerance: calibration leaves only its noise"}
+    if not declared and calibrated:
+        calibrated["note"] = ("no calibration declared: the compensable tolerances are drawn at their values without "
+                              "calibration; this rate assumes a calibration that cancels them exactly (first order)")
     out["calibrated"] = calibrated
+    out["drawn_values"] = {t.id: tol[t.id] for t in drawn}
+    out["drawn"] = ("parts made to the drawing: every accuracy-critical and compensable tolerance within its drawing "
+                    "value" + (" (compensable ones with calibration: the machine is calibrated as declared)"
+                               if declared else ""))
     out["spec"] = {"position_mm": spec_p, "orientation_rad": spec_o}
     out["task"] = list(decl.task)
     return out

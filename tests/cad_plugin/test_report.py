@@ -85,11 +85,11 @@ def full_report(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def plain_report(tmp_path_factory):
-    """The real Tripteor report of today's pipeline (no measurements), printed on A4."""
+def plain_report(tmp_path_factory, tripteor_report):
+    """The real Tripteor report of today's pipeline (no measurements; the session's, tests/cad_plugin/conftest.py),
+    printed on A4."""
     tmp = tmp_path_factory.mktemp("plain")
-    out = tmp / "rep"
-    assert main(["report", str(TEMPLATES / "tripteor_x7.py"), "--out", str(out), "--quiet"]) == 0
+    out, _ = tripteor_report
     return out, print_pdf(out / "report.html", tmp / "report.pdf")
 
 
@@ -99,11 +99,18 @@ def _ink(png) -> float:
     return float(np.mean(np.asarray(Image.open(png).convert("L")) < 200))
 
 
+def first_part_page(pdf: Path, heading: str = "Part drawing") -> int:
+    """The first page that begins with ``heading``: "Part drawings" (the section: the report's own pages end
+    before it) or "Part drawing:" (the first part's page); one past the last page when there is none."""
+    pages = pages_of(pdf)
+    return next((p for p in range(1, pages + 1) if page_text(pdf, p).lstrip().startswith(heading)), pages + 1)
+
+
 @pytest.mark.parametrize("which", ["full_report", "plain_report"])
 def test_printed_report_fits_ten_pages_with_no_blank_page_and_no_orphaned_heading(which, request, tmp_path):
     out, pdf = request.getfixturevalue(which)
     pages = pages_of(pdf)
-    assert 3 <= pages <= 10, pages
+    assert 3 <= first_part_page(pdf) - 1 <= 10, pages  # the report's own pages; then one page per part drawing
     subprocess.run(["pdftoppm", "-r", "30", "-png", str(pdf), str(tmp_path / "p")], check=True)
     inks = [_ink(s) for s in sorted(tmp_path.glob("p-*.png"))]
     assert len(inks) == pages and min(inks) > 0.01, inks  # a lone heading is about 0.3 %
@@ -179,7 +186,9 @@ def test_skeleton_callouts_print_at_8_pt_and_call_out_every_tolerance(which, req
             shown |= {f"T{k}" for k in range(int(a), int(b or a) + 1)}
     ids = {t for p in doc["tolerances"]["parameters"].values() for t in p.get("tolerance_ids") or []}
     assert shown == ids  # every tolerance that sits on a joint is called out, none invented
-    if which == "full_report":
+    if doc.get("drawings"):  # the frames are on the part drawings' pages (test below), the skeleton shows the ids
+        assert words["frames"] == [] and not any("datum" in line for line in words["callouts"])
+    elif which == "full_report":
         drawn = [c for t in doc["tolerances"]["items"] for c in t["drawing"]]
         assert len(words["frames"]) == len(drawn) > 0
         zones = {f"{c['zone']:.3g}" for c in drawn}
@@ -291,3 +300,43 @@ def test_a_bad_date_is_one_sentence(tmp_path, capsys):
                  "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "--date '26/11/2026'" in err and err.count("\n") == 1 and not (tmp_path / "r" / "report.html").exists()
+
+
+def test_each_part_drawing_prints_on_its_own_page_legible_at_8_pt(plain_report):
+    """Issue 36, item 8: every part drawing of report.json starts its own A4 page, where its frames (ids, zones) and
+    datum letters are real text of at least 8 pt; a page never holds two parts; a part takes at most two pages
+    (a part with many frames continues its table)."""
+    out, pdf = plain_report
+    doc = json.loads((out / "report.json").read_text())
+    drawings = doc["drawings"]
+    assert len(drawings) >= 10  # the Tripteor's parts: base, crosses, legs, platform, wrist
+    pages = pages_of(pdf)
+    start = first_part_page(pdf, "Part drawing:")
+    texts = {p: page_text(pdf, p, layout=False) for p in range(start, pages + 1)}
+    heads = {p: m.group(1) for p, t in texts.items() if (m := re.match(r"\s*Part drawing: (\S+)", t))}
+    assert list(heads.values()) == [d["part"] for d in drawings]  # in order, each once, each at a page's top
+    owner, part = {}, None
+    for p in range(start, pages + 1):
+        part = heads.get(p, part)
+        owner.setdefault(part, []).append(p)
+    assert max(len(v) for v in owner.values()) <= 2, owner
+    ids = {d["part"]: {f["id"] for f in d["frames"]} for d in drawings}
+    for d in drawings:
+        first = owner[d["part"]][0]
+        text = " ".join(texts[p] for p in owner[d["part"]])
+        sizes: dict = {}
+        for t, size in text_runs(pdf, first):
+            for word in t.split():
+                sizes[word.strip(",;()")] = max(size, sizes.get(word.strip(",;()"), 0))
+        for f in d["frames"]:
+            assert sizes.get(f["id"], 0) >= 8, (d["part"], f["id"], sizes.get(f["id"]))
+            assert f"{f['zone_mm']:.3g}" in text, (f["id"], f["zone_mm"])
+        for letter in {x["letter"] for x in d["datums"]}:
+            assert sizes.get(letter, 0) >= 8, (d["part"], letter)
+        others = {i for part, frames in ids.items() if part != d["part"] for i in frames}
+        for p in owner[d["part"]]:
+            assert not {w for w in re.findall(r"[\w-]+-F\d+", texts[p])} & others, (d["part"], p)
+    md = (out / "report.md").read_text()
+    for d in drawings:
+        assert f"### Part drawing: {d['part']}" in md
+        assert all(f"| {f['id']} " in md for f in d["frames"])

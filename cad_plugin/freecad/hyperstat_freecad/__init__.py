@@ -16,11 +16,12 @@ how it is found); GUI commands live in :mod:`.commands` and :mod:`.panels`.
 
 from .feature import SkeletonFeature, is_skeleton
 from .classes import CLASS_COLORS, element_classes, parameter_classes
-from .geometry import callout_labels, class_spheres, markers
+from .geometry import callout_labels, class_spheres, frame_labels, markers
 from .operations import (
     analyze,
     describe_template,
     diagnose,
+    drawings,
     export_controller,
     export_report,
     identify,
@@ -44,6 +45,8 @@ __all__ = [
     "markers",
     "class_spheres",
     "callout_labels",
+    "frame_labels",
+    "drawings",
     "analyze",
     "describe_template",
     "diagnose",

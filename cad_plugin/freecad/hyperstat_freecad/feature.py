@@ -49,6 +49,8 @@ BASE_PROPERTIES = [
     ("App::PropertyInteger", "Rank", "Results", "Rank of the stacked stationarity rows", READ_ONLY),
     ("App::PropertyString", "Tolerances", "Results", "Tolerances with their values (the report's JSON, hyperstat "
      "report)", HIDDEN),
+    ("App::PropertyString", "Drawings", "Results", "Part drawings of the last report: per part its datums and frames "
+     "(report.json's drawings and assembly_requirements)", HIDDEN),
     ("App::PropertyMap", "ToleranceCounts", "Results", "Number of tolerances per class (as the report counts them)",
      READ_ONLY),
     ("App::PropertyMap", "ParameterClasses", "Results", "Tolerance class of every defect parameter", READ_ONLY),

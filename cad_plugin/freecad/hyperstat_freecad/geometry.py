@@ -357,3 +357,61 @@ def _callouts(skeleton, centres: dict, offsets: dict, ids: dict, radius: float) 
         _tag(label, "HyperstatRole", "callout", "What this object is for hyperstat")
         _tag(label, "HyperstatElement", ",".join(members), "Joints at this point")
         skeleton.addObject(label)  # a plain group: the position stays global
+
+
+def frame_labels(skeleton) -> dict:
+    """The labels of the part drawings' frames and datums in the 3D view, keyed by feature id."""
+    return {o.HyperstatElement: o for o in skeleton.Group if getattr(o, "HyperstatRole", "") == "frames"}
+
+
+def clear_frame_labels(skeleton) -> None:
+    """Remove the part drawings' labels."""
+    doc = skeleton.Document
+    for label in frame_labels(skeleton).values():
+        doc.removeObject(label.Name)
+
+
+def label_frames(skeleton, drawings: list) -> int:
+    """Label every feature that carries a frame or a datum in the 3D view, at the feature (mm, base frame at home):
+    the part and the feature, its datum letter, its frames as drawn (``rod-F2 |//|0.024|A|``).  Returns how many.
+
+    The labels start hidden (the Tripteor has about sixty: all at once they would bury the skeleton); selecting
+    frames or datums in the Results panel's *Part drawings* tab shows theirs (:func:`show_frame_labels`).  The
+    labels of features at one point (a joint's bore on one part, its journal on the next) are stacked a line
+    apart, so that none hides another.
+    """
+    import FreeCAD
+
+    from .drawings import feature_labels
+
+    clear_frame_labels(skeleton)
+    doc = skeleton.Document
+    size = float(skeleton.MarkerSize.Value or 1.0)
+    taken: dict = {}
+    labels = feature_labels(drawings)
+    for entry in labels:
+        key = tuple(round(c, 6) for c in entry["point"])
+        above = taken.get(key, 0)
+        taken[key] = above + len(entry["lines"]) + 1
+        label = doc.addObject("App::Annotation", "FrameLabel")
+        label.LabelText = entry["lines"]
+        label.Position = FreeCAD.Vector(*entry["point"]) + FreeCAD.Vector(0, 0, -0.35 * size * (above + 1))
+        label.Label = f"frames {entry['feature']}"
+        _tag(label, "HyperstatRole", "frames", "What this object is for hyperstat")
+        _tag(label, "HyperstatElement", entry["feature"], "Feature of a part drawing (report.json's drawings)")
+        skeleton.addObject(label)  # a plain group: the position stays global
+        if FreeCAD.GuiUp and label.ViewObject is not None:
+            label.ViewObject.TextColor = (0.1, 0.1, 0.45)
+            label.ViewObject.FontSize = 11
+        label.Visibility = False
+    return len(labels)
+
+
+def show_frame_labels(skeleton, features: set) -> list:
+    """Show the labels of ``features`` (feature ids), hide the others; returns the labels shown."""
+    shown = []
+    for fid, label in frame_labels(skeleton).items():
+        label.Visibility = fid in features
+        if fid in features:
+            shown.append(label)
+    return shown

@@ -245,15 +245,19 @@ def _apply_analysis(obj, texts: tuple[str, str]) -> dict:
     """Store the analysis and the report's tolerances (with their values), colour and call out the markers."""
     text, report = texts
     analysis = json.loads(text)
-    tolerances = json.loads(report)["tolerances"]
+    doc = json.loads(report)
+    tolerances = doc["tolerances"]
     obj.Analysis = text
     obj.Tolerances = json.dumps(tolerances, sort_keys=True)
+    obj.Drawings = json.dumps({"drawings": doc.get("drawings") or [],
+                               "assembly_requirements": doc.get("assembly_requirements") or []}, sort_keys=True)
     obj.Mobility = int(analysis.get("mobility") or 0)
     obj.Overconstraint = int(analysis.get("overconstraint") or 0)
     obj.Rank = int(analysis.get("rank") or 0)
     obj.ToleranceCounts = {k: str(v) for k, v in tolerance_counts(tolerances).items()}
     obj.ParameterClasses = parameter_classes(analysis)
     geometry.color_markers(obj, analysis)
+    geometry.label_frames(obj, drawings(obj)["drawings"])
     obj.Status = "analysed"
     return analysis
 
@@ -395,7 +399,10 @@ def needs_rebuild(obj) -> bool:
 
 def _clear_results(obj) -> None:
     geometry.clear_classes(obj)
+    geometry.clear_frame_labels(obj)
     obj.Analysis = obj.Tolerances = ""
+    if hasattr(obj, "Drawings"):
+        obj.Drawings = ""
     obj.Mobility = obj.Overconstraint = obj.Rank = 0
     obj.ToleranceCounts = {}
     obj.ParameterClasses = {}
@@ -501,6 +508,13 @@ def results(obj) -> dict | None:
 def tolerances(obj) -> dict | None:
     """The tolerances of the last analysis with their values, as the report gives them (``None`` if none)."""
     return json.loads(obj.Tolerances) if getattr(obj, "Tolerances", "") else None
+
+
+def drawings(obj) -> dict:
+    """The part drawings of the last analysis's report: ``{"drawings": [...], "assembly_requirements": [...]}``
+    (empty lists when it has none, or before an analysis)."""
+    text = getattr(obj, "Drawings", "")
+    return json.loads(text) if text else {"drawings": [], "assembly_requirements": []}
 
 
 def _measurements(obj, data, validation) -> list[str]:

@@ -383,7 +383,8 @@ class _FollowDocument:
 
 class ResultsPanel(_NonModal):
     """The analysis as the report gives it: counts per class, the tolerance table with the values, T-ids and
-    drawing frames, the class of every defect parameter, the colour legend.  Follows Undo and Redo."""
+    drawing frames, the class of every defect parameter, the part drawings (every frame and datum per part),
+    the colour legend.  Follows Undo and Redo."""
 
     COLUMNS = ["id", "class", "statement", "feature", "without calibration", "with calibration", "drawing"]
 
@@ -406,6 +407,21 @@ class ResultsPanel(_NonModal):
         self.parameters = self._new_table(["parameter", "joint", "class", "tolerance", "unit"], self.select_parameter)
         self.tabs.addTab(self.table, "Tolerances")
         self.tabs.addTab(self.parameters, "Defect parameters")
+        from .drawings import DATUM_COLUMNS, FRAME_COLUMNS
+
+        sheet = QtGui.QWidget()
+        sheet_layout = QtGui.QVBoxLayout(sheet)
+        sheet_layout.setContentsMargins(0, 0, 0, 0)
+        self.drawings_note = QtGui.QLabel()
+        self.drawings_note.setWordWrap(True)
+        sheet_layout.addWidget(self.drawings_note)
+        self.drawings = self._new_table(FRAME_COLUMNS, self.select_frame)
+        self.drawings.setObjectName("HyperstatPartFrames")
+        self.datums = self._new_table(DATUM_COLUMNS, self.select_datum)
+        self.datums.setObjectName("HyperstatPartDatums")
+        sheet_layout.addWidget(self.drawings, 3)
+        sheet_layout.addWidget(self.datums, 1)
+        self.tabs.addTab(sheet, "Part drawings")
         _fit_dock(self.tabs, 300)
         layout.addWidget(self.tabs, 1)
         self.relations = QtGui.QPlainTextEdit()
@@ -467,6 +483,9 @@ class ResultsPanel(_NonModal):
                                  f"{obj.Label}: not analysed since its last build ({obj.Status}). Run Analyse.")
             self._fill(self.table, [], None)
             self._fill(self.parameters, [], None)
+            self._fill(self.drawings, [], None)
+            self._fill(self.datums, [], None)
+            self.drawings_note.setText("")
             self.rows, self.items = [], []
             self.relations.setPlainText("")
             return
@@ -488,6 +507,51 @@ class ResultsPanel(_NonModal):
         rel = relations_of(tol)
         self.relations.setPlainText("Assembly conditions relating several defects:\n" + "\n".join(rel)
                                     if rel else "No relation between defects.")
+        self._fill_drawings(obj)
+
+    def _fill_drawings(self, obj) -> None:
+        """The Part drawings tab: every frame of every part (as the printed part drawings), the datums."""
+        from .drawings import datum_rows, frame_rows
+        from .operations import drawings
+
+        sheets = drawings(obj)
+        parts = sheets["drawings"]
+        self.frame_rows = frame_rows(parts)
+        self._fill(self.drawings, self.frame_rows, None)
+        self._fill(self.datums, datum_rows(parts), None)
+        self.feature_of = {fr["id"]: fr.get("feature") for d in parts for fr in d.get("frames") or []}
+        self.datum_feature = [x["feature"] for d in parts for x in d.get("datums") or []]
+        reqs = sheets["assembly_requirements"]
+        self.drawings_note.setText(
+            f"{len(parts)} part drawings, {len(self.frame_rows)} frames (ISO 1101; zones in mm); select frames or "
+            "datums to label their features in the 3D view" + (f"; assembly requirements: " + "; ".join(
+                f"{r.get('id', '')} {r.get('statement', '')} ({', '.join(r.get('parts') or [])})" for r in reqs)
+                                          if reqs else "") + "." if parts else
+            "The report of this analysis carries no part drawings.")
+
+    def _select_features(self, features: set) -> None:
+        """Show (and select) the 3D labels of ``features``, hide the other part-drawing labels."""
+        import FreeCADGui
+
+        from .geometry import show_frame_labels
+
+        if self.obj is None or not features:
+            return
+        shown = show_frame_labels(self.obj, features)
+        FreeCADGui.Selection.clearSelection()
+        for label in shown:
+            FreeCADGui.Selection.addSelection(label)
+
+    def select_frame(self) -> None:
+        """Select the 3D labels of the features of the selected frames."""
+        rows = {i.row() for i in self.drawings.selectedItems()}
+        self._select_features({self.feature_of.get(self.frame_rows[r][1]) for r in rows
+                               if r < len(getattr(self, "frame_rows", []))} - {None})
+
+    def select_datum(self) -> None:
+        """Select the 3D labels of the selected datums' features."""
+        rows = {i.row() for i in self.datums.selectedItems()}
+        self._select_features({self.datum_feature[r] for r in rows if r < len(getattr(self, "datum_feature", []))})
 
     @staticmethod
     def _fill(table, rows: list[list[str]], class_column: int | None) -> None:

@@ -145,6 +145,8 @@ def state(doc):
                              "center": list(s.getGlobalPlacement().Base)}
                         for el, s in hs.class_spheres(sk).items()},
             "callouts": {k: list(v.LabelText) for k, v in hs.callout_labels(sk).items()},
+            "frame_labels": {k: {"text": list(v.LabelText), "position": list(v.Position), "visible": bool(v.Visibility)}
+                             for k, v in hs.frame_labels(sk).items()},
             "analysis": json.loads(sk.Analysis) if sk.Analysis else None,
             "tolerances": hs.tolerances(sk),
             "identification": bool(sk.Identification), "diagnosis": bool(sk.Diagnosis),
@@ -165,6 +167,12 @@ def panel_contents(panel):
         out["table_header"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]
     if panel is not None and hasattr(panel, "parameters") and hasattr(panel.parameters, "rowCount"):
         out["parameter_table"] = table_rows(panel.parameters)
+    if panel is not None and hasattr(panel, "drawings") and hasattr(panel.drawings, "rowCount"):
+        out["frame_table"] = table_rows(panel.drawings)
+        out["frame_table_header"] = [panel.drawings.horizontalHeaderItem(c).text()
+                                     for c in range(panel.drawings.columnCount())]
+        out["datum_table"] = table_rows(panel.datums)
+        out["drawings_note"] = panel.drawings_note.text()
     if panel is not None and hasattr(panel, "summary"):
         out["summary"] = panel.summary.text()
     if panel is not None and hasattr(panel, "legend"):
@@ -294,6 +302,16 @@ def run():
         REPORT["steps"]["insert_ticks"] = len(ticks)
         record("insert", doc)
         screenshot("workbench")  # the picture of docs/freecad.md and the README
+        # the Part drawings tab: a click on a frame's row labels its feature in the 3D view, and only it
+        results = active_panel()
+        results.tabs.setCurrentIndex(results.tabs.count() - 1)
+        row = results.drawings.visualItemRect(results.drawings.item(0, 1)).center()
+        QtTest.QTest.mouseClick(results.drawings.viewport(), QtCore.Qt.LeftButton, QtCore.Qt.NoModifier, row)
+        pump(0.5)
+        REPORT["steps"]["frame_clicked"] = {"row": table_rows(results.drawings)[0], "state": state(doc),
+                                            "selected": [o.Label for o in FreeCADGui.Selection.getSelection()],
+                                            "screenshot": screenshot("part_frame")}
+        results.tabs.setCurrentIndex(0)
 
         # ---------------------------------------------------------------- identify, diagnose
         if DATA:
@@ -423,6 +441,9 @@ def run():
         for name in [t for t in TEMPLATES if t != TEMPLATE]:
             REPORT["stage"] = f"template {name}"
             tdoc = FreeCAD.newDocument(f"t_{name}")
+            FreeCAD.setActiveDocument(tdoc.Name)  # the previous template's document may still be closing
+            wait_until(lambda: FreeCAD.ActiveDocument is not None and FreeCAD.ActiveDocument.Name == tdoc.Name,
+                       f"the document of {name} to be active", timeout=30)
             click_command("Hyperstat_InsertSkeleton")
             insert = wait_panel("InsertPanel")
             insert.combo.setCurrentIndex(insert.combo.findText(name))

@@ -192,6 +192,58 @@ def test_the_panel_says_what_the_report_says(clicks, name):
         assert word not in got["legend"] and word not in got["summary"]
 
 
+@pytest.mark.parametrize("name", TEMPLATE_NAMES)
+def test_the_panel_and_the_3d_view_show_the_part_drawings_of_the_report(clicks, name):
+    """Issue 36, item 8: the Part drawings tab lists every frame of every part of report.json (part, id, tolerances,
+    feature, the cells as drawn, the zone, the datum system, the value's kind) and every datum; the 3D view labels
+    each feature that carries a frame or a datum at the feature's point, with its frames and datum letter."""
+    got = _steps(clicks)["templates"][name]
+    drawings = clicks["reports"][name]["drawings"]
+    names = {d["part"]: {f["id"]: f for f in d["features"]} for d in drawings}
+    frames = [(d["part"], fr) for d in drawings for fr in d["frames"]]
+    assert [row[:4] for row in got["frame_table"]] == [
+        [part, fr["id"], ", ".join(fr["tolerances"]) or "-", names[part][fr["feature"]]["name"]] for part, fr in frames]
+    for row, (_, fr) in zip(got["frame_table"], frames):
+        cells = row[4].split(" ", 1)[0].strip("|").split("|")  # |sym|zone|A|C|, then the plane indicator in words
+        zone = ("\u2300" if fr["zone_shape"] == "cylinder" else "") + f"{fr['zone_mm']:.3g}"
+        assert cells[1:] == [zone, *fr["datum_system"]], (row, fr["id"])
+        assert (fr["indicator"] is None) == (" plane " not in row[4]), row
+        assert f"{fr['zone_mm']:.3g} mm" in row[5] and row[6] == ("|".join(fr["datum_system"]) or "none")
+        assert row[7] == fr["value_kind"]
+    assert got["datum_table"] == [[d["part"], x["letter"], x["precedence"], names[d["part"]][x["feature"]]["name"]]
+                                  for d in drawings for x in d["datums"]]
+    labels = got["state"]["frame_labels"]
+    carried = {f for d in drawings for f in [fr["feature"] for fr in d["frames"]] + [x["feature"] for x in d["datums"]]}
+    assert set(labels) == carried
+    for d in drawings:
+        for fid, feature in names[d["part"]].items():
+            if fid not in labels:
+                continue
+            text = "\n".join(labels[fid]["text"])
+            assert text.startswith(f"{d['part']}: {feature['name']}")
+            assert all(fr["id"] in text for fr in d["frames"] if fr["feature"] == fid)
+            assert all(f"[datum {x['letter']}]" in text for x in d["datums"] if x["feature"] == fid)
+            # at the feature: its point, a few lines below where several labels share it (mm)
+            offset = np.subtract(labels[fid]["position"], feature["point_mm"])
+            assert np.allclose(offset[:2], 0.0, atol=1e-6) and -2000.0 < offset[2] < 0.0, (fid, offset)
+    if drawings:
+        assert f"{len(drawings)} part drawings, {len(frames)} frames" in got["drawings_note"]
+    assert not any(label["visible"] for label in labels.values())  # hidden until a frame or a datum is selected
+
+
+def test_a_click_on_a_frame_labels_its_feature_in_the_3d_view(clicks):
+    """The Tripteor inserted by clicks: a click on the first row of the Part drawings tab shows and selects the
+    label of that frame's feature (its frames as the report draws them), and only that label."""
+    step = _steps(clicks)["frame_clicked"]
+    drawings = clicks["reports"]["tripteor_x7"]["drawings"]
+    part, frame_id = step["row"][:2]
+    frame = next(fr for d in drawings if d["part"] == part for fr in d["frames"] if fr["id"] == frame_id)
+    labels = step["state"]["frame_labels"]
+    assert [fid for fid, label in labels.items() if label["visible"]] == [frame["feature"]]
+    assert frame_id in "\n".join(labels[frame["feature"]]["text"])
+    assert step["selected"] == [f"frames {frame['feature']}"]
+
+
 def test_undo_one_transaction_per_action_and_edit_undo_enabled(clicks):
     steps = _steps(clicks)
     assert steps["insert"]["state"]["undo"] == ["Insert skeleton tripteor_x7"]

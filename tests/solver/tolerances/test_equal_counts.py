@@ -49,3 +49,20 @@ def test_counts_and_classes_are_equal_across_outputs(template, tmp_path):
     # no 'gauge' anywhere in the tolerance vocabulary
     assert "gauge" not in {v["class"] for v in analysis["parameters"].values()}
     assert "gauge" not in md.split("## Defects per joint")[0]
+    # one value per tolerance: accuracy and report give every tolerance the same values (issue 36 item 5)
+    for key in ("value", "drawing_value", "value_with_calibration"):
+        acc = {t["id"]: t[key] for t in accuracy["items"]}
+        rep_v = {t["id"]: t[key] for t in report["tolerances"]["items"]}
+        for tid, v in rep_v.items():
+            assert (v is None) == (acc[tid] is None), (template.stem, tid, key)
+            if v is not None:
+                assert acc[tid] == pytest.approx(v, rel=1e-6), (template.stem, tid, key, acc[tid], v)
+    if template.stem in ("slider_crank", "tripteor_x7"):
+        c = tmp_path / "mc.json"
+        assert main(["montecarlo", str(template), "--workspace-configurations", "60", "--samples", "100",
+                     "--json", str(c), "--quiet"]) == 0
+        mc = json.loads(c.read_text())
+        drawing = {t["id"]: t["drawing_value"] for t in report["tolerances"]["items"]}
+        assert mc["drawn_values"] and all(v == drawing[tid] for tid, v in mc["drawn_values"].items()), mc["drawn_values"]
+        assert set(mc["drawn_values"]) == {t["id"] for t in report["tolerances"]["items"]
+                                           if t["class"] in ("accuracy-critical", "compensable") and t["drawing_value"]}
