@@ -268,7 +268,8 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
 
 
 def controller_document(mechanism, identification, effects: tuple = (), source: dict | None = None,
-                        data_files: tuple = (), tolerances: dict | None = None) -> dict:
+                        data_files: tuple = (), tolerances: dict | None = None,
+                        defects: np.ndarray | None = None) -> dict:
     """Controller file content from an identification (and the effects fitted with it).
 
     Parameters
@@ -287,10 +288,13 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
         :meth:`~hyperstat.solver.tolerances.classification.Classification.to_dict` of the model: its
         counts per class and the class and tolerance id of every parameter are recorded (the same
         vocabulary as ``analyze`` and the report).
+    defects : ndarray, optional
+        The defect vector to write (rad / mm) instead of the identification's, e.g. the identified one
+        moved onto a geometry whose loops close (:func:`hyperstat.solver.calibration.virtual.onto_closure`).
     """
     model = identification.model
     theta = identification.theta
-    xi = model.defects(theta)
+    xi = model.defects(theta) if defects is None else np.asarray(defects, dtype=float)
     names = [p.name for p in mechanism.parameters]
     targets = target_offsets(identification)
     # several targets: the tool point is the output frame's origin, the targets are named offsets in it

@@ -34,7 +34,8 @@ from hyperstat.solver.errors import TemplateError
 
 TOLERANCING = {
     "task": ["position"],
-    "measurements": {"kind": "positions", "targets_mm": [[0.0, 0.0, 0.0]], "noise_mm": 0.002},
+    "measurements": {"kind": "positions", "targets_mm": [[0.0, 0.0, 0.0], [40.0, 0.0, 0.0], [0.0, 40.0, 0.0]],
+                     "noise_mm": 0.002},
     "spec": {"position_mm": 0.05, "orientation_rad": None},
 }
 
@@ -74,7 +75,7 @@ def build(**overrides: float) -> Skeleton:
     sk = Skeleton("bennett", base="R0", parameters=p, marker_size=0.2 * p.a,
                   description="Bennett linkage (spatial 4R loop)")
     sk.revolute("1", o[0], z[0], role="actuated", x_axis=(1, 0, 0), defects="", home=theta,
-                range=(theta - 0.3, theta + 0.3))
+                range=(theta - 1.2, theta + 1.2))
     sk.revolute("2", o[1], z[1])
     sk.revolute("4", o[3], z[3])
     sk.revolute("3", o[2], z[2])

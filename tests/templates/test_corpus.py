@@ -1,0 +1,192 @@
+"""The corpus: every mechanism of ``templates/corpus/`` through every command, against its theory.
+
+Units: lengths in mm, angles in rad.
+
+For each member, one session-scoped run calls the command line in this process (``main``) in the order a
+user would: ``build`` (model + STEP; ``import-robot`` for the DH tables and the URDF), ``analyze``,
+``report`` (HTML, Markdown, JSON), ``accuracy``, ``montecarlo``, ``simulate``, ``identify``, ``diagnose``,
+``export-controller`` and ``check-controller``, with small samples so that the corpus stays cheap.  Every
+command must end with exit code 0, or with 2 and one sentence on stderr that says what it cannot do for
+this mechanism (no traceback, and none of its outputs left behind, whole or half-written).
+
+The theory: each member states ``Theory: mobility M, degree of over-constraint D, assembly conditions
+C.``; ``analyze`` must say the same, and so must an independent computation
+(:mod:`tests.templates.screw_theory`: products of exponentials, no solver code) from the template's
+declarations, with ``C`` = the screw computation's first-order conditions on the joint lines plus ``D``
+(see that module).  The printed PDF is checked for two members (Bennett, and the Delta as a parallel robot).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from pathlib import Path
+
+import pytest
+
+from hyperstat.cad_plugin.templates import CORPUS_DIR, build_template
+
+from tests.conftest import run_cli
+from tests.templates.screw_theory import screw_model
+
+TEMPLATES = sorted(p.stem for p in CORPUS_DIR.glob("*.py") if not p.name.startswith("_"))
+ROBOTS = ["puma560.dh.yaml", "panda.mdh.yaml", "iiwa14.urdf"]
+MEMBERS = TEMPLATES + ROBOTS
+THEORY = re.compile(r"Theory: mobility (\d+), degree of over-constraint (\d+), assembly conditions (\d+)\.")
+#: command -> the outputs it writes (relative to the member's folder); checked absent when it refuses
+OUTPUTS = {"build": ["model.json", "m.step", "m.step.json"], "import-robot": ["model.json"], "analyze": ["a.json"],
+           "report": ["rep/report.html", "rep/report.md", "rep/report.json"], "accuracy": ["acc.json"],
+           "montecarlo": ["mc.json"], "simulate": ["d.csv", "d.validation.csv", "t.json"], "identify": ["id.json"],
+           "diagnose": ["dg.json"], "export-controller": ["m.json"], "check-controller": ["check.json"]}
+PRINTED = ["bennett", "delta_r"]
+
+
+def theory_of(member: str) -> tuple[int, int, int]:
+    """The ``Theory:`` line of a member (docstring, YAML or XML comment)."""
+    found = THEORY.findall((CORPUS_DIR / (member if "." in member else f"{member}.py")).read_text(encoding="utf-8"))
+    assert len(found) == 1, f"{member}: one 'Theory: ...' line"
+    return tuple(int(v) for v in found[0])
+
+
+def _commands(member: str, d: Path) -> list[list]:
+    if member in ROBOTS:
+        src = d / "model.json"
+        first = ["import-robot", CORPUS_DIR / member, "--out", src, "--quiet"]
+    else:
+        src = CORPUS_DIR / f"{member}.py"
+        first = ["build", src, "--model", d / "model.json", "--step", d / "m.step", "--quiet"]
+    data, val = d / "d.csv", d / "d.validation.csv"
+    return [first,
+            ["analyze", src, "--json", d / "a.json", "--quiet"],
+            ["report", src, "--out", d / "rep", "--quiet"],
+            ["accuracy", src, "--json", d / "acc.json", "--no-refine", "--workspace-configurations", "200", "--quiet"],
+            ["montecarlo", src, "--json", d / "mc.json", "--samples", "300", "--workspace-configurations", "100",
+             "--quiet"],
+            ["simulate", src, "--out", data, "--poses", "40", "--validation", "12", "--truth", d / "t.json", "--quiet"],
+            ["identify", src, data, "--validation", val, "--json", d / "id.json", "--quiet"],
+            ["diagnose", src, data, "--validation", val, "--effects", "backlash,compliance", "--json", d / "dg.json",
+             "--quiet"],
+            ["export-controller", src, data, "--validation", val, "--out", d / "m.json", "--quiet"],
+            ["check-controller", d / "m.json", "--source", src, "--json", d / "check.json", "--quiet"]]
+
+
+@pytest.fixture(scope="session")
+def corpus(tmp_path_factory) -> dict:
+    """Every command on every member, once per session: outcome, stderr and seconds per (member, command)."""
+    root = tmp_path_factory.mktemp("corpus")
+    out = {"root": root, "runs": {}, "seconds": 0.0}
+    t0 = time.perf_counter()
+    for member in MEMBERS:
+        d = root / member.split(".")[0]
+        d.mkdir()
+        for argv in _commands(member, d):
+            t = time.perf_counter()
+            code, stdout, stderr = run_cli(argv)
+            out["runs"][(member, argv[0])] = {"code": code, "stdout": stdout, "stderr": stderr, "dir": d,
+                                              "seconds": time.perf_counter() - t}
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def test_the_corpus_has_at_least_fifteen_members_each_with_its_theory():
+    assert len(MEMBERS) >= 15
+    for member in MEMBERS:
+        theory_of(member)
+
+
+@pytest.mark.parametrize("member", TEMPLATES)
+def test_the_theory_line_is_screw_theory(member):
+    """The docstring's numbers from the declarations alone: mobility, over-constraint and conditions."""
+    mobility, overconstraint, conditions = theory_of(member)
+    skeleton = build_template(CORPUS_DIR / f"{member}.py")
+    got = screw_model(skeleton).theory(configurations=14 if mobility == 1 else 8)
+    assert got["condition_gap"] > 1e4, got  # a clear rank decision
+    assert (got["mobility"], got["overconstraint"], got["conditions"] + got["overconstraint"]) == \
+        (mobility, overconstraint, conditions)
+
+
+@pytest.mark.parametrize("member", MEMBERS)
+def test_analyze_equals_the_theory(corpus, member):
+    run = corpus["runs"][(member, "analyze")]
+    assert run["code"] == 0, run["stderr"]
+    doc = json.loads((run["dir"] / "a.json").read_text())
+    mobility, overconstraint, conditions = theory_of(member)
+    assert (doc["mobility"], doc["overconstraint"]) == (mobility, overconstraint)
+    assert doc["tolerances"]["counts"]["assembly"] == conditions == doc["rank"]
+    assert doc["stability"]["stable"], doc["stability"]
+
+
+@pytest.mark.parametrize("member", MEMBERS)
+def test_every_command_ends_with_0_or_one_sentence_and_2(corpus, member):
+    """Exit 0 with its outputs, or exit 2 with one sentence on stderr and none of its outputs; no traceback."""
+    for (who, command), run in corpus["runs"].items():
+        if who != member:
+            continue
+        assert "Traceback" not in run["stderr"] + run["stdout"], (command, run["stderr"])
+        assert run["code"] in (0, 2), (command, run["code"], run["stderr"])
+        outputs = [run["dir"] / o for o in OUTPUTS[command]]
+        if run["code"] == 0:
+            assert all(o.is_file() and o.stat().st_size > 0 for o in outputs), (command, outputs)
+            continue
+        errors = [line for line in run["stderr"].splitlines() if line.startswith("hyperstat: error: ")]
+        assert len(errors) == 1 and errors[0].endswith("."), (command, run["stderr"])
+        assert not any(o.exists() for o in outputs), (command, [o for o in outputs if o.exists()])
+    leftovers = [p for p in (corpus["root"] / member.split(".")[0]).rglob("*")
+                 if p.name.startswith(".") or p.suffix in (".part", ".tmp")]
+    assert not leftovers, leftovers
+
+
+@pytest.mark.parametrize("member", MEMBERS)
+def test_the_steps_a_designer_needs_succeed(corpus, member):
+    """Model, analysis, report, accuracy, Monte Carlo and simulated data exist for every member."""
+    for command in ("build" if member in TEMPLATES else "import-robot", "analyze", "report", "accuracy",
+                    "simulate", "identify"):
+        run = corpus["runs"][(member, command)]
+        assert run["code"] == 0, (command, run["stderr"])
+
+
+@pytest.mark.parametrize("member", MEMBERS)
+def test_the_reports_tables_keep_their_columns(corpus, member):
+    """report.md: a ``|`` inside a cell (an ISO 1101 frame) is escaped, so every row of the tolerance table has its
+    nine cells and its class column reads a class; the JSON and the Markdown count the same tolerances."""
+    run = corpus["runs"][(member, "report")]
+    assert run["code"] == 0, run["stderr"]
+    md = (run["dir"] / "rep" / "report.md").read_text(encoding="utf-8")
+    doc = json.loads((run["dir"] / "rep" / "report.json").read_text())
+    table = md.split("## Tolerances", 1)[1].split("\n\n", 2)[1].splitlines()
+    assert table[0].startswith("| id | feature")
+    rows = [re.split(r"(?<!\\)\|", row)[1:-1] for row in table[2:]]  # a GitHub-flavoured Markdown reader's split
+    assert len(rows) == len(doc["tolerances"]["items"])
+    for cells, item in zip(rows, doc["tolerances"]["items"]):
+        assert len(cells) == 9, cells
+        assert cells[7].strip() == item["class"] and cells[0].strip() == item["id"]
+    assert "<html" in (run["dir"] / "rep" / "report.html").read_text(encoding="utf-8")[:200].lower()
+
+
+@pytest.mark.parametrize("member", PRINTED)
+def test_the_report_prints(corpus, member, tmp_path):
+    """The HTML printed on A4 by headless Chromium: pages, and the tolerance table's words in the PDF."""
+    from tests.cad_plugin.test_report import page_text, pages_of, print_pdf
+
+    run = corpus["runs"][(member, "report")]
+    pdf = print_pdf(run["dir"] / "rep" / "report.html", tmp_path / "report.pdf")
+    pages = pages_of(pdf)
+    text = "".join(page_text(pdf, k, layout=False) for k in range(1, pages + 1))
+    assert pages >= 2 and member in text and "assembly" in text
+
+
+def test_a_controller_file_comes_out_of_the_bennett_linkage(corpus):
+    """The issue's user story: a Bennett linkage gets its controller file, and the file checks."""
+    assert corpus["runs"][("bennett", "export-controller")]["code"] == 0, \
+        corpus["runs"][("bennett", "export-controller")]["stderr"]
+    assert corpus["runs"][("bennett", "check-controller")]["code"] == 0
+
+
+def test_the_corpus_duration_is_reported(corpus, capsys):
+    """Not a timing assertion: the duration of the whole corpus and of its slowest commands, for the record."""
+    slow = sorted(corpus["runs"].items(), key=lambda kv: -kv[1]["seconds"])[:5]
+    with capsys.disabled():
+        print(f"\ncorpus: {len(MEMBERS)} members, {len(corpus['runs'])} commands in {corpus['seconds']:.1f} s; slowest: "
+              + ", ".join(f"{m} {c} {r['seconds']:.1f} s" for (m, c), r in slow))
+    assert corpus["seconds"] > 0
