@@ -2,12 +2,13 @@
 
 Units: lengths in mm, angles in rad.
 
-The crank turns about ``1`` (axis z through the origin, actuated, the reference); the rocker about
-``2`` (axis x through ``(distance, 0, height)``).  Each ball joint is three revolutes through its
-centre (``S1a, S1b, S1c`` at the crank pin, ``S2a, S2b, S2c`` at the rocker pin, along three
-orthogonal directions not aligned with the rod).  The crank chain places the rod's frame ``ROD``;
-the rocker chain closes on it through the fixed transform ``X`` (the rod's geometry).  Output:
-the rocker pin's frame ``P``.
+The crank turns about ``1`` (axis z through the origin, actuated); the rocker about ``2`` (axis x
+through ``(distance, 0, height)``).  Each ball joint is three revolutes through its centre (``S1a,
+S1b, S1c`` at the crank pin, ``S2a, S2b, S2c`` at the rocker pin, along three orthogonal directions
+not aligned with the rod).  The rocker chain places the rocker's frame ``RK`` (its first joint,
+``2``, is the reference), the chain ``S2a, S2b, S2c`` from it the rod's frame ``ROD``, and the crank
+chain closes on the rod through the fixed transform ``X`` (the rod's geometry).  Output: the frame
+``P`` at the rocker pin, on the rocker: not on the rod, whose spin about its own line is free.
 
 Theory.  Bodies: base, crank, rod, rocker and two between each ball joint's revolutes: 8; joints:
 8 revolutes; one loop.  Kutzbach: 6 x 7 - 5 x 8 = 2.  Screws: the eight joint screws span all six
@@ -70,17 +71,19 @@ def build(**overrides: float) -> Skeleton:
     pin2 = pivot2 + p.rocker * np.array([0.0, math.cos(p.home_rocker), math.sin(p.home_rocker)])
     rod = pin2 - pin1
     sk = Skeleton("rssr", base="R0", parameters=p, marker_size=0.2 * p.crank, description="RSSR spatial four-bar")
-    sk.revolute("1", (0, 0, 0), (0, 0, 1), role="actuated", x_axis=(1, 0, 0), defects="", home=p.home_crank,
+    sk.revolute("1", (0, 0, 0), (0, 0, 1), role="actuated", x_axis=(1, 0, 0), home=p.home_crank,
                 range=(p.home_crank - 0.5, p.home_crank + 0.5))
-    sk.revolute("2", pivot2, (1, 0, 0), x_axis=(0, 1, 0), home=p.home_rocker)
+    sk.revolute("2", pivot2, (1, 0, 0), x_axis=(0, 1, 0), defects="", home=p.home_rocker)
     for name, centre in (("S1", pin1), ("S2", pin2)):
         for tag, axis in zip("abc", _triad(rod)):
             sk.revolute(f"{name}{tag}", centre, axis)
     sk.fixed("X", target="ROD")
-    sk.frame("P", pin2, (1, 0, 0), rod - (rod @ np.array([1.0, 0, 0])) * np.array([1.0, 0, 0]))
-    sk.chain("crank", "R0", "ROD", ["1", "S1a", "S1b", "S1c"])
-    sk.chain("rocker", "R0", "ROD", ["2", "S2c", "S2b", "S2a", "X"])
-    sk.chain("tool", "ROD", "P", [])
+    arm = pin2 - pivot2
+    sk.frame("P", pin2, (1, 0, 0), arm / np.linalg.norm(arm))
+    sk.chain("rocker", "R0", "RK", ["2"])
+    sk.chain("rod", "RK", "ROD", ["S2a", "S2b", "S2c"])
+    sk.chain("crank", "R0", "ROD", ["1", "S1a", "S1b", "S1c", "X"])
+    sk.chain("tool", "RK", "P", [])
     sk.output = "P"
     r = 0.06 * p.crank
     sk.link("base", [(0, 0, 0), (p.distance, 0, 0), pivot2], r)

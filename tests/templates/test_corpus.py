@@ -75,18 +75,26 @@ def _commands(member: str, d: Path) -> list[list]:
 def corpus(tmp_path_factory) -> dict:
     """Every command on every member, once per session: outcome, stderr and seconds per (member, command)."""
     root = tmp_path_factory.mktemp("corpus")
-    out = {"root": root, "runs": {}, "seconds": 0.0}
-    t0 = time.perf_counter()
+    out = {"root": root, "runs": {}, "seconds": 0.0, "cpu": 0.0}
+    t0, c0 = time.perf_counter(), _cpu()
     for member in MEMBERS:
         d = root / member.split(".")[0]
         d.mkdir()
         for argv in _commands(member, d):
-            t = time.perf_counter()
+            t, c = time.perf_counter(), _cpu()
             code, stdout, stderr = run_cli(argv)
             out["runs"][(member, argv[0])] = {"code": code, "stdout": stdout, "stderr": stderr, "dir": d,
-                                              "seconds": time.perf_counter() - t}
-    out["seconds"] = time.perf_counter() - t0
+                                              "seconds": time.perf_counter() - t, "cpu": _cpu() - c}
+    out["seconds"], out["cpu"] = time.perf_counter() - t0, _cpu() - c0
     return out
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and of its finished children (the report draws its views in a child)."""
+    import resource
+
+    return sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
+               for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
 
 
 def test_the_corpus_has_at_least_fifteen_members_each_with_its_theory():
@@ -185,8 +193,31 @@ def test_a_controller_file_comes_out_of_the_bennett_linkage(corpus):
 
 def test_the_corpus_duration_is_reported(corpus, capsys):
     """Not a timing assertion: the duration of the whole corpus and of its slowest commands, for the record."""
-    slow = sorted(corpus["runs"].items(), key=lambda kv: -kv[1]["seconds"])[:5]
+    slow = sorted(corpus["runs"].items(), key=lambda kv: -kv[1]["cpu"])[:5]
     with capsys.disabled():
-        print(f"\ncorpus: {len(MEMBERS)} members, {len(corpus['runs'])} commands in {corpus['seconds']:.1f} s; slowest: "
-              + ", ".join(f"{m} {c} {r['seconds']:.1f} s" for (m, c), r in slow))
+        print(f"\ncorpus: {len(MEMBERS)} members, {len(corpus['runs'])} commands in {corpus['seconds']:.1f} s "
+              f"({corpus['cpu']:.1f} s of CPU); most CPU: "
+              + ", ".join(f"{m} {c} {r['cpu']:.1f} s" for (m, c), r in slow))
+        table = corpus["root"] / "outcomes.txt"  # every outcome, for the record (the closing note's table)
+        table.write_text("".join(f"{m}\t{c}\t{r['code']}\t{r['seconds']:.1f}\t{r['cpu']:.1f}\t"
+                                 f"{(r['stderr'].strip().splitlines() or [''])[-1]}\n"
+                                 for (m, c), r in corpus["runs"].items()), encoding="utf-8")
+        print(f"outcomes: {table}")
     assert corpus["seconds"] > 0
+
+
+def test_a_report_with_numbers_json_cannot_hold_still_renders(corpus):
+    """A worst case that diverged or an optimiser tolerance that is unknown is ``null`` in report.json (JSON has
+    no inf or NaN): both renderings print a word for it instead of failing (the TypeError the new user met)."""
+    from hyperstat.cad_plugin.report import render_html, render_markdown
+
+    doc = json.loads((corpus["runs"][("bennett", "report")]["dir"] / "rep" / "report.json").read_text())
+    assert doc["worst_cases"], "the Bennett report has worst cases to spoil"
+    w = doc["worst_cases"][0]
+    w["optimiser_tolerance"], w["max"], w["sampled_max"] = None, None, None
+    name = next(iter(doc["accuracy"]["coefficients"]))
+    doc["accuracy"]["coefficients"][name]["max"] = None
+    md, page = render_markdown(doc), render_html(doc, {})
+    row = next(line for line in md.splitlines() if line.startswith(("| without calibration", "| after calibration")))
+    assert "not finite" in row and "unknown" in row
+    assert "not finite" in page and "unknown" in page
