@@ -137,41 +137,50 @@ class ScrewModel:
         start, idx = self.defining[frame]
         return self._path(start) + idx
 
-    def _products(self, q: np.ndarray, path: list[int]) -> list[np.ndarray]:
-        """``P_0 = I, P_1, ..., P_m`` along ``path``."""
-        out = [np.eye(4)]
-        for i in path:
-            out.append(out[-1] @ _exp(self.joints[i].screw, q[i] - self.home[i]))
-        return out
-
     def _loop_paths(self) -> list[tuple[list[int], list[int]]]:
-        return [(self._path(start) + idx, self._path(end)) for start, idx, end in self.closing]
+        if not hasattr(self, "_paths"):
+            self._paths = [(self._path(start) + idx, self._path(end)) for start, idx, end in self.closing]
+        return self._paths
 
-    def residual(self, q: np.ndarray) -> np.ndarray:
-        """Closure discrepancy per loop: (rotation vector, translation) of ``G_closing G_F^-1``."""
+    def _walk(self, q: np.ndarray) -> list[tuple[list[np.ndarray], list[np.ndarray]]]:
+        """Per loop, the products ``P_0 = I, P_1, ..., P_m`` along its closing and its defining path."""
+        exps = [_exp(j.screw, q[i] - self.home[i]) for i, j in enumerate(self.joints)]
         out = []
         for close, define in self._loop_paths():
-            e = self._products(q, close)[-1] @ _inverse(self._products(q, define)[-1])
+            pair = []
+            for path in (close, define):
+                prods = [np.eye(4)]
+                for i in path:
+                    prods.append(prods[-1] @ exps[i])
+                pair.append(prods)
+            out.append(tuple(pair))
+        return out
+
+    def residual(self, q: np.ndarray, walk=None) -> np.ndarray:
+        """Closure discrepancy per loop: (rotation vector, translation) of ``G_closing G_F^-1``."""
+        out = []
+        for close, define in walk or self._walk(q):
+            e = close[-1] @ _inverse(define[-1])
             out += [Rotation.from_matrix(e[:3, :3]).as_rotvec(), e[:3, 3]]
         return np.concatenate(out) if out else np.zeros(0)
 
-    def _columns(self, q: np.ndarray, geometry: bool) -> np.ndarray:
+    def _columns(self, q: np.ndarray, geometry: bool, walk=None) -> np.ndarray:
         """Loop Jacobian: (6L, n) joint twists, or (6L, 6n) effects of moving each joint's line."""
         width = 6 * self.n if geometry else self.n
         jac = np.zeros((6 * self.loops, width))
-        for loop, (close, define) in enumerate(self._loop_paths()):
-            for path, sign in ((close, 1.0), (define, -1.0)):
-                prods = self._products(q, path)
+        for loop, ((close, define), prods_pair) in enumerate(zip(self._loop_paths(), walk or self._walk(q))):
+            rows = slice(6 * loop, 6 * loop + 6)
+            for path, prods, sign in ((close, prods_pair[0], 1.0), (define, prods_pair[1], -1.0)):
+                ads = [_adjoint(g) for g in prods]
                 for k, i in enumerate(path):
-                    rows = slice(6 * loop, 6 * loop + 6)
                     if geometry:
-                        jac[rows, 6 * i:6 * i + 6] += sign * (_adjoint(prods[k]) - _adjoint(prods[k + 1]))
+                        jac[rows, 6 * i:6 * i + 6] += sign * (ads[k] - ads[k + 1])
                     else:
-                        jac[rows, i] += sign * _adjoint(prods[k]) @ self.joints[i].screw
+                        jac[rows, i] += sign * ads[k] @ self.joints[i].screw
         return jac
 
-    def joint_jacobian(self, q: np.ndarray) -> np.ndarray:
-        return self._columns(q, geometry=False)
+    def joint_jacobian(self, q: np.ndarray, walk=None) -> np.ndarray:
+        return self._columns(q, geometry=False, walk=walk)
 
     def _scaled(self, jac: np.ndarray, geometry: bool) -> np.ndarray:
         """Dimensionless rows (translations over the length) and columns (prismatic, line shifts)."""
@@ -187,22 +196,23 @@ class ScrewModel:
                     out[:, i] *= self.length
         return out
 
-    def assemble(self, target: np.ndarray, steps: int = 12) -> np.ndarray | None:
+    def assemble(self, target: np.ndarray, steps: int = 6) -> np.ndarray | None:
         """All joints at actuated values ``target``, passive ones by continuation from home; None if lost."""
         act = np.nonzero(self.actuated)[0]
         pas = np.nonzero(~self.actuated)[0]
         q = self.home.copy()
         for s in range(1, steps + 1):
             q[act] = self.home[act] + (target - self.home[act]) * s / steps
+            r = np.zeros(0)
             for _ in range(30):
-                r = self.residual(q)
-                if r.size == 0 or pas.size == 0:
+                walk = self._walk(q)
+                r = self.residual(q, walk)
+                if r.size == 0 or pas.size == 0 or np.linalg.norm(r) < 1e-11 * self.length:
                     break
-                b = self.joint_jacobian(q)[:, pas]
-                dq = -np.linalg.lstsq(b, r, rcond=None)[0]
+                dq = -np.linalg.lstsq(self.joint_jacobian(q, walk)[:, pas], r, rcond=None)[0]
                 q[pas] += dq
-                if np.max(np.abs(dq)) < 1e-13 * max(1.0, self.length):
-                    break
+                if np.max(np.abs(dq)) > 0.5:  # a wild step: not on this branch any more
+                    return None
             if self.loops and np.linalg.norm(self.residual(q)) > 1e-9 * self.length:
                 return None
         return q
