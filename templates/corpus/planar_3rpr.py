@@ -46,7 +46,8 @@ class Parameters:
     platform_radius: float = param(60.0, "mm", "radius of the circle through the platform hinges", minimum=0.0,
                                    exclusive_minimum=True)
     twist: float = param(0.5, "rad", "rotation of the platform at home", minimum=-1.5, maximum=1.5)
-    stroke: float = param(40.0, "mm", "slide travel each way from home", minimum=0.0, exclusive_minimum=True)
+    stroke: float = param(15.0, "mm", "slide travel each way from home (every combination of the three slides "
+                          "assembles within it)", minimum=0.0, exclusive_minimum=True)
 
 
 def build(**overrides: float) -> Skeleton:

@@ -23,7 +23,7 @@ from hyperstat.cad_plugin.templates import CORPUS_DIR
 from hyperstat.solver.tolerances.declaration import parse_declaration
 
 from tests.conftest import ROOT
-from tests.templates.test_corpus import theory_of
+from tests.templates.corpus_runner import theory_of
 
 GUIDE = (ROOT / "docs" / "authoring.md").read_text(encoding="utf-8")
 WORDS = " ".join(GUIDE.split())  # the prose as read, line breaks aside

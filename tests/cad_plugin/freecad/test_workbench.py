@@ -39,7 +39,7 @@ WORKBENCH = ROOT / "cad_plugin" / "freecad"
 SCENARIO = Path(__file__).resolve().parent / "fc_scenario.py"
 SHIPPED = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"]
 #: corpus members inserted and analysed by name too (issue 38): a spatial loop and a parallel robot
-CORPUS = ["bennett", "planar_3rpr"]
+CORPUS = ["bennett", "tsai_3upu"]
 NAMES = SHIPPED + CORPUS
 
 
