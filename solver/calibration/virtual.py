@@ -84,7 +84,7 @@ def onto_closure(kin: Kinematics, xi: np.ndarray, configurations: np.ndarray | N
     >>> from hyperstat.solver.kinematics.closure import Kinematics
     >>> mech = hs.load("slider_crank")
     >>> kin = Kinematics(mech)
-    >>> onto_closure(kin, np.zeros(len(mech.parameters)), None).any()
+    >>> bool(onto_closure(kin, np.zeros(len(mech.parameters)), None).any())
     False
     """
     m = kin.mechanism
