@@ -176,6 +176,9 @@ def test_the_corpus_duration_is_reported(corpus, capsys):
               + ", ".join(f"{m} {c} {r['cpu']:.1f} s" for (m, c), r in slow))
         for m, outcomes in by_member.items():
             print(f"  {m}: " + ", ".join(outcomes))
+        for (m, c), r in corpus["runs"].items():
+            if r["code"] != 0:
+                print(f"  {m} {c}: {r['stderr'].strip().splitlines()[-1]}")
     assert corpus["cpu"] > 0
 
 
