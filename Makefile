@@ -6,7 +6,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup system-deps demo test images bench clean freecad-deps freecad-install freecad-screenshot
+.PHONY: setup system-deps demo test images bench clean freecad-deps freecad-install freecad-screenshot freecad
 
 # Debian packages the tests drive for real: headless Chromium (report screenshots and PDF),
 # poppler-utils (pdftoppm / pdftotext: the printed report's pages), LinuxCNC (genhexkins, and halcompile +
@@ -83,6 +83,11 @@ freecad-deps:
 # The workbench into FreeCAD's user Mod folder, with the path of .venv/bin/hyperstat recorded.
 freecad-install: setup freecad-deps
 	$(PY) cad_plugin/freecad/install.py
+
+# FreeCAD's GUI with the workbench; as root, FreeCAD 0.20 dies at start in QtWebEngine's sandbox unless it is turned
+# off (docs/freecad.md, "Starting FreeCAD"): only then is it
+freecad: freecad-install
+	@if [ "$$(id -u)" = 0 ]; then QTWEBENGINE_CHROMIUM_FLAGS=--no-sandbox freecad; else freecad; fi
 
 # docs/img/freecad_*.png (with their records of the words they show): the screenshots of the clicking GUI test
 # (FreeCAD under Xvfb, throwaway HOME).

@@ -33,20 +33,24 @@ __all__ = ["load", "analyze", "accuracy", "identify", "diagnose", "report", "tem
 
 
 def template_path(name: str) -> Path:
-    """Path of a bundled template from its name (``"tripteor_x7"``) or of a file as given.
+    """Path of a bundled template from its name (``"tripteor_x7"``, a corpus name such as ``"bennett"``) or of a
+    file as given.
 
     >>> template_path("slider_crank").name
     'slider_crank.py'
     """
-    from hyperstat.cad_plugin.templates import TEMPLATE_DIR
+    from hyperstat.cad_plugin.templates import bundled_template, list_corpus, list_templates
 
     path = Path(name)
     if path.suffix or path.exists():
         return path
-    bundled = TEMPLATE_DIR / f"{name}.py"
-    if not bundled.is_file():
-        known = ", ".join(p.stem for p in sorted(TEMPLATE_DIR.glob("[!_]*.py")))
-        raise HyperstatError(f"'{name}' is neither a file nor a bundled template ({known}).")
+    bundled = bundled_template(name)
+    if bundled is None:
+        from hyperstat.solver.cli.suggest import did_you_mean
+
+        names = [p.stem for p in list_templates() + list_corpus()]
+        raise HyperstatError(f"'{name}' is neither a file nor a bundled template{did_you_mean(name, names)} "
+                             f"({', '.join(names)}).")
     return bundled
 
 

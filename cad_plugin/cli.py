@@ -47,6 +47,26 @@ def _plot_accuracy(*args, **kwargs):
     return accuracy_map_png(*args, **kwargs)
 
 
+def _bundled(name: str) -> Path:
+    """A bundled template's path from its name (``tripteor_x7``, ``bennett``); one sentence if there is none."""
+    from hyperstat.cad_plugin.api import template_path
+
+    return template_path(name)
+
+
+def _template_arg(text: str, command: str) -> Path:
+    """The template of ``build``, ``parameters``, ``sweep``: a ``.py`` file or a bundled template's name."""
+    from hyperstat.solver.errors import HyperstatError
+
+    path = Path(text)
+    if not path.suffix and not path.exists():
+        path = _bundled(text)
+    if path.suffix.lower() != ".py":
+        raise HyperstatError(f"{text}: '{command}' takes a template (.py) or a bundled template's name.")
+    return path
+
+
+solver_cli.register_name_resolver(_bundled)
 solver_cli.register_plotter("diagnosis", _plot_diagnosis)
 solver_cli.register_plotter("accuracy", _plot_accuracy)
 solver_cli.register_source(".py", _load_template)
@@ -61,8 +81,7 @@ def _cmd_build(args) -> int:
     from hyperstat.cad_plugin.assembly import export_step
     from hyperstat.cad_plugin.templates import build_template
 
-    if Path(args.template).suffix.lower() != ".py":
-        raise HyperstatError(f"{args.template}: 'build' takes a template (.py).")
+    args.template = str(_template_arg(args.template, "build"))
     skeleton = build_template(args.template, args.param)
     mech = skeleton.mechanism()
     wrote = []
@@ -240,8 +259,7 @@ def _cmd_parameters(args) -> int:
     from hyperstat.cad_plugin.params import describe
     from hyperstat.cad_plugin.templates import load_template, template_parameters
 
-    if Path(args.template).suffix.lower() != ".py":
-        raise HyperstatError(f"{args.template}: 'parameters' takes a template (.py).")
+    args.template = str(_template_arg(args.template, "parameters"))
     module = load_template(args.template)
     doc = (module.__doc__ or "").strip().splitlines()
     out = {"template": str(args.template), "title": doc[0] if doc else Path(args.template).stem,
@@ -261,8 +279,7 @@ def _cmd_sweep(args) -> int:
 
     from hyperstat.cad_plugin.sweep import sweep_template, write_table
 
-    if Path(args.template).suffix.lower() != ".py":
-        raise HyperstatError(f"{args.template}: 'sweep' takes a template (.py).")
+    args.template = str(_template_arg(args.template, "sweep"))
     if Path(args.out).suffix.lower() != ".csv":
         raise HyperstatError(f"--out '{args.out}': the sweep table is written as CSV; give a file name ending in .csv.")
     if args.configurations < 1:

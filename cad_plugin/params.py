@@ -83,6 +83,27 @@ def parse_overrides(items: list[str] | None, parameters_cls: type) -> dict[str, 
     return out
 
 
+def _degrees_hint(value: float, md: dict) -> str:
+    """``"; did you mean 30deg (0.5236 rad)?"`` when an angle out of its bounds would fit them in degrees.
+
+    An angle without a unit is in rad (the project's unit); a value out of bounds that fits them once read in
+    degrees is refused with this hint, never reinterpreted: a silently converted value would build another
+    mechanism that looks right.
+
+    >>> _degrees_hint(30.0, {"unit": "rad", "minimum": -3.14, "maximum": 3.14})
+    '; did you mean 30deg (0.5236 rad)? an angle without a unit is in rad'
+    >>> _degrees_hint(30.0, {"unit": "mm", "maximum": 10.0})
+    ''
+    """
+    if md.get("unit") != "rad":
+        return ""
+    rad = math.radians(value)
+    lo, hi = md.get("minimum"), md.get("maximum")
+    if (lo is not None and (rad < lo or (md.get("exclusive_minimum") and rad == lo))) or (hi is not None and rad > hi):
+        return ""
+    return f"; did you mean {value:g}deg ({rad:.4g} rad)? an angle without a unit is in rad"
+
+
 def make_parameters(parameters_cls: type, values: dict[str, Any]) -> Any:
     """Instantiate and bound-check a template's parameter dataclass."""
     fields = {f.name: f for f in dataclasses.fields(parameters_cls)}
@@ -102,9 +123,11 @@ def make_parameters(parameters_cls: type, values: dict[str, Any]) -> Any:
         lo, hi = md.get("minimum"), md.get("maximum")
         if lo is not None and (value < lo or (md.get("exclusive_minimum") and value == lo)):
             cmp = ">" if md.get("exclusive_minimum") else ">="
-            raise TemplateError(f"parameter '{name}' must be {cmp} {lo:g} {md.get('unit', '')}, got {value:g}.")
+            raise TemplateError(f"parameter '{name}' must be {cmp} {lo:g} {md.get('unit', '')}, got {value:g}"
+                                f"{_degrees_hint(value, md)}.")
         if hi is not None and value > hi:
-            raise TemplateError(f"parameter '{name}' must be <= {hi:g} {md.get('unit', '')}, got {value:g}.")
+            raise TemplateError(f"parameter '{name}' must be <= {hi:g} {md.get('unit', '')}, got {value:g}"
+                                f"{_degrees_hint(value, md)}.")
         if md.get("unit") == "mm":
             plausible_length(value, "mm", f"parameter '{name}'", error=TemplateError)
         elif md.get("unit") == "rad":

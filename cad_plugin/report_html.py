@@ -21,8 +21,8 @@ import re
 from hyperstat.cad_plugin.gdt import symbol_of, symbol_svg, zone_text
 from hyperstat.cad_plugin.palette import CLASS_COLORS, CLASS_LABELS, tolerance_counts
 from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, contributor_groups, frames_of, glossary,
-                                               limit_lines, micro, significance, spec_text, title_rows, tolerance_value,
-                                               um, values_note, where_words)
+                                               limit_lines, micro, number, significance, spec_text, title_rows,
+                                               tolerance_value, um, values_note, where_words)
 
 __all__ = ["render_html", "SECTIONS", "CSS"]
 
@@ -278,10 +278,10 @@ def _accuracy(doc: dict, images: dict) -> str:
         rows = []
         for w in doc["worst_cases"]:
             full = (alloc.get(w["allocation"]) or {}).get("worst_cases", {}).get(w["coefficient"], w)
-            tol_text = f"{w['optimiser_tolerance']:.1g}" + (" (iteration limit)" if "iteration limit" in w["evidence"]
-                                                            else "")
+            tol_text = number(w["optimiser_tolerance"], ".1g", "unknown") + (
+                " (iteration limit)" if "iteration limit" in w["evidence"] else "")
             rows.append([_e("after calibration" if w["allocation"] == "calibrated" else "without calibration"),
-                         _e(w["coefficient"]), f"{w['max']:.4g}", f"{w['sampled_max']:.4g}", _e(tol_text),
+                         _e(w["coefficient"]), number(w["max"], ".4g"), number(w["sampled_max"], ".4g"), _e(tol_text),
                          _e(where_words(full, types))])
         out.append('<h3>Worst cases the allocation divides by (task components)</h3>'
                    + _table(["allocation", "coefficient", "worst case", "sampled max", "optimiser tol.", "where"], rows,
@@ -297,7 +297,8 @@ def _accuracy(doc: dict, images: dict) -> str:
     if acc and acc.get("coefficients"):
         from hyperstat.cad_plugin.report_words import coefficient_words
 
-        rows = [[_e(name), _e(coefficient_words(name)), f"{v['min']:.4g}", f"{v['mean']:.4g}", f"{v['max']:.4g}",
+        rows = [[_e(name), _e(coefficient_words(name)), number(v["min"], ".4g"), number(v["mean"], ".4g"),
+                 number(v["max"], ".4g"),
                  _e(acc.get("units", {}).get(name, ""))] for name, v in acc["coefficients"].items()]
         out.append('<h3>Accuracy coefficients (paper 2, eq. 18), all components</h3>'
                    + _table(["coefficient", "what it measures", "min", "mean", "max", "unit"], rows,

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from hyperstat.cad_plugin.palette import tolerance_counts
 from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, contributor_groups, frames_of, glossary,
-                                               micro, significance, title_rows, tolerance_value, um, values_note,
+                                               micro, number, significance, title_rows, tolerance_value, um, values_note,
                                                where_words)
 
 __all__ = ["render_markdown", "checked_text"]
@@ -36,6 +36,16 @@ def _frames(item: dict) -> str:
     return frames or (tolerance_value(item, "drawing_value") if item.get("drawing_value") is not None else "-")
 
 
+def _row(*cells) -> str:
+    """One Markdown table row; a ``|`` inside a cell (an ISO 1101 frame such as ``|⟂|0.1|A|``) is escaped as
+    ``\\|``, so that the cell stays whole in every Markdown viewer.
+
+    >>> print(_row("T1", "|⟂|0.1|A|", "assembly"))
+    | T1 | \\|⟂\\|0.1\\|A\\| | assembly |
+    """
+    return "| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |"
+
+
 def render_markdown(doc: dict) -> str:
     """The same report in Markdown (images are left to the HTML)."""
     s, tol = doc["summary"], doc["tolerances"]
@@ -50,8 +60,8 @@ def render_markdown(doc: dict) -> str:
               "contr. % |", "|---|---|---|---|---|---|---|---|---|"]
     for t in tol["items"]:
         pct = "-" if t.get("contribution_percent") is None else f"{t['contribution_percent']:.1f}"
-        lines.append(f"| {t['id']} | {t['feature']} | {t['words']} | `{t['statement']}` | {tolerance_value(t)} | "
-                     f"{calibrated_value(t)} | {_frames(t)} | {t['class']} | {pct} |")
+        lines.append(_row(t["id"], t["feature"], t["words"], f"`{t['statement']}`", tolerance_value(t),
+                          calibrated_value(t), _frames(t), t["class"], pct))
     if tol.get("warnings"):
         lines += ["", "Warnings:", ""] + [f"* {w}" for w in tol["warnings"]]
     lines += ["", "## Assembly conditions", ""]
@@ -75,9 +85,10 @@ def render_markdown(doc: dict) -> str:
         for w in doc["worst_cases"]:
             full = (alloc.get(w["allocation"]) or {}).get("worst_cases", {}).get(w["coefficient"], w)
             label = "after calibration" if w["allocation"] == "calibrated" else "without calibration"
-            lines.append(f"| {label} | {w['coefficient']} | {w['max']:.4g} | {w['sampled_max']:.4g} | "
-                         f"{w['optimiser_tolerance']:.1g}{' (iteration limit)' if 'iteration limit' in w['evidence'] else ''}"
-                         f" | {where_words(full, types)} |")
+            lines.append(_row(label, w["coefficient"], number(w["max"], ".4g"), number(w["sampled_max"], ".4g"),
+                              number(w["optimiser_tolerance"], ".1g", "unknown")
+                              + (" (iteration limit)" if "iteration limit" in w["evidence"] else ""),
+                              where_words(full, types)))
     bounds = bounds_lines(tol["items"])
     if bounds:
         lines += ["", "Linear bounds of the task error with every tolerance at its value (the attainable worst case "
@@ -92,7 +103,7 @@ def render_markdown(doc: dict) -> str:
         units = doc["accuracy"].get("units", {})
         lines += ["", "## Accuracy coefficients (all components)", "", "| coefficient | min | mean | max | unit |",
                   "|---|---|---|---|---|"]
-        lines += [f"| {k} | {v['min']:.4g} | {v['mean']:.4g} | {v['max']:.4g} | {units.get(k, '')} |"
+        lines += [_row(k, number(v["min"], ".4g"), number(v["mean"], ".4g"), number(v["max"], ".4g"), units.get(k, ""))
                   for k, v in doc["accuracy"]["coefficients"].items()]
     mc = doc.get("montecarlo")
     if mc:
@@ -112,7 +123,7 @@ def render_markdown(doc: dict) -> str:
               f"at most {cal.get('non_identifiable_share_max', 0):.1e}"]
     if doc["hypotheses"]:
         lines += ["", "## Design hypotheses", "", "| hypothesis | verdict | why |", "|---|---|---|"]
-        lines += [f"| {h['id']} | {h['verdict']} | {h['reason']} |" for h in doc["hypotheses"]]
+        lines += [_row(h["id"], h["verdict"], h["reason"]) for h in doc["hypotheses"]]
     if doc["identification"]:
         i = doc["identification"]
         lines += ["", "## Identification", "", f"rank {i['rank']} of {i['unknowns']}, condition number "
@@ -121,19 +132,19 @@ def render_markdown(doc: dict) -> str:
             if i.get(key):
                 lines.append(f"* {key}: mean {um(i[key]['mean'])}, max {um(i[key]['max'])}, RMS {um(i[key]['rms'])}")
         lines += ["", "| parameter | unit | estimate | std | sig. |", "|---|---|---|---|---|"]
-        lines += [f"| {p['name']} | {p['unit']} | {p['estimate']:.4g} | {p['std']:.2g} | "
-                  f"{significance(p['estimate'], p['std'])} |" for p in i["parameters"] if p["identifiable"]]
+        lines += [_row(p["name"], p["unit"], f"{p['estimate']:.4g}", number(p["std"], ".2g", "-"),
+                       significance(p["estimate"], p["std"])) for p in i["parameters"] if p["identifiable"]]
     if doc["diagnosis"]:
         d = doc["diagnosis"]
         lines += ["", "## Sim-to-real gap", "", f"gap significant: {d['gap_significant']}; selected: "
                   f"{', '.join(d['selected']) or 'none'}; answer: {d.get('outcome', '-')}", "",
                   "| candidate effect | CV RMS (µm) | ΔBIC vs rigid |", "|---|---|---|"]
-        lines += [f"| {r['effect']} | {um(r['cv_rms']).replace(' µm', '')} | {r['criterion']:.1f} |"
+        lines += [_row(r["effect"], um(r["cv_rms"]).replace(" µm", ""), number(r["criterion"], ".1f", "-"))
                   for r in d["ranking"]]
     lines += ["", "## Defects per joint", "", "| joint | parameter | unit | tolerance | class |", "|---|---|---|---|---|"]
     for j in doc["joints"]:
         for p in j["parameters"]:
-            lines.append(f"| {j['element']} | {p['name']} | {p['unit']} | {p['tolerance_id'] or '-'} | {p['class']} |")
+            lines.append(_row(j["element"], p["name"], p["unit"], p["tolerance_id"] or "-", p["class"]))
     lines += ["", "## Glossary", ""] + [f"* **{k}**: {v}" for k, v in glossary(doc)]
     lines += ["", "## Appendix: normalisation components (not tolerances)", ""]
     lines += [f"* {a['name']} (joint {a['element']})" for a in tol["appendix"]["normalisation"]] or ["* none"]

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import re
 
-__all__ = ["micro", "safe_round", "tolerance_value", "calibrated_value", "um", "significance", "SIGNIFICANCE",
+__all__ = ["number", "micro", "safe_round", "tolerance_value", "calibrated_value", "um", "significance", "SIGNIFICANCE",
            "coefficient_words", "glossary", "title_rows", "where_words", "contributor_groups", "spec_text",
            "values_note", "frames_of", "display_path", "bounds_lines", "limit_lines"]
 
@@ -69,6 +69,16 @@ def calibrated_value(item: dict) -> str:
         return "-"
     limit = item.get("value_with_calibration_limit")
     return tolerance_value(item, "value_with_calibration") + (f" ({limit})" if limit else "")
+
+
+def number(value, spec: str, missing: str = "not finite") -> str:
+    """``value`` formatted with ``spec``, or ``missing`` where the JSON holds no number (an infinity or a NaN
+    becomes ``null`` in JSON: a worst case that diverged, an optimiser tolerance that is unknown).
+
+    >>> number(0.123456, ".3g"), number(None, ".3g"), number(None, ".1g", "unknown")
+    ('0.123', 'not finite', 'unknown')
+    """
+    return missing if value is None else format(value, spec)
 
 
 def um(mm) -> str:
@@ -225,7 +235,8 @@ def values_note(doc: dict) -> str:
     pairs = []
     for w in doc.get("worst_cases") or []:
         full = coefficients.get(w["coefficient"])
-        if full and abs(full["max"] - w["max"]) > 1e-3 * max(abs(full["max"]), 1e-12):
+        if full and full["max"] is not None and w["max"] is not None and \
+                abs(full["max"] - w["max"]) > 1e-3 * max(abs(full["max"]), 1e-12):
             pairs.append(f"{w['coefficient']} {w['max']:.3g} (task) and {full['max']:.3g} (all components)")
     if not pairs:
         return ""

@@ -23,14 +23,39 @@ from hyperstat.solver.errors import HyperstatError, TemplateError
 from hyperstat.cad_plugin.params import make_parameters, parse_overrides
 from hyperstat.cad_plugin.skeleton import Skeleton
 
-__all__ = ["load_template", "template_parameters", "build_template", "TEMPLATE_DIR", "list_templates"]
+__all__ = ["load_template", "template_parameters", "build_template", "TEMPLATE_DIR", "CORPUS_DIR", "list_templates",
+           "list_corpus", "bundled_template"]
 
 TEMPLATE_DIR = Path(__file__).resolve().parent.parent / "templates"
+#: the corpus: more mechanisms, each with its theory in its docstring (templates/corpus/__init__.py)
+CORPUS_DIR = TEMPLATE_DIR / "corpus"
 
 
 def list_templates() -> list[Path]:
-    """Template files shipped with hyperstat."""
+    """Template files shipped with hyperstat (the six of ``templates/``; the corpus is :func:`list_corpus`)."""
     return sorted(p for p in TEMPLATE_DIR.glob("*.py") if not p.name.startswith("_"))
+
+
+def list_corpus() -> list[Path]:
+    """Template files of the corpus (``templates/corpus/*.py``)."""
+    return sorted(p for p in CORPUS_DIR.glob("*.py") if not p.name.startswith("_"))
+
+
+def bundled_template(name: str) -> Path | None:
+    """The shipped template or corpus template called ``name`` (``"tripteor_x7"``, ``"bennett"``), or None.
+
+    >>> bundled_template("bennett").relative_to(TEMPLATE_DIR).as_posix()
+    'corpus/bennett.py'
+    >>> bundled_template("no_such_thing") is None
+    True
+    """
+    if not name or "/" in name or "\\" in name or name.startswith((".", "_")):
+        return None
+    for folder in (TEMPLATE_DIR, CORPUS_DIR):
+        path = folder / f"{name}.py"
+        if path.is_file():
+            return path
+    return None
 
 
 def load_template(path: str | Path) -> ModuleType:

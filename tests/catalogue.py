@@ -196,6 +196,10 @@ CASES = [
          lambda t, g: _analyze(SC, t, "-p", "L1=__import__('os')"), "L1"),
     Case("template-wrong-unit", "template", "override with a unit of the wrong kind",
          lambda t, g: _analyze(SC, t, "-p", "L1=30deg"), "L1"),
+    Case("template-angle-in-degrees", "template", "an angle out of its bounds that fits them in degrees",
+         lambda t, g: _analyze(SC, t, "-p", "home_angle=30"), "did you mean 30deg"),
+    Case("source-unknown-name", "source", "a name that is no file and no bundled template",
+         lambda t, g: _analyze(Path("slider_crunk"), t), "did you mean 'slider_crank'"),
     # model files
     Case("model-not-json", "model file", "not JSON",
          lambda t, g: _analyze(_write(t / "m.json", "{ nope"), t), "m.json"),
@@ -407,6 +411,9 @@ CASES = [
                                          "    sk.material('steel', density_kg_m3=7.85)\n    return sk\n"), t),
          "g/cm^3"),
     # command-line values
+    Case("montecarlo-nothing-to-draw", "option", "Monte Carlo with a spec the calibration noise uses up",
+         lambda t, g: ["montecarlo", "spherical_4r", "--orientation-accuracy", "1e-9", "--samples", "10",
+                       "--workspace-configurations", "20", "--json", str(t / "out.json")], "--angle-tolerance"),
     Case("option-noise", "option", "noise model that cannot be read",
          lambda t, g: ["simulate", str(SC), "--noise", "5 um", "--out", str(t / "out.csv")], "--noise"),
     Case("option-effect", "option", "unknown effect",

@@ -43,3 +43,14 @@ def test_every_readme_command_parses_and_its_inputs_exist():
             if arg in outputs or arg.startswith("-") or "=" in arg or "/" not in arg or "://" in arg:
                 continue
             assert (ROOT / arg).exists() or arg in written, f"{line}: '{arg}' is neither in the repository nor written before"
+
+
+def test_the_command_table_lists_every_command():
+    """The README's table of commands names every sub-command the parser has (none forgotten)."""
+    from hyperstat.cad_plugin.cli import build_parser
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    table = text.split("### All commands", 1)[1].split("\n\n", 2)[1]
+    listed = set(re.findall(r"^\| `([a-z-]+)", table, flags=re.M)) | set(re.findall(r"/ `([a-z-]+)[` ]", table))
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    assert set(sub.choices) <= listed, sorted(set(sub.choices) - listed)

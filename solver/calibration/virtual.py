@@ -24,7 +24,7 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.kinematics.sampling import passive_conditioning
 from hyperstat.solver.analysis.stationarity import StationarityResult
 
-__all__ = ["VirtualMachine", "default_tracker", "workshop_metadata"]
+__all__ = ["VirtualMachine", "default_tracker", "workshop_metadata", "onto_closure"]
 
 
 def workshop_metadata(mechanism: Mechanism, n: int, seed: int = 0, sessions: int = 2) -> dict:
@@ -53,6 +53,74 @@ def default_tracker(kin: Kinematics) -> np.ndarray:
     """A plausible tracker pose ``(x, y, z, rx, ry, rz)``: 3 length scales away, turned 0.4 rad about z."""
     direction = np.array([1.0, -0.6, -0.3]) / np.linalg.norm([1.0, -0.6, -0.3])
     return np.r_[3.0 * kin.length_scale * direction, 0.0, 0.0, 0.4]
+
+
+def onto_closure(kin: Kinematics, xi: np.ndarray, configurations: np.ndarray | None, count: int = 12,
+                 iterations: int = 12) -> np.ndarray:
+    """``xi`` moved the least so that every loop closes exactly at ``count`` of ``configurations``.
+
+    Admissible defects keep an over-constrained mechanism assembled to first order only (paper 1,
+    section 3: ``A_s xi`` in the range of ``B_s``).  Where the conditions that keep it mobile are
+    not linear in the defects (the ratio of a Bennett linkage, the common point of a spherical
+    four-bar's axes), a finite admissible defect misses the loops at second order and the machine
+    it describes would not move without deforming.  A real machine that moves is on the nonlinear
+    set, so the virtual one is put there: at the analysis' configurations (actuated joints held),
+    the passive joints are assembled by least squares, the part of the closure residual they cannot
+    absorb is projected on the left null space of ``B_s`` (as in eq. (11)) and cancelled by the
+    least-norm defect change in dimensionless units (rad, and mm over the length scale), which
+    lies in the constrained directions, not the admissible ones; repeated until the loops close.
+    The correction is of the order of ``|xi|^2`` times the length scale.  Defects with which the
+    loops already close to 1e-8 of the length scale (a tenth of what assembly accepts) are
+    returned unchanged.
+
+    Raises
+    ------
+    AnalysisError
+        If the loops cannot be closed near ``xi`` (the defects are too large for the mechanism).
+
+    Examples
+    --------
+    >>> import hyperstat as hs
+    >>> from hyperstat.solver.kinematics.closure import Kinematics
+    >>> mech = hs.load("slider_crank")
+    >>> kin = Kinematics(mech)
+    >>> bool(onto_closure(kin, np.zeros(len(mech.parameters)), None).any())
+    False
+    """
+    m = kin.mechanism
+    if configurations is None or not len(m.closures) or not len(m.passive) or not np.any(xi):
+        return xi
+    q = np.array(configurations[np.linspace(0, len(configurations) - 1, min(count, len(configurations))).astype(int)],
+                 dtype=float)
+    pas = np.asarray(m.passive)
+    col_xi = kin.parameter_scale
+    col_q = kin.joint_scale[pas]
+    xi = np.array(xi, dtype=float)
+    scale = kin.length_scale
+    for _ in range(iterations):
+        q = kin.assemble(q, xi).q  # passive joints by least squares: what is left is what they cannot absorb
+        st = kin.evaluate(q, xi, jacobians=True)
+        r = kin.scaled(st.residual)  # (K, m) mm
+        if np.max(np.linalg.norm(r, axis=1)) <= (1e-8 if _ == 0 else 1e-10) * scale:
+            return xi  # closes (at first already to a tenth of what assembly accepts: the drawn defects are kept)
+        a = kin.scaled_rows(st.closure_xi) * col_xi  # (K, m, n_xi), columns dimensionless
+        b = kin.scaled_rows(st.closure_q[:, :, pas]) * col_q  # (K, m, n_p)
+        rows, rhs = [], []
+        for c in range(len(q)):  # the residual's part outside the passive joints' reach, and the defects' part there
+            u, sv, _vt = np.linalg.svd(b[c])
+            left = u[:, int(np.sum(sv > 1e-9 * max(sv[0], 1e-300))):]
+            rows.append(left.T @ a[c])
+            rhs.append(-left.T @ r[c])
+        step = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=1e-8)[0]
+        xi += step * col_xi
+    q = kin.assemble(q, xi).q
+    st = kin.evaluate(q, xi, jacobians=False)
+    miss = float(np.max(kin.residual_norm(st.residual)))
+    if miss > 1e-9 * scale:
+        raise AnalysisError(f"the drawn defects of '{m.name}' cannot be brought onto a geometry whose loops close: "
+                            f"they still miss by {miss:.3g} mm; draw smaller ones (--angle-tolerance, "
+                            "--length-tolerance).")
+    return xi
 
 
 @dataclass
@@ -118,6 +186,7 @@ class VirtualMachine:
         units = {p.name: p.unit for p in mechanism.parameters}
         u = np.array([rng.uniform(-1, 1) * (length_tolerance if units[n] == "mm" else angle_tolerance) for n in names])
         xi = matrix @ u if names else np.zeros(len(mechanism.parameters))
+        xi = onto_closure(kin, xi, analysis.configurations)
         for name, value in (extra_defects or {}).items():
             xi[mechanism.parameter_index[name]] += value
         model = MeasurementModel(mechanism, analysis, kin, effects, geometry="full")

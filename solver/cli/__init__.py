@@ -19,6 +19,7 @@ from hyperstat.solver.cli.common import (
     analysis_of,
     jsonable,
     load_source,
+    register_name_resolver,
     register_plotter,
     register_source,
     stages,
@@ -27,8 +28,8 @@ from hyperstat.solver.cli.outputs import command_outputs
 from hyperstat.solver.cli.suggest import SuggestingParser
 from hyperstat.solver.errors import HyperstatError
 
-__all__ = ["main", "build_parser", "register_source", "register_plotter", "load_source", "jsonable", "analysis_of",
-           "stages"]
+__all__ = ["main", "build_parser", "register_source", "register_plotter", "register_name_resolver", "load_source",
+           "jsonable", "analysis_of", "stages"]
 
 
 def _installed_version() -> str:

@@ -23,8 +23,8 @@ from hyperstat.solver.errors import HyperstatError
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.kinematics.modelfile import load_model
 
-__all__ = ["register_source", "register_plotter", "load_source", "jsonable", "analysis_of", "common_options", "PLOTTERS",
-           "Stages", "stages", "gate_calibration", "force_option"]
+__all__ = ["register_source", "register_plotter", "register_name_resolver", "load_source", "jsonable", "analysis_of",
+           "common_options", "PLOTTERS", "Stages", "stages", "gate_calibration", "force_option"]
 
 # suffix -> loader(path, overrides) -> (Mechanism, provenance dict)
 _SOURCES: dict[str, Callable[[Path, list[str]], tuple[Mechanism, dict]]] = {}
@@ -51,9 +51,22 @@ def _load_json_model(path: Path, overrides: list[str]) -> tuple[Mechanism, dict]
 register_source(".json", _load_json_model)
 
 
+_NAMES: list[Callable[[str], Path]] = []  # bundled-name resolvers, registered by the CAD side (template names)
+
+
+def register_name_resolver(resolver: Callable[[str], Path]) -> None:
+    """Let a source given as a bare name (``tripteor_x7``, no suffix, no such file) resolve through ``resolver``."""
+    _NAMES.append(resolver)
+
+
 def load_source(path: str | Path, overrides: list[str] | None = None) -> tuple[Mechanism, dict]:
-    """Mechanism from a model file, or a template / STEP file when the CAD side is loaded."""
+    """Mechanism from a model file, or a template / STEP file when the CAD side is loaded.
+
+    A bare name that is no file (``tripteor_x7``) is a bundled template's, when the CAD side is loaded.
+    """
     path = Path(path)
+    if not path.suffix and not path.exists() and _NAMES:
+        path = _NAMES[0](str(path))
     loader = _SOURCES.get(path.suffix.lower())
     if loader is None:
         known = ", ".join(sorted(_SOURCES))

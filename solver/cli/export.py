@@ -57,14 +57,17 @@ def _cmd_export_controller(args: argparse.Namespace) -> int:
     from hyperstat.solver.tolerances.classification import classify
 
     tolerances = classify(mech, result, kin).to_dict()
-    doc = controller_document(mech, res, tuple(effects), provenance, tuple(files), tolerances, forced=bool(forced))
+    defects = _closing_defects(mech, kin, result, res, args)
+    doc = controller_document(mech, res, tuple(effects), provenance, tuple(files), tolerances, forced=bool(forced),
+                              defects=defects)
+    _check_assembles(doc, mech, args.out)
     check_admissible(doc, str(args.out))  # what the version admits: never a file a reader would refuse
     path = write_controller(args.out, doc)
     if not args.quiet:
         v = res.validation or res.identification
         sys.stdout.write(f"{mech.name}: {len(doc['identified'])} identified parameters, effects: "
                          f"{', '.join(e['effect'] for e in doc['effects']) or 'none'}; "
-                         f"{'validation' if res.validation else 'identification'} RMS {1000 * v['rms']:.1f} um"
+                         f"{'validation' if res.validation else 'identification'} RMS {1000 * v['rms']:.1f} µm"
                          f"{_noise_words(res)}; fit quality {res.fit_quality}"
                          f"{' (written with --force)' if forced else ''}\n"
                          f"wrote {path} (sha256 {doc['sha256'][:16]}...)\n")
@@ -90,6 +93,63 @@ def _region_words(region: dict, ranges) -> str:
         share = (hi - lo) / (rhi - rlo) if rhi > rlo else 1.0
         parts.append(f"{name} [{lo:.4g}, {hi:.4g}] {unit} ({100 * share:.0f} % of its range)")
     return ", ".join(parts)
+
+
+def _closing_defects(mech, kin, result, res, args):
+    """The identified defects, moved onto a geometry whose loops close when they do not (else None).
+
+    The identification is linear in the admissible defects (paper 1, section 3): where the conditions
+    that keep an over-constrained mechanism mobile are not linear (a Bennett linkage's ratio, a
+    spherical four-bar's common point), the identified geometry misses its loops at second order and
+    a controller could not assemble it.  The machine that was measured moved, so its geometry is on the
+    nonlinear set: the defects are moved there by the least change
+    (:func:`hyperstat.solver.calibration.virtual.onto_closure`), of the order of their square, and the
+    change is said on stderr.
+    """
+    import numpy as np
+
+    from hyperstat.solver.calibration.virtual import onto_closure
+    from hyperstat.solver.errors import AnalysisError
+
+    xi = res.model.defects(res.theta)
+    try:
+        moved = onto_closure(kin, xi, result.configurations)
+    except AnalysisError:
+        return None  # the export's own check says that the geometry does not assemble
+    if moved is xi or not np.any(moved != xi):
+        return None
+    scale = kin.length_scale
+    change = np.abs(moved - xi) / np.array([1.0 if p.unit == "mm" else 1.0 / scale for p in mech.parameters])
+    k = int(np.argmax(change))
+    if not args.quiet:
+        p = mech.parameters[k]
+        sys.stderr.write(f"hyperstat: note: {args.out}: the identified defects do not close the loops of '{mech.name}' "
+                         f"beyond first order; moved by the least change onto a geometry that does (largest "
+                         f"{p.name} by {abs(moved[k] - xi[k]):.3g} {p.unit}).\n")
+    return moved
+
+
+def _check_assembles(doc: dict, mech, out: str) -> None:
+    """Refuse a controller file whose identified geometry does not assemble at enough test configurations.
+
+    The test vectors are the identified model assembled across the workspace; where its loops do not
+    close, there is no vector, and a file with too few could not be checked by its reader.  Said here
+    in the mechanism's terms (the file's own check would only count the vectors).
+    """
+    from hyperstat.solver.export.controller import ADMISSIBLE, VERSION
+
+    rules = ADMISSIBLE[VERSION]["test_vectors"]
+    got = len(doc["test_vectors"]["vectors"])
+    if got >= rules["at_least"]:
+        return
+    scale = {p.name: (1.0 if p.unit == "mm" else 1000.0) for p in mech.parameters}  # rad as mm over 1 m
+    name = max(doc["defects"], key=lambda n: abs(doc["defects"][n]) * scale[n], default=None)
+    largest = "" if name is None else (f" (the largest, {name} = {doc['defects'][name]:.3g} "
+                                       f"{'mm' if scale[name] == 1.0 else 'rad'})")
+    raise HyperstatError(f"{out}: not written: the identified geometry of '{mech.name}' assembles at only {got} of the "
+                         f"{rules['count']} test configurations (version {VERSION} needs {rules['at_least']}): its loops "
+                         f"do not close with the identified defects{largest}; check the estimates and their standard "
+                         "deviations (hyperstat identify).")
 
 
 def _geometry(args: argparse.Namespace, what: str):

@@ -255,6 +255,8 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
             else:
                 summary = monte_carlo_at_values(cl, mech, kin, q, args.samples, args.seed, args.distribution,
                                                 args.position_accuracy, args.orientation_accuracy)
+                if not summary:  # nothing to draw: say why, and what draws something
+                    raise HyperstatError(_nothing_to_draw(mech, cl))
                 drawn = summary.pop("drawn", "every accuracy tolerance at its drawing value")
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
            "workspace": _workspace_doc(mech, args.workspace_used),
@@ -275,6 +277,19 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
     return 0
+
+
+def _nothing_to_draw(mech, cl) -> str:
+    """Why ``montecarlo`` has no tolerance to draw at its value, in one sentence (a user error, exit 2)."""
+    counts = cl.counts()
+    zero = sum(1 for t in cl.items if t.cls in ("accuracy-critical", "compensable") and not t.value)
+    why = f"{counts.get('accuracy-critical', 0)} accuracy-critical and {counts.get('compensable', 0)} compensable"
+    if zero:
+        why += f", {zero} of them at a value of 0"
+        if any("uses up the spec" in w for w in cl.warnings):
+            why += " because the calibration noise alone uses up the spec"
+    return (f"no Monte Carlo for '{mech.name}': no tolerance has a value to draw ({why}; assembly conditions are "
+            "not drawn); give --angle-tolerance and --length-tolerance to draw every geometric parameter instead.")
 
 
 def format_montecarlo(doc: dict) -> str:

@@ -1,6 +1,6 @@
 """Step 5 of the diagnosis: the answer in words, one of :data:`OUTCOMES`, each with its evidence.
 
-Units: lengths in mm (the words print um), angles in rad.
+Units: lengths in mm (the words print µm), angles in rad.
 
 * ``inputs wrong``: sigma in the hundreds or residuals of a link's size: the joint map,
   the units or the targets, not a missing effect (nothing else is tried);
@@ -124,8 +124,8 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
         out["evidence"] = (f"a gap remains after adding {' + '.join(selected)}: "
                            + ", ".join(f"{k} p = {after[k]['p_value']:.2g}" for k in ("identification", "validation")
                                        if k in after)
-                           + (f"; validation RMS {1000 * val['rms']:.1f} um against a noise RMS {1000 * noise:.1f} um "
-                              f"({1000 * remaining:.1f} um above it in quadrature)" if remaining is not None else ""))
+                           + (f"; validation RMS {1000 * val['rms']:.1f} µm against a noise RMS {1000 * noise:.1f} µm "
+                              f"({1000 * remaining:.1f} µm above it in quadrature)" if remaining is not None else ""))
         if ambiguous:
             out["evidence"] += f"; what was added is one of {ambiguous}"
         if rest["structured"]:

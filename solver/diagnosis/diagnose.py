@@ -1,6 +1,6 @@
 """Diagnosis of the sim-to-real gap: is there one, where it lies, which effect causes it, how far it shrinks.
 
-Units: lengths in mm (residuals reported in mm; the text output prints um), angles in rad.
+Units: lengths in mm (residuals reported in mm; the text output prints µm), angles in rad.
 
 The method's steps are modules of this package (``docs/diagnosis.md``):
 
@@ -639,7 +639,7 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
                 and final.validation["rms"] > before["rms"]:
             dropped = (selected[-1], "validation",
                        f"adding it made the validation error worse (RMS {1000 * before['rms']:.1f} -> "
-                       f"{1000 * final.validation['rms']:.1f} um)")
+                       f"{1000 * final.validation['rms']:.1f} µm)")
         if dropped is None:
             break
         rejected.append({"effect": dropped[0], "stage": dropped[1], "reason": dropped[2]})

@@ -275,7 +275,7 @@ def to_markdown(results: list[CaseResult], summary: dict, command: str) -> str:
             lines.append(f"| {true} | " + " | ".join(str(row.get(s, "")) for s in said) + " |")
         lines.append("")
     lines += ["#### Every case", "",
-              "| mechanism | seed | true | gap | first | selected | val. before (um) | after (um) | noise (um) | "
+              "| mechanism | seed | true | gap | first | selected | val. before (µm) | after (µm) | noise (µm) | "
               "magnitude true / found | time (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         mag = "-" if r.magnitude_true is None else f"{r.magnitude_true:.3g} / " + (
@@ -484,7 +484,7 @@ def independent_markdown(results: list[IndependentCase], summary: dict, command:
             lines.append(f"| {case} | " + " | ".join(counts) + f" | {', '.join(named) or '-'} |")
         lines.append("")
     lines += ["#### Every campaign", "",
-              "| arm | case | seed | outcome | selected | where | val. before (um) | after (um) | noise (um) | "
+              "| arm | case | seed | outcome | selected | where | val. before (µm) | after (µm) | noise (µm) | "
               "time (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         after = "-" if r.validation_after is None else f"{1000 * r.validation_after:.1f}"

@@ -343,7 +343,8 @@ def check_test_vectors(doc: dict, model: "ControllerModel | None" = None) -> dic
 
 
 def controller_document(mechanism, identification, effects: tuple = (), source: dict | None = None,
-                        data_files: tuple = (), tolerances: dict | None = None, forced: bool = False) -> dict:
+                        data_files: tuple = (), tolerances: dict | None = None, forced: bool = False,
+                        defects: np.ndarray | None = None) -> dict:
     """Controller file content from an identification (and the effects fitted with it).
 
     Parameters
@@ -365,6 +366,11 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
     forced : bool
         Write a calibration the export gate refuses (:mod:`~hyperstat.solver.export.calibration_gate`); its
         reasons are recorded in ``calibration``.
+    defects : ndarray, optional
+        The defect vector to write (rad / mm) instead of the identification's, e.g. the identified one
+        moved onto a geometry whose loops close (:func:`hyperstat.solver.calibration.virtual.onto_closure`).
+        The geometry identified parameters then carry the applied value, and ``calibration.closure_move``
+        records by how much each one was moved (mm / rad), so that the file does not contradict itself.
 
     Raises
     ------
@@ -380,7 +386,7 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
                         f"reasons recorded).") from None
     model = identification.model
     theta = identification.theta
-    xi = model.defects(theta)
+    xi = model.defects(theta) if defects is None else np.asarray(defects, dtype=float)
     names = [p.name for p in mechanism.parameters]
     targets = target_offsets(identification)
     # several targets: the tool point is the output frame's origin, the targets are named offsets in it
@@ -396,9 +402,21 @@ def controller_document(mechanism, identification, effects: tuple = (), source: 
             options["lead"] = eff.lead
         exported.append({"effect": eff.name, "parameters": dict(zip(model.names[sl], map(float, theta[sl]))),
                          "options": options})
-    identified = [{"name": p["name"], "kind": p["kind"], "unit": p["unit"], "estimate": float(p["estimate"]),
-                   "std": None if p["std"] is None else float(p["std"])}
-                  for p in identification.parameters if p["identifiable"]]
+    applied = dict(zip(names, map(float, xi)))
+    moved = {}
+    identified = []
+    for p in identification.parameters:
+        if not p["identifiable"]:
+            continue
+        estimate = float(p["estimate"])
+        if defects is not None and p["kind"] == "geometry" and p["name"] in applied \
+                and applied[p["name"]] != estimate:
+            moved[p["name"]] = applied[p["name"]] - estimate
+            estimate = applied[p["name"]]
+        identified.append({"name": p["name"], "kind": p["kind"], "unit": p["unit"], "estimate": estimate,
+                           "std": None if p["std"] is None else float(p["std"])})
+    if moved:
+        record = dict(record, closure_move=moved)
     stats = {"identification": identification.identification, "validation": identification.validation,
              "noise_rms": identification.noise_rms, "rank": identification.rank,
              "unknowns": identification.n_unknowns, "condition_number": identification.condition_number}

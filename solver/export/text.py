@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from hyperstat.solver.analysis.stationarity import StationarityResult
 
-__all__ = ["format_analysis", "format_tolerances", "format_identification", "format_diagnosis"]
+__all__ = ["format_analysis", "format_tolerances", "format_identification", "format_diagnosis", "natural_ids"]
 
 
 def _fmt_gap(gap: float) -> str:
@@ -19,6 +19,40 @@ def _value(t: dict, key: str = "value") -> str:
     if v is None:
         return "-"
     return f"+-{safe_round(v):.3g} {t['unit']}"
+
+
+def natural_ids(ids) -> list[str]:
+    """Tolerance ids in natural order (``T2`` before ``T10``).
+
+    >>> natural_ids(["T2", "T21", "T3", "T10", "T1"])
+    ['T1', 'T2', 'T3', 'T10', 'T21']
+    """
+    import re
+
+    return sorted(ids, key=lambda i: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", str(i))])
+
+
+def _wrap(statement: str, width: int) -> list[str]:
+    """A statement cut into lines of at most ``width`` characters between terms: before a ``+`` or ``-`` term,
+    before its final ``= 0``, or after a comma (a longer term stays whole).
+
+    >>> _wrap("dI2 - 0.5*db2 + 0.25*dJ5 = 0", 14)
+    ['dI2 - 0.5*db2', '+ 0.25*dJ5 = 0']
+    >>> _wrap("dI2 with db2 = 92.56*dI2, dc4 = -42.09*dI2, ...", 26)
+    ['dI2 with db2 = 92.56*dI2,', 'dc4 = -42.09*dI2, ...']
+    """
+    import re
+
+    atoms = [a for a in re.split(r" (?=[+-] )| (?== 0$)|(?<=,) ", statement) if a]
+    lines, current = [], ""
+    for atom in atoms:
+        if current and len(current) + 1 + len(atom) > width:
+            lines.append(current)
+            current = atom
+        else:
+            current = f"{current} {atom}" if current else atom
+    lines.append(current)
+    return lines
 
 
 def format_tolerances(tolerances: dict, limit: int | None = None) -> str:
@@ -47,11 +81,14 @@ def format_tolerances(tolerances: dict, limit: int | None = None) -> str:
     width = max([len(t["statement"]) for t in items] + [9])
     width = min(width, 60)
     calibrated = any(t.get("value_with_calibration") is not None for t in items)
-    lines.append(f"{'id':<5}{'class':<19}{'statement':<{width + 2}}{'value':<17}"
+    id_width = max([len(t["id"]) for t in items] + [2]) + 2
+    lines.append(f"{'id':<{id_width}}{'class':<19}{'statement':<{width + 2}}{'value':<17}"
                  + (f"{'with calibration':<18}" if calibrated else "") + "why")
     for t in items[:limit] if limit else items:
-        lines.append(f"{t['id']:<5}{t['class']:<19}{t['statement']:<{width + 2}}{_value(t):<17}"
-                     + (f"{_value(t, 'value_with_calibration'):<18}" if calibrated else "") + t["why"])
+        parts = _wrap(t["statement"], width)  # a long relation continues below, in its column
+        lines.append(f"{t['id']:<{id_width}}{t['class']:<19}{parts[0]:<{width}}  {_value(t):<15}  "
+                     + (f"{_value(t, 'value_with_calibration'):<16}  " if calibrated else "") + t["why"])
+        lines += [f"{'':<{id_width + 19}}{part}" for part in parts[1:]]
     if limit and len(items) > limit:
         lines.append(f"... {len(items) - limit} more (see the JSON or the report)")
     if calibrated:
@@ -110,8 +147,16 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
         if ch.kind in ("parameter", "gauge"):
             by_name[ch.subject] = ch
     params = (tolerances or {}).get("parameters", {})
-    header = f"{'element':<10}{'parameter':<11}{'unit':<5}"
-    header += f"{'class':<19}{'tolerance':<16}" if params else f"{'verdict':<15}{'effect on output':<18}"
+
+    def ids_of(e: dict) -> str:
+        tol = ", ".join(natural_ids(e.get("tolerance_ids") or [])) or "-"
+        return tol + (f" (≡ {e['equivalent']})" if e.get("equivalent") else "")
+
+    el_width = max([len(str(p.element)) for p in result.parameters] + [7]) + 2
+    name_width = max([len(p.name) for p in result.parameters] + [9]) + 2
+    tol_width = max([len(ids_of(e)) for e in params.values()] + [9]) + 2
+    header = f"{'element':<{el_width}}{'parameter':<{name_width}}{'unit':<5}"
+    header += f"{'class':<19}{'tolerance':<{tol_width}}" if params else f"{'verdict':<15}{'effect on output':<18}"
     if checks:
         header += "nonlinear check"
     lines.append(header)
@@ -120,13 +165,10 @@ def format_analysis(result: StationarityResult, checks: list | None = None, exac
     for p in result.parameters:
         el = p.element if p.element != previous else ""
         previous = p.element
-        row = f"{el:<10}{p.name:<11}{p.unit:<5}"
+        row = f"{el:<{el_width}}{p.name:<{name_width}}{p.unit:<5}"
         if params:  # one class per parameter, the tolerances' (one vocabulary)
             e = params.get(p.name, {})
-            tol = ", ".join(e.get("tolerance_ids") or []) or "-"
-            if e.get("equivalent"):
-                tol += f" (≡ {e['equivalent']})"
-            row += f"{e.get('class', '-'):<19}{tol:<16}"
+            row += f"{e.get('class', '-'):<19}{ids_of(e):<{tol_width}}"
         else:  # the stationarity analysis alone (no tolerance classes): its verdict, a gauge named for what it is
             verdict = p.verdict if p.verdict != "gauge" else ("normalisation" if p.component in "IJK" else "redundant")
             effect = "-" if p.influential is None else ("influential" if p.influential else "non-influent")

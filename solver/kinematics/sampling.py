@@ -245,9 +245,12 @@ def sample_configurations(
             f"(inverse condition number below {singular_tol:g}) and were left out of the sample."
         )
     if len(q) == 0:
+        hint = ("; it does not move from its home: a home drawn off the mechanism's motion closes its loops there "
+                "only (docs/authoring.md, 'Closing a loop at home')"
+                if rejected["no_assembly"] and not rejected["out_of_range"] else "")
         raise AnalysisError(
             f"no configuration of '{m.name}' could be assembled over the actuated joint ranges "
-            f"({rejected['no_assembly']} failed to close, {rejected['out_of_range']} left a passive joint range)."
+            f"({rejected['no_assembly']} failed to close, {rejected['out_of_range']} left a passive joint range){hint}."
         )
     if len(q) < n:
         notes.append(f"only {len(q)} of the {n} requested configurations could be assembled inside the joint ranges.")

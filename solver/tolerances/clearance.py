@@ -549,8 +549,8 @@ def assembly_tolerances(mechanism: Mechanism, items: list, declaration: Declarat
 
 def _play_words(c: dict) -> str:
     kind = "carriage" if c["side"] == "moving" else "supports"
-    return (f"{kind} {c['span_mm']:g} mm apart, radial play {1000 * c['radial_mm']:g} um"
-            if math.isfinite(c["span_mm"]) else f"radial play {1000 * c['radial_mm']:g} um")
+    return (f"{kind} {c['span_mm']:g} mm apart, radial play {1000 * c['radial_mm']:g} µm"
+            if math.isfinite(c["span_mm"]) else f"radial play {1000 * c['radial_mm']:g} µm")
 
 
 def _closure(kin: Kinematics, model: ClearanceModel, qq: np.ndarray, d: np.ndarray, t: float, y: np.ndarray):

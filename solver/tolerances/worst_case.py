@@ -725,8 +725,11 @@ def _ascend(space: _Space, objective: Objective, q: np.ndarray, owner: list, sen
     stale = np.ones(p, dtype=bool)  # a new gradient is needed
     pas = np.asarray(m.passive)
     loops = bool(len(m.closures) and len(pas))
-    frame = np.zeros((p, 6 * len(m.closures), len(pas)))  # range of B_p at the current point (fold detection)
-    fold = np.ones(p)  # sign of det(U^T B_p) there
+    # fold detection: U, V^T of B_p = U S V^T at the current point (r = min(rows, columns): B_p may be wide, with
+    # an idle motion of the passive joints such as an RSSR's rod spin); a step keeps det(U^T B_p V) > 0
+    rank = min(6 * len(m.closures), len(pas))
+    frame = np.zeros((p, 6 * len(m.closures), rank))
+    rows = np.zeros((p, rank, len(pas)))
     for _ in range(iterations):
         idx = np.nonzero(active)[0]
         if not len(idx):
@@ -736,7 +739,7 @@ def _ascend(space: _Space, objective: Objective, q: np.ndarray, owner: list, sen
             _, jac = space.jacobian(q[fresh])
             if loops:
                 u_, _, vt_ = np.linalg.svd(jac[:, :, pas], full_matrices=False)
-                frame[fresh], fold[fresh] = u_, np.sign(np.linalg.det(vt_))
+                frame[fresh], rows[fresh] = u_, vt_
             low, high = space.at_bound(q[fresh])
             bases = [space.tangent(jac[i], ~space.free) for i in range(len(fresh))]
             pert = [q[k] + h * t[:, j] * scale for k, t in zip(fresh, bases) for j in range(t.shape[1])]
@@ -786,11 +789,11 @@ def _ascend(space: _Space, objective: Objective, q: np.ndarray, owner: list, sen
             cond = np.ones(len(kk))
             cond[ok] = branch_conditioning(kin, cand[ok])
             # a step must not cross a fold of the actuated projection (a singularity of B_p between its ends,
-            # where the manifold passes to another assembly branch): det(U^T B_p) keeps its sign, U the range
-            # of B_p at the step's start
+            # where the manifold passes to another assembly branch): det(U^T B_p V) stays positive (it is
+            # det(S) > 0 at the step's start), U and V the range and row space of B_p there
             _, jac_new = space.jacobian(cand[ok])
             u = frame[kk[ok]]
-            turn = np.sign(np.linalg.det(np.swapaxes(u, 1, 2) @ jac_new[:, :, pas])) * fold[kk[ok]]
+            turn = np.sign(np.linalg.det(np.swapaxes(u, 1, 2) @ jac_new[:, :, pas] @ np.swapaxes(rows[kk[ok]], 1, 2)))
             keep = np.ones(len(kk), dtype=bool)
             keep[np.nonzero(ok)[0]] = turn > 0
             ok &= keep

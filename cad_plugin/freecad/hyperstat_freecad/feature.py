@@ -24,7 +24,7 @@ import json
 
 from .parameters import current_parameters, parameter_specs
 
-__all__ = ["SkeletonFeature", "BASE_PROPERTIES", "is_skeleton", "parameter_specs", "OutdatedObserver"]
+__all__ = ["SkeletonFeature", "BASE_PROPERTIES", "is_skeleton", "parameter_specs", "OutdatedObserver", "settle_touched"]
 
 TYPE = "HyperstatSkeleton"
 VERSION = 1
@@ -147,3 +147,47 @@ class OutdatedObserver:
         for obj in doc.Objects:
             if is_skeleton(obj) and obj.Status.startswith("outdated") and "Touched" not in obj.State:
                 obj.touch()
+
+    # Edit > Undo and Redo restore the skeleton's properties and leave it touched ("needs recompute" in the
+    # tree) even where what they restored is consistent (the status says "analysed"): once the step is
+    # done, the touched mark is made to say what the status says.
+    def slotUndoDocument(self, doc) -> None:  # noqa: N802 - FreeCAD's name
+        self._later(doc)
+
+    def slotRedoDocument(self, doc) -> None:  # noqa: N802 - FreeCAD's name
+        self._later(doc)
+
+    def _later(self, doc) -> None:
+        from PySide import QtCore
+
+        name = getattr(doc, "Name", None)
+        QtCore.QTimer.singleShot(0, lambda: settle_touched(name))
+
+
+def settle_touched(doc_name: str | None) -> None:
+    """Touched exactly when the skeleton needs work: its parameters differ from its last build.
+
+    A skeleton whose parameters are those of its last build is up to date whatever an undo or redo
+    left: its touched mark is cleared (and an *outdated* status set back); one whose parameters
+    differ keeps (or gets) the mark and the *outdated* status.
+    """
+    import FreeCAD
+
+    doc = FreeCAD.listDocuments().get(doc_name) if doc_name else None
+    for obj in doc.Objects if doc is not None else []:
+        if not is_skeleton(obj) or not obj.BuiltParameters:
+            continue
+        try:
+            changed = current_parameters(obj) != json.loads(obj.BuiltParameters)
+        except (ValueError, TypeError):
+            changed = True
+        if changed:
+            if not obj.Status.startswith("outdated"):
+                obj.Status = "outdated: parameters changed since the last build (Rebuild or Analyse)"
+            if "Touched" not in obj.State:
+                obj.touch()
+        else:
+            if obj.Status.startswith("outdated"):
+                obj.Status = "analysed" if obj.Analysis else "built; not analysed"
+            if "Touched" in obj.State:
+                obj.purgeTouched()

@@ -132,8 +132,10 @@ def resolve_template(template: str | os.PathLike) -> Path:
     if path.is_file():
         return path.resolve()
     folder = templates_dir()
-    if folder is not None and path.suffix == "" and (folder / f"{path.name}.py").is_file():
-        return (folder / f"{path.name}.py").resolve()
+    if folder is not None and path.suffix == "":
+        for sub in (folder, folder / "corpus"):  # a shipped template, or a corpus one
+            if (sub / f"{path.name}.py").is_file():
+                return (sub / f"{path.name}.py").resolve()
     known = ", ".join(p.stem for p in list_templates()) or "none found (run 'make freecad-install')"
     raise HyperstatWorkbenchError(f"template '{template}' not found: give a .py file or a shipped template ({known}).")
 

@@ -405,6 +405,7 @@ class ResultsPanel(_NonModal):
         self.tabs = QtGui.QTabWidget()
         self.table = self._new_table(self.COLUMNS, self.select_tolerance)
         self.parameters = self._new_table(["parameter", "joint", "class", "tolerance", "unit"], self.select_parameter)
+        self._values_first(self.table)
         self.tabs.addTab(self.table, "Tolerances")
         self.tabs.addTab(self.parameters, "Defect parameters")
         from .drawings import DATUM_COLUMNS, FRAME_COLUMNS
@@ -438,6 +439,15 @@ class ResultsPanel(_NonModal):
         self.refresh()
         self._observer = _FollowDocument(self)
         FreeCAD.addDocumentObserver(self._observer)
+
+    #: the columns as shown: the values next to the id and the class, the long texts last (the data keep the
+    #: report's order, COLUMNS); at FreeCAD's default dock width the values are in view
+    SHOWN = ["id", "class", "without calibration", "with calibration", "drawing", "statement", "feature"]
+
+    def _values_first(self, table) -> None:
+        header = table.horizontalHeader()
+        for visual, name in enumerate(self.SHOWN):
+            header.moveSection(header.visualIndex(self.COLUMNS.index(name)), visual)
 
     @staticmethod
     def _new_table(headers: list[str], on_select):
@@ -566,8 +576,12 @@ class ResultsPanel(_NonModal):
                     item.setBackground(QtGui.QColor.fromRgbF(*CLASS_RGB[text]))
                     item.setForeground(QtGui.QColor("white"))
                     item.setToolTip(CLASS_LABELS.get(text, text))
+                if len(str(text)) > 40:  # a long statement: cut in its column, whole in its tooltip
+                    item.setToolTip(str(text))
                 table.setItem(i, j, item)
         table.resizeColumnsToContents()
+        for j in range(table.columnCount()):  # no column wider than a dock: the others stay in view
+            table.setColumnWidth(j, min(table.columnWidth(j), 260))
 
     def _select_elements(self, elements: set) -> None:
         import FreeCADGui

@@ -132,11 +132,13 @@ def templates_dir() -> Path | None:
 
 
 def list_templates() -> list[Path]:
-    """Template files (``*.py``) of :func:`templates_dir`, sorted; empty if there is none."""
+    """Template files (``*.py``) of :func:`templates_dir`, sorted, then those of its ``corpus`` folder (the
+    mechanisms with their theory, docs/authoring.md); empty if there is none."""
     folder = templates_dir()
     if folder is None:
         return []
-    return sorted(p for p in folder.glob("*.py") if not p.name.startswith("_"))
+    return [p for sub in (folder, folder / "corpus")
+            for p in sorted(sub.glob("*.py")) if not p.name.startswith("_")]
 
 
 def _log(text: str) -> None:

@@ -107,9 +107,9 @@ SOURCES = {
     "nabtesco-rv": "Nabtesco RV catalogues: angular transmission error and lost motion about 1 arcmin",
     "dumas2011": "Dumas et al., RCIM 27(4) 2011: joint stiffness 1e5-1e6 N m/rad on a heavy arm",
     "abele2007": "Abele et al., CIRP Annals 56(1) 2007: joint stiffness 1e5-1e7 N m/rad",
-    "iso3408": "ISO 3408-3 ball-screw lead classes: C10 allows 210 um per 300 mm",
+    "iso3408": "ISO 3408-3 ball-screw lead classes: C10 allows 210 µm per 300 mm",
     "cte": "Callister, Materials Science and Engineering: expansion -1e-6 (carbon fibre) to 26e-6 /degC (magnesium)",
-    "tracker": "laser-tracker datasheets (e.g. Leica AT960: 15 um + 6 um/m)",
+    "tracker": "laser-tracker datasheets (e.g. Leica AT960: 15 µm + 6 µm/m)",
     "mooring1991": "Mooring, Roth and Driels, Fundamentals of Manipulator Calibration, 1991",
     "iso230": "ISO 230-1 straightness of linear axes and linear-guide running parallelism (THK: 10-30 um per metre)",
     "iso12240": "ISO 12240-1 / ISO 5753-1 radial internal clearance of spherical plain and rolling bearings",
@@ -171,18 +171,18 @@ def compliance_bounds(total_mass_kg: float, wrist: bool) -> tuple[float, str]:
 
 
 def describe_value(value: float, unit: str) -> str:
-    """A value in readable units: angles below 0.1 rad in mrad, lengths below 0.1 mm in um.
+    """A value in readable units: angles below 0.1 rad in mrad, lengths below 0.1 mm in µm.
 
     >>> describe_value(0.0017, "rad")
     '1.7 mrad'
     >>> describe_value(0.04, "mm")
-    '40 um'
+    '40 µm'
     """
     v = abs(value)
     if unit == "rad" and v < 0.1:
         return f"{value * 1e3:.2g} mrad"
     if unit == "mm" and v < 0.1:
-        return f"{value * 1e3:.2g} um"
+        return f"{value * 1e3:.2g} µm"
     return f"{value:.3g} {unit}"
 
 

@@ -165,6 +165,10 @@ def panel_contents(panel):
         t = panel.table
         out["table"] = table_rows(t)
         out["table_header"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]
+        header, width = t.horizontalHeader(), t.viewport().width()
+        out["columns_in_view"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())
+                                  if 0 <= header.sectionViewportPosition(c)
+                                  and header.sectionViewportPosition(c) + header.sectionSize(c) <= width]
     if panel is not None and hasattr(panel, "parameters") and hasattr(panel.parameters, "rowCount"):
         out["parameter_table"] = table_rows(panel.parameters)
     if panel is not None and hasattr(panel, "drawings") and hasattr(panel.drawings, "rowCount"):

@@ -272,6 +272,9 @@ def test_the_results_panel_follows_undo_and_redo(clicks):
         state = step["state"]
         if state["skeletons"]:
             assert step["table"] == tolerance_rows(state["tolerances"])
+            # the tree's "needs recompute" says what the status says: touched exactly when outdated
+            assert state["touched"] == state["status"].startswith("outdated"), (step.get("undone", step.get(
+                "redone")), state["status"], state["state"])
         else:
             assert step["table"] == [] and "not in the document" in step["summary"]
     undone = {u["undone"]: u for u in steps["undo"]}
@@ -336,6 +339,9 @@ def test_panels_fit_the_default_dock_width(clicks):
     for name in ("after_ok", "refused", "insert", "identify", "diagnose", "edit", "analyse"):
         # the panel's right edge is inside the dock (FreeCAD's default width): nothing cut off
         assert steps[name]["panel_right"] <= steps[name]["dock_right"], (name, steps[name])
+    # the Results panel at that width shows the values next to the ids and classes, the long statements after them
+    shown = steps["analyse"]["columns_in_view"]
+    assert shown[:3] == ["id", "class", "without calibration"], shown
 
 
 def test_stale_state_spreadsheet_marks_identify_does_not(clicks):

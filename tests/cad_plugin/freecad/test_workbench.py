@@ -37,7 +37,15 @@ from ...conftest import ROOT, TEMPLATES
 
 WORKBENCH = ROOT / "cad_plugin" / "freecad"
 SCENARIO = Path(__file__).resolve().parent / "fc_scenario.py"
-NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"]
+SHIPPED = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"]
+#: corpus members inserted and analysed by name too (issue 38): a spatial loop and a parallel robot
+CORPUS = ["bennett", "tsai_3upu"]
+NAMES = SHIPPED + CORPUS
+
+
+def template_file(name: str) -> Path:
+    """A shipped template's or a corpus template's file."""
+    return TEMPLATES / f"{name}.py" if name in SHIPPED else TEMPLATES / "corpus" / f"{name}.py"
 REQUIRED = os.environ.get("HYPERSTAT_REQUIRE_FREECAD") == "1"
 TIMEOUT_S = 900
 
@@ -155,7 +163,7 @@ def expected(jobs, request) -> dict:
     shared = {"slider_crank": "slider_crank_analysis", "tripteor_x7": "tripteor_analysis", "scara": "scara_analysis"}
     out = {}
     for name in NAMES:
-        skeleton = build_template(TEMPLATES / f"{name}.py")
+        skeleton = build_template(template_file(name))
         if name in shared:
             result = request.getfixturevalue(shared[name])
         else:
@@ -172,7 +180,7 @@ def expected(jobs, request) -> dict:
 def _template_parameters(name: str) -> list[dict]:
     from hyperstat.cad_plugin import describe, load_template
 
-    return describe(load_template(TEMPLATES / f"{name}.py").Parameters)
+    return describe(load_template(template_file(name)).Parameters)
 
 
 def _check_sphere_places(spheres: dict, want: dict) -> None:

@@ -75,3 +75,20 @@ def test_estimates_learn_from_the_runs():
     record("report", "unit-test-template", 6.0)
     assert expected("report", "unit-test-template") == (9.0, True)
     assert "about 9 s (last runs)" in progress_text("Analyse", "tolerance values", 2, 3.0, 9.0, True)
+
+
+def test_root_starts_freecad_as_the_docs_say():
+    """As root FreeCAD's GUI needs QtWebEngine's sandbox off: `make freecad` does it (as root only), the docs say it,
+    and the clicking GUI test starts FreeCAD with the same setting."""
+    import re
+
+    from tests.conftest import ROOT
+
+    flag = "QTWEBENGINE_CHROMIUM_FLAGS=--no-sandbox"
+    make = (ROOT / "Makefile").read_text(encoding="utf-8")
+    recipe = make.split("\nfreecad: ", 1)[1].split("\n\n", 1)[0]
+    assert re.search(r'if \[ "\$\$\(id -u\)" = 0 \]; then ' + re.escape(flag) + " freecad; else freecad; fi", recipe)
+    for doc in ("README.md", "docs/freecad.md"):
+        assert flag in (ROOT / doc).read_text(encoding="utf-8") and "root" in (ROOT / doc).read_text(encoding="utf-8")
+    gui = (ROOT / "tests" / "cad_plugin" / "freecad" / "test_gui_clicks.py").read_text(encoding="utf-8")
+    assert '"QTWEBENGINE_CHROMIUM_FLAGS": "--no-sandbox"' in gui

@@ -1,0 +1,199 @@
+"""The corpus: every mechanism of ``templates/corpus/`` through every command, against its theory.
+
+Units: lengths in mm, angles in rad.
+
+For each member, the commands a user would run, in order (:mod:`tests.templates.corpus_runner`): ``build``
+(model + STEP; ``import-robot`` for the DH tables and the URDF), ``analyze``, ``report`` (HTML, Markdown,
+JSON), ``accuracy``, ``montecarlo``, ``simulate``, ``identify``, ``diagnose``, ``export-controller`` and
+``check-controller``, with small samples where a command has them.  They run once per session in a
+background worker started at collection (``tests/templates/conftest.py``), on the other core while the
+rest of the suite runs.  Every command must end with exit code 0, or with 2 and one sentence on stderr that
+says what it cannot do for this mechanism (no traceback, none of its outputs left behind, whole or
+half-written).  Left out, and said why: ``corpus_runner.LEFT_OUT``.
+
+The theory: each member states ``Theory: mobility M, degree of over-constraint D, assembly conditions
+C.``; ``analyze`` must say the same, and so must an independent computation
+(:mod:`tests.templates.screw_theory`: products of exponentials, no solver code) from the template's
+declarations, with ``C`` = the screw computation's first-order conditions on the joint lines plus ``D``
+(see that module).  The printed PDF is checked for two members (Bennett, and the 3-UPU as a parallel
+robot).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+
+import pytest
+
+from hyperstat.cad_plugin.templates import CORPUS_DIR, build_template
+
+from tests.templates.conftest import corpus_job
+from tests.templates.corpus_runner import LEFT_OUT, MEMBERS, OUTPUTS, ROBOTS, TEMPLATES, commands, member_dir, run, \
+    theory_of
+from tests.templates.screw_theory import screw_model
+
+PRINTED = ["bennett", "tsai_3upu"]
+WAIT_S = 3600
+
+
+@pytest.fixture(scope="session")
+def corpus(tmp_path_factory) -> dict:
+    """Every command on every member, once per session: outcome, stderr, wall and CPU seconds per (member, command).
+
+    Read from the background worker that the collection started (``tests/templates/conftest.py``); run here, in
+    this process, when there is none.
+    """
+    job = corpus_job()
+    if job:
+        try:
+            job["proc"].wait(timeout=WAIT_S)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"the corpus worker did not finish within {WAIT_S} s")
+        root = job["root"]
+        assert (root / "done").is_file(), (root / "worker.log").read_text(encoding="utf-8")[-4000:]
+    else:
+        root = tmp_path_factory.mktemp("corpus")
+        run(root, MEMBERS)
+    out = {"root": root, "runs": {}}
+    for line in (root / "outcomes.jsonl").read_text(encoding="utf-8").splitlines():
+        r = json.loads(line)
+        r["dir"] = member_dir(root, r["member"])
+        out["runs"][(r["member"], r["command"])] = r
+    out["seconds"] = sum(r["seconds"] for r in out["runs"].values())
+    out["cpu"] = sum(r["cpu"] for r in out["runs"].values())
+    return out
+
+
+def test_the_corpus_has_at_least_fifteen_members_each_with_its_theory():
+    assert len(MEMBERS) >= 15
+    for member in MEMBERS:
+        theory_of(member)
+
+
+@pytest.mark.parametrize("member", TEMPLATES)
+def test_the_theory_line_is_screw_theory(member):
+    """The docstring's numbers from the declarations alone: mobility, over-constraint and conditions."""
+    mobility, overconstraint, conditions = theory_of(member)
+    skeleton = build_template(CORPUS_DIR / f"{member}.py")
+    got = screw_model(skeleton).theory(configurations=14 if mobility == 1 else 8)
+    assert got["condition_gap"] > 1e4, got  # a clear rank decision
+    assert (got["mobility"], got["overconstraint"], got["conditions"] + got["overconstraint"]) == \
+        (mobility, overconstraint, conditions)
+
+
+@pytest.mark.parametrize("member", MEMBERS)
+def test_analyze_equals_the_theory(corpus, member):
+    run = corpus["runs"][(member, "analyze")]
+    assert run["code"] == 0, run["stderr"]
+    doc = json.loads((run["dir"] / "a.json").read_text())
+    mobility, overconstraint, conditions = theory_of(member)
+    assert (doc["mobility"], doc["overconstraint"]) == (mobility, overconstraint)
+    assert doc["tolerances"]["counts"]["assembly"] == conditions == doc["rank"]
+    assert doc["stability"]["stable"], doc["stability"]
+
+
+@pytest.mark.parametrize("member", MEMBERS)
+def test_every_command_ends_with_0_or_one_sentence_and_2(corpus, member):
+    """Exit 0 with its outputs, or exit 2 with one sentence on stderr and none of its outputs; no traceback."""
+    ran = [c for (who, c) in corpus["runs"] if who == member]
+    assert ran == [argv[0] for argv in commands(member, corpus["root"])]  # every command (but LEFT_OUT) ran
+    for (who, command), run in corpus["runs"].items():
+        if who != member:
+            continue
+        assert "Traceback" not in run["stderr"] + run["stdout"], (command, run["stderr"])
+        assert run["code"] in (0, 2), (command, run["code"], run["stderr"])
+        outputs = [run["dir"] / o for o in OUTPUTS[command]]
+        if run["code"] == 0:
+            assert all(o.is_file() and o.stat().st_size > 0 for o in outputs), (command, outputs)
+            continue
+        errors = [line for line in run["stderr"].splitlines() if line.startswith("hyperstat: error: ")]
+        assert len(errors) == 1 and errors[0].endswith("."), (command, run["stderr"])
+        assert not any(o.exists() for o in outputs), (command, [o for o in outputs if o.exists()])
+    leftovers = [p for p in member_dir(corpus["root"], member).rglob("*")
+                 if p.name.startswith(".") or p.suffix in (".part", ".tmp")]
+    assert not leftovers, leftovers
+
+
+@pytest.mark.parametrize("member", MEMBERS)
+def test_the_steps_a_designer_needs_succeed(corpus, member):
+    """Model, analysis, report, accuracy, Monte Carlo and simulated data exist for every member."""
+    for command in ("build" if member in TEMPLATES else "import-robot", "analyze", "report", "accuracy",
+                    "simulate", "identify"):
+        if (member, command) in LEFT_OUT:
+            continue
+        run = corpus["runs"][(member, command)]
+        assert run["code"] == 0, (command, run["stderr"])
+
+
+@pytest.mark.parametrize("member", [m for m in MEMBERS if (m, "report") not in LEFT_OUT])
+def test_the_reports_tables_keep_their_columns(corpus, member):
+    """report.md: a ``|`` inside a cell (an ISO 1101 frame) is escaped, so every row of the tolerance table has its
+    nine cells and its class column reads a class; the JSON and the Markdown count the same tolerances."""
+    run = corpus["runs"][(member, "report")]
+    assert run["code"] == 0, run["stderr"]
+    md = (run["dir"] / "rep" / "report.md").read_text(encoding="utf-8")
+    doc = json.loads((run["dir"] / "rep" / "report.json").read_text())
+    table = md.split("## Tolerances", 1)[1].split("\n\n", 2)[1].splitlines()
+    assert table[0].startswith("| id | feature")
+    rows = [re.split(r"(?<!\\)\|", row)[1:-1] for row in table[2:]]  # a GitHub-flavoured Markdown reader's split
+    assert len(rows) == len(doc["tolerances"]["items"])
+    for cells, item in zip(rows, doc["tolerances"]["items"]):
+        assert len(cells) == 9, cells
+        assert cells[7].strip() == item["class"] and cells[0].strip() == item["id"]
+    assert "<html" in (run["dir"] / "rep" / "report.html").read_text(encoding="utf-8")[:200].lower()
+
+
+@pytest.mark.parametrize("member", PRINTED)
+def test_the_report_prints(corpus, member, tmp_path):
+    """The HTML printed on A4 by headless Chromium: pages, and the tolerance table's words in the PDF."""
+    from tests.cad_plugin.test_report import page_text, pages_of, print_pdf
+
+    run = corpus["runs"][(member, "report")]
+    pdf = print_pdf(run["dir"] / "rep" / "report.html", tmp_path / "report.pdf")
+    pages = pages_of(pdf)
+    text = "".join(page_text(pdf, k, layout=False) for k in range(1, pages + 1))
+    assert pages >= 2 and member in text and "assembly" in text
+
+
+def test_a_controller_file_comes_out_of_the_bennett_linkage(corpus):
+    """The issue's user story: a Bennett linkage gets its controller file, and the file checks."""
+    assert corpus["runs"][("bennett", "export-controller")]["code"] == 0, \
+        corpus["runs"][("bennett", "export-controller")]["stderr"]
+    assert corpus["runs"][("bennett", "check-controller")]["code"] == 0
+
+
+def test_the_corpus_duration_is_reported(corpus, capsys):
+    """Not a timing assertion: the corpus's outcomes and durations, for the record (wall and CPU seconds)."""
+    by_member: dict = {}
+    for (m, c), r in corpus["runs"].items():
+        by_member.setdefault(m, []).append(f"{c} {r['code']}")
+    slow = sorted(corpus["runs"].items(), key=lambda kv: -kv[1]["cpu"])[:5]
+    with capsys.disabled():
+        print(f"\ncorpus: {len(MEMBERS)} members, {len(corpus['runs'])} commands, {corpus['seconds']:.1f} s wall and "
+              f"{corpus['cpu']:.1f} s CPU in the worker; most CPU: "
+              + ", ".join(f"{m} {c} {r['cpu']:.1f} s" for (m, c), r in slow))
+        for m, outcomes in by_member.items():
+            print(f"  {m}: " + ", ".join(outcomes))
+        for (m, c), r in corpus["runs"].items():
+            if r["code"] != 0:
+                print(f"  {m} {c}: {r['stderr'].strip().splitlines()[-1]}")
+    assert corpus["cpu"] > 0
+
+
+def test_a_report_with_numbers_json_cannot_hold_still_renders(corpus):
+    """A worst case that diverged or an optimiser tolerance that is unknown is ``null`` in report.json (JSON has
+    no inf or NaN): both renderings print a word for it instead of failing (the TypeError the new user met)."""
+    from hyperstat.cad_plugin.report import render_html, render_markdown
+
+    doc = json.loads((corpus["runs"][("bennett", "report")]["dir"] / "rep" / "report.json").read_text())
+    assert doc["worst_cases"], "the Bennett report has worst cases to spoil"
+    w = doc["worst_cases"][0]
+    w["optimiser_tolerance"], w["max"], w["sampled_max"] = None, None, None
+    name = next(iter(doc["accuracy"]["coefficients"]))
+    doc["accuracy"]["coefficients"][name]["max"] = None
+    md, page = render_markdown(doc), render_html(doc, {})
+    row = next(line for line in md.splitlines() if line.startswith(("| without calibration", "| after calibration")))
+    assert "not finite" in row and "unknown" in row
+    assert "not finite" in page and "unknown" in page
