@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from hyperstat.solver import cli as solver_cli
+from hyperstat.solver.cli.cached import cache_option
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.threads import limited_blas
 
@@ -123,6 +124,8 @@ def _cmd_report(args) -> int:
     from hyperstat.solver.tolerances.accuracy import report_section, sample_workspace
     from hyperstat.solver.tolerances.classification import classify
     from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values, monte_carlo_at_values
+    from hyperstat.solver.tolerances.workspace import workspace_of
+    from hyperstat.solver.cli.cached import cached_sample, cached_values, store_selection
 
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
@@ -161,6 +164,7 @@ def _cmd_report(args) -> int:
 
                 if data.noise is not None:
                     diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
+                    store_selection(args, mech, result, [args.data, args.validation], diagnosis)  # export-controller
                     identification = diagnosis.final or diagnosis.rigid
                     figures = Background(diagnosis_figures, diagnosis, data, "svg")  # matplotlib, beside the tolerances
                 else:
@@ -168,10 +172,12 @@ def _cmd_report(args) -> int:
 
                     identification = identify(mech, result, data, validation, kinematics=kin)
             progress.next("tolerances and accuracy")
-            workspace = sample_workspace(mech, 200, seed=0, kinematics=kin)
+            workspace = cached_sample(args, mech, 200, 0, workspace_of(mech),
+                                      lambda: sample_workspace(mech, 200, seed=0, kinematics=kin))
             if len(workspace) == 0:
                 workspace = result.configurations
-            assign_values(tolerances, mech, kin, workspace, args.position_accuracy, args.orientation_accuracy,
+            cached_values(args, tolerances, mech, kin, workspace, assign_values,
+                          position_accuracy=args.position_accuracy, orientation_accuracy=args.orientation_accuracy,
                           assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
             accuracy = report_section(mech, result, kin)
             montecarlo = monte_carlo_at_values(tolerances, mech, kin, workspace, samples=1000, seed=0,
@@ -317,6 +323,7 @@ def build_parser():
     p.add_argument("--date", metavar="YYYY-MM-DD", help="date printed in the title block (default: today, or "
                    "SOURCE_DATE_EPOCH when set)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
+    cache_option(p)
     p.set_defaults(func=_cmd_report, known_outputs=("report.json", "report.md", "report.html", "skeleton_views.png",
                                                "skeleton_views.png.json"))
     p = sub.add_parser("parameters", help="list a template's parameters: name, default, unit, meaning, bounds")
