@@ -142,7 +142,7 @@ def _cmd_report(args) -> int:
         # child (pyvista import and rendering) while this process verifies, diagnoses and allocates
         tolerances = classify(mech, result, kin)
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
-        views = Background(skeleton_views, mech, early)
+        views = None if args.json_only else Background(skeleton_views, mech, early)
         data = read_measurements(args.data, mech) if args.data else None
         validation = read_measurements(args.validation, mech) if args.validation else None
         hypotheses = None
@@ -166,7 +166,8 @@ def _cmd_report(args) -> int:
                     diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
                     store_selection(args, mech, result, [args.data, args.validation], diagnosis)  # export-controller
                     identification = diagnosis.final or diagnosis.rigid
-                    figures = Background(diagnosis_figures, diagnosis, data, "svg")  # matplotlib, beside the tolerances
+                    if not args.json_only:  # matplotlib, beside the tolerances
+                        figures = Background(diagnosis_figures, diagnosis, data, "svg")
                 else:
                     from hyperstat.solver.calibration.identify import identify
 
@@ -190,16 +191,22 @@ def _cmd_report(args) -> int:
         if figures is not None:
             images.update(figures.result())
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
-        drawn = views.result()
-        if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
-            images["rendered"] = drawn
-        written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images)
+        if args.json_only:  # the values without the pictures (the FreeCAD workbench's Analyse)
+            from hyperstat.solver.atomic import dumps_json, write_text
+
+            written = [write_text(Path(args.out) / "report.json", dumps_json(solver_cli.jsonable(doc)))]
+        else:
+            drawn = views.result()
+            if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
+                images["rendered"] = drawn
+            written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
         for w in written:
             print(f"wrote {w}")
-        print(f"open {Path(args.out) / 'report.html'} in a browser (self-contained, prints on A4)")
+        if not args.json_only:
+            print(f"open {Path(args.out) / 'report.html'} in a browser (self-contained, prints on A4)")
     return 0
 
 
@@ -323,6 +330,8 @@ def build_parser():
     p.add_argument("--date", metavar="YYYY-MM-DD", help="date printed in the title block (default: today, or "
                    "SOURCE_DATE_EPOCH when set)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.add_argument("--json-only", action="store_true", help="write report.json only: the same content, without the "
+                   "pictures, the HTML and the Markdown (what the FreeCAD workbench's Analyse reads)")
     cache_option(p)
     p.set_defaults(func=_cmd_report, known_outputs=("report.json", "report.md", "report.html", "skeleton_views.png",
                                                "skeleton_views.png.json"))
