@@ -32,7 +32,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "hyperstat.cad_plugin.cli"]
 #: keys whose values depend on the run, not on the answer
-IGNORED = {"hyperstat_version", "date", "elapsed_s", "generated", "created", "cache"}
+IGNORED = {"hyperstat_version", "date", "elapsed_s", "generated", "created", "cache", "time_s"}
 
 
 def _commands(work: Path, data: Path, sizes: bool) -> dict:
@@ -84,7 +84,8 @@ def write_outputs(out: Path, only: list | None, sizes: bool) -> None:
         for name, (args, files) in _commands(work, data, sizes).items():
             if only and name not in only:
                 continue
-            cmd = CLI + [str(a) for a in args] + ["--quiet"] + (no_cache if args[0] != "analyze" else [])
+            cached = args[0] in ("accuracy", "montecarlo", "report", "export-controller")
+            cmd = CLI + [str(a) for a in args] + ["--quiet"] + (no_cache if cached else [])
             proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT)
             if proc.returncode != 0:
                 raise SystemExit(f"{name} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")

@@ -104,6 +104,7 @@ def test_batched_and_element_by_element_paths_agree_on_templates(fixture, reques
     rng = np.random.default_rng(7)
     q = mech.home + rng.normal(0.0, 0.3, (40, kin.n_q))
     xi = rng.normal(0.0, 1e-3, kin.n_xi)
+    kin.plan(xi)  # the geometry's plan built first: the two calls below take the batched path
     fast = kin.evaluate(q, xi, jacobians="joints")
     full = kin.evaluate(q, xi, jacobians=True)  # the plan's parent frames and the defect screws of one geometry
     kin.use_plan = False
@@ -128,3 +129,19 @@ def test_flop_count_of_a_6r_chain():
     kin = Kinematics(_random_chain(8, "RRRRRR"))
     # first D is copied from the base; 5 more products by D, 6 rotations, the tool product
     assert kin.plan().flops_per_configuration() == {"flops": 5 * 63 + 6 * 18 + 63, "trig_pairs": 6}
+
+
+def test_a_geometry_met_once_is_walked_then_planned_with_the_same_answer(tripteor):
+    """A defect vector met for the first time at a few configurations is evaluated element by element (building its
+    plan would cost more); the second time it gets its plan.  Both give the same state (to round-off)."""
+    kin = Kinematics(tripteor)
+    rng = np.random.default_rng(3)
+    q = tripteor.home + rng.normal(0.0, 0.2, (3, kin.n_q))
+    xi = rng.normal(0.0, 1e-3, kin.n_xi)
+    first = kin.evaluate(q, xi, jacobians=True)
+    assert len(kin._plans) == 1  # the nominal geometry's only (built for the length scale)
+    second = kin.evaluate(q, xi, jacobians=True)
+    assert len(kin._plans) == 2
+    tol = 1e-10 * kin.length_scale
+    for field in ("residual", "closure_xi", "closure_q", "output_pose", "output_xi", "output_q", "defect_twists"):
+        assert np.allclose(getattr(first, field), getattr(second, field), rtol=0, atol=tol), field
