@@ -30,6 +30,16 @@ command / kernel for the wall-clock and the CPU time:
 **Scaling.**  ``accuracy`` runs over 10,000, 100,000 and 1,000,000 configurations (rows
 ``accuracy-10k``, ``accuracy``, ``accuracy-1m``; the last once whatever ``--repeat``).
 
+**Issue 39.**  Every row carries the goal of issue 39 where it names one (``GOALS``; a goal on CPU
+time for the hexapod's ``accuracy``, memory goals for the 100,000 and 1,000,000 rows).  Every timed
+run starts with an **empty cache of results** (:mod:`hyperstat.solver.cache`, a folder of the run):
+"cold" is a first run of the model.  The ``report-cached`` row times the same report after one
+untimed run filled the cache (what the user waits for the second time).  The ``freecad`` row
+installs the workbench into a temporary ``HOME`` with the real installer and runs
+``benchmarks/freecad_insert_analyse.py`` in ``freecadcmd``: *Insert template* (Tripteor X7) and
+*Analyse*, as the workbench's functions run them (FreeCAD's own start is not counted; the CPU and
+memory columns are the whole ``freecadcmd`` process with its ``hyperstat`` children).
+
 ``make demo`` is timed as the commands of its recipe, read from the Makefile (the
 ``setup`` prerequisite, which only checks the installed venv, is left out).  The data of
 the report and of the diagnosis come from ``hyperstat simulate`` run once before the timed
@@ -38,7 +48,7 @@ runs.  The commands run as an installed ``hyperstat`` does: compiled bytecode is
 ``hyperstat --version`` before the table writes it, so that "cold" means a new process with
 its imports, not a first compilation of the sources.
 
-Usage (the whole table: about 15 minutes of CPU on 2 idle cores, most of it the 1,000,000 row)::
+Usage (the whole table: about 15 minutes of CPU on 2 idle cores)::
 
     .venv/bin/python benchmarks/commands.py [--repeat 3] [--markdown out/commands.md] [--only accuracy]
 """

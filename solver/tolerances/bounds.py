@@ -39,8 +39,8 @@ def triangle(a: np.ndarray) -> np.ndarray:
     return np.sum(np.linalg.norm(a, axis=1), axis=1)
 
 
-#: floats of one block of the sign-pattern enumeration (32 MiB)
-PATTERN_BLOCK = 1 << 22
+#: floats of one block of the sign-pattern enumeration (8 MiB; the same maxima whatever the block)
+PATTERN_BLOCK = 1 << 20
 
 
 def attainable(a: np.ndarray, chunk: int = 16) -> np.ndarray:
