@@ -119,3 +119,20 @@ def test_the_diagnosis_selection_follows_the_data_files(tmp_path, cache_dir, sli
     args._cache = None
     cached_selection(args, slider_crank, slider_crank_analysis, [data, None], diagnose)
     assert len(runs) == 3
+
+
+def test_export_controller_reads_the_selection_and_writes_the_same_file(tmp_path, cache_dir):
+    """``export-controller --diagnose`` with the diagnosis' selection from the cache writes the very bytes of the run
+    that diagnosed (the controller file is hashed: a result must not depend on what the process computed before)."""
+    data = tmp_path / "m.csv"
+    code, _, err = run_cli(["simulate", TEMPLATES / "tripteor_x7.py", "--effect", "backlash", "--out", data,
+                            "--truth", tmp_path / "truth.json", "--quiet"])
+    assert code == 0, err
+    outs = []
+    for name in ("a.json", "b.json"):
+        code, _, err = run_cli(["export-controller", TEMPLATES / "tripteor_x7.py", data, "--validation",
+                                tmp_path / "m.validation.csv", "--diagnose", "--out", tmp_path / name, "--quiet"])
+        assert code == 0, err
+        outs.append((tmp_path / name).read_bytes())
+    assert _entries(cache_dir, "diagnosis-selection")  # the first run stored it, the second read it
+    assert outs[0] == outs[1]
