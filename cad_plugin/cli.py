@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from hyperstat.solver import cli as solver_cli
+from hyperstat.solver.cli.cached import cache_option
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.threads import limited_blas
 
@@ -142,6 +143,8 @@ def _cmd_report(args) -> int:
     from hyperstat.solver.tolerances.accuracy import report_section, sample_workspace
     from hyperstat.solver.tolerances.classification import classify
     from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values, monte_carlo_at_values
+    from hyperstat.solver.tolerances.workspace import workspace_of
+    from hyperstat.solver.cli.cached import cached_sample, cached_values, store_selection
 
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
@@ -165,7 +168,7 @@ def _cmd_report(args) -> int:
 
         with_workspace_loss(tolerances, args.workspace_loss)
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
-        views = Background(skeleton_views, mech, early)
+        views = None if args.json_only else Background(skeleton_views, mech, early)
         data = read_measurements(args.data, mech) if args.data else None
         validation = read_measurements(args.validation, mech) if args.validation else None
         hypotheses = None
@@ -187,17 +190,21 @@ def _cmd_report(args) -> int:
 
                 if data.noise is not None:
                     diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
+                    store_selection(args, mech, result, [args.data, args.validation], diagnosis)  # export-controller
                     identification = diagnosis.final or diagnosis.rigid
-                    figures = Background(diagnosis_figures, diagnosis, data, "svg")  # matplotlib, beside the tolerances
+                    if not args.json_only:  # matplotlib, beside the tolerances
+                        figures = Background(diagnosis_figures, diagnosis, data, "svg")
                 else:
                     from hyperstat.solver.calibration.identify import identify
 
                     identification = identify(mech, result, data, validation, kinematics=kin)
             progress.next("tolerances and accuracy")
-            workspace = sample_workspace(mech, 200, seed=0, kinematics=kin)
+            workspace = cached_sample(args, mech, 200, 0, workspace_of(mech),
+                                      lambda: sample_workspace(mech, 200, seed=0, kinematics=kin))
             if len(workspace) == 0:
                 workspace = result.configurations
-            assign_values(tolerances, mech, kin, workspace, args.position_accuracy, args.orientation_accuracy,
+            cached_values(args, tolerances, mech, kin, workspace, assign_values,
+                          position_accuracy=args.position_accuracy, orientation_accuracy=args.orientation_accuracy,
                           assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
             accuracy = report_section(mech, result, kin)
             montecarlo = monte_carlo_at_values(tolerances, mech, kin, workspace, samples=1000, seed=0,
@@ -210,17 +217,23 @@ def _cmd_report(args) -> int:
         if figures is not None:
             images.update(figures.result())
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
-        drawn = views.result()
-        if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
-            images["rendered"] = drawn
-        written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
-                               step_drawings=args.step_drawings)
+        if args.json_only:  # the values without the pictures (the FreeCAD workbench's Analyse)
+            from hyperstat.solver.atomic import dumps_json, write_text
+
+            written = [write_text(Path(args.out) / "report.json", dumps_json(solver_cli.jsonable(doc)))]
+        else:
+            drawn = views.result()
+            if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
+                images["rendered"] = drawn
+            written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
+                                       step_drawings=args.step_drawings)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
         for w in written:
             print(f"wrote {w}")
-        print(f"open {Path(args.out) / 'report.html'} in a browser (self-contained, prints on A4)")
+        if not args.json_only:
+            print(f"open {Path(args.out) / 'report.html'} in a browser (self-contained, prints on A4)")
     return 0
 
 
@@ -347,6 +360,9 @@ def build_parser():
     p.add_argument("--date", metavar="YYYY-MM-DD", help="date printed in the title block (default: today, or "
                    "SOURCE_DATE_EPOCH when set)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.add_argument("--json-only", action="store_true", help="write report.json only: the same content, without the "
+                   "pictures, the HTML and the Markdown (what the FreeCAD workbench's Analyse reads)")
+    cache_option(p)
     p.set_defaults(func=_cmd_report, known_outputs=("report.json", "report.md", "report.html", "skeleton_views.png",
                                                "skeleton_views.png.json"))
     p = sub.add_parser("parameters", help="list a template's parameters: name, default, unit, meaning, bounds")

@@ -156,6 +156,17 @@ def build(**overrides: float) -> Skeleton:
     sk.chain("PRRU", "Ob", "Op", ["5", "6", "7", "8", "9"])
     sk.chain("PRRS", "Ob", "Op", ["10", "11", "12", "13", "14", "15"])
     sk.output = "Op"
+    # the legs' inverse kinematics in closed form (hyperstat.solver.kinematics.closed_form): each slide moves the
+    # platform point along its own axis (d1 = z, d5 = x, d10 = y + d_s), each leg is a planar two-link arm whose
+    # elbow keeps its home side, and the joints after the elbow undo the arm's turn (the platform translates)
+    sk.metadata["closed_form"] = {
+        "platform": {"actuated": {"1": [0.0, 0.0, 1.0], "5": [1.0, 0.0, 0.0], "10": [0.0, 1.0, 0.0]}},
+        "legs": [{"type": "planar-2r", "normal": [0.0, 0.0, 1.0], "slide": "1", "joints": ["2", "3"], "tip": "4",
+                  "follow": ["4"]},
+                 {"type": "planar-2r", "normal": [1.0, 0.0, 0.0], "slide": "5", "joints": ["6", "7"], "tip": "8",
+                  "follow": ["8"], "fixed": ["9"]},
+                 {"type": "planar-2r", "normal": [0.0, 1.0, 0.0], "slide": "10", "joints": ["11", "12"], "tip": "13",
+                  "follow": ["15"], "fixed": ["13", "14"]}]}
     r = s * p.section
     sk.link("PRRR", [(0, 0, 0), o1, o2, a3], r)
     sk.link("PRRU", [(0, -s * p.a_b, 0), o5, o6, a1], r)

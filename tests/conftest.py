@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 
@@ -9,6 +10,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 TEMPLATES = ROOT / "templates"
+
+# The cache of results (hyperstat.solver.cache) is off in the tests, in this process and the commands it starts:
+# every test computes what it checks.  The cache's own tests turn it on in a temporary folder.
+os.environ["HYPERSTAT_CACHE"] = "off"
 
 
 @pytest.fixture(scope="session")

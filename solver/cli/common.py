@@ -23,8 +23,8 @@ from hyperstat.solver.errors import HyperstatError
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.kinematics.modelfile import load_model
 
-__all__ = ["register_source", "register_plotter", "register_name_resolver", "load_source", "jsonable", "analysis_of",
-           "common_options", "PLOTTERS", "Stages", "stages", "gate_calibration", "force_option"]
+__all__ = ["register_source", "register_plotter", "register_name_resolver", "load_source", "loaded_source", "jsonable",
+           "analysis_of", "common_options", "PLOTTERS", "Stages", "stages", "gate_calibration", "force_option"]
 
 # suffix -> loader(path, overrides) -> (Mechanism, provenance dict)
 _SOURCES: dict[str, Callable[[Path, list[str]], tuple[Mechanism, dict]]] = {}
@@ -96,12 +96,20 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
+def loaded_source(args: argparse.Namespace) -> tuple[Mechanism, dict]:
+    """:func:`load_source` of ``args.source`` and ``args.param``, loaded once per command (kept on ``args``)."""
+    loaded = getattr(args, "_loaded_source", None)
+    if loaded is None:
+        loaded = args._loaded_source = load_source(args.source, args.param)
+    return loaded
+
+
 def analysis_of(args: argparse.Namespace) -> tuple:
     """Load the source of ``args`` and run the stationarity analysis: (mechanism, provenance, kinematics, result)."""
     from hyperstat.solver.kinematics.closure import Kinematics
     from hyperstat.solver.analysis.stationarity import analyze
 
-    mech, provenance = load_source(args.source, args.param)
+    mech, provenance = loaded_source(args)
     kin = Kinematics(mech)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

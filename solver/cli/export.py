@@ -14,6 +14,7 @@ from pathlib import Path
 from hyperstat.solver.atomic import write_json
 from hyperstat.solver.cli.common import (PLOTTERS, analysis_of, common_options, force_option, gate_calibration, jsonable,
                                          load_source, stages)
+from hyperstat.solver.cli.cached import cache_option, cached_selection
 from hyperstat.solver.errors import HyperstatError
 
 
@@ -36,9 +37,12 @@ def _cmd_export_controller(args: argparse.Namespace) -> int:
             if args.diagnose:
                 from hyperstat.solver.diagnosis.diagnose import diagnose
 
-                diag = diagnose(mech, result, data, validation, kinematics=kin)
-                names += [n for n in diag.selected if n not in names]
-                violated = diag.violated_defect["defect"] if diag.violated_defect else None
+                # what the diagnosis selects, read from the cache when a report diagnosed the same data
+                selected, violated_defect = cached_selection(
+                    args, mech, result, [args.data, args.validation],
+                    lambda: diagnose(mech, result, data, validation, kinematics=kin))
+                names += [n for n in selected if n not in names]
+                violated = violated_defect["defect"] if violated_defect else None
             else:
                 violated = None
             effects = []
@@ -366,6 +370,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, metavar="MACHINE.json", help="controller file")
     force_option(p)
     common_options(p)
+    cache_option(p)
     p.set_defaults(func=_cmd_export_controller)
     p = sub.add_parser("export-linuxcnc",
                        help="LinuxCNC genhexkins (hexapod) or genserkins (6R robot) parameters (HAL setp, INI [KINS])")

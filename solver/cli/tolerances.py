@@ -12,7 +12,9 @@ import warnings
 from pathlib import Path
 
 from hyperstat.solver.atomic import write_json
-from hyperstat.solver.cli.common import PLOTTERS, analysis_of, common_options, jsonable, load_source, stages
+from hyperstat.solver.cli.cached import cache_option, cached_document, cached_sample, cached_values
+from hyperstat.solver.cli.common import (PLOTTERS, analysis_of, common_options, jsonable, load_source, loaded_source,
+                                         stages)
 from hyperstat.solver.errors import HyperstatError
 
 
@@ -51,9 +53,13 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
         raise HyperstatError(f"--workspace-configurations must be at least 1, got {args.configurations_workspace}.")
     ws = workspace_of(mech, ranges)
     progress.next("workspace sampling")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        q = sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws)
+
+    def sample():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws)
+
+    q = cached_sample(args, mech, args.configurations_workspace, args.seed, ws, sample)
     if len(q) == 0:
         raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
     args.workspace_used = ws
@@ -105,7 +111,8 @@ def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True, c
 
     result = args._stationarity
     cl = _classes(args, mech, kin)[0] if cl is None else cl
-    assign_values(cl, mech, kin, q, args.position_accuracy, args.orientation_accuracy, assembly=assembly,
+    cached_values(args, cl, mech, kin, q, assign_values, position_accuracy=args.position_accuracy,
+                  orientation_accuracy=args.orientation_accuracy, assembly=assembly,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE],
                   workspace=args.workspace_used if args.range else None, calibrate=True,
                   task_maps_at=task_maps_at)
@@ -136,7 +143,51 @@ def _fixed(specs: list | None) -> dict:
     return out
 
 
+def _options_key(args: argparse.Namespace, skip: tuple = ("json", "quiet", "no_cache", "func", "command")) -> dict:
+    """The options of a command that its answer depends on (for the cache's key), in a fixed order."""
+    return {k: v for k, v in sorted(vars(args).items()) if k not in skip and not k.startswith("_")}
+
+
 def _cmd_accuracy(args: argparse.Namespace) -> int:
+    if args.map:  # the map needs the analysis in this process: computed, not read
+        doc = _accuracy_document(args)
+    else:
+        mech, _ = loaded_source(args)
+        doc = cached_document(args, "accuracy", mech, _options_key(args), lambda: _accuracy_document(args))
+    if args.json:
+        write_json(args.json, jsonable(doc))
+    if not args.quiet:
+        _print_accuracy(doc)
+        if args.json:
+            sys.stdout.write(f"wrote {args.json}\n")
+    return 0
+
+
+def _print_accuracy(doc: dict) -> None:
+    """The text summary of ``hyperstat accuracy`` (from its JSON document)."""
+    sys.stdout.write(f"Accuracy coefficients of '{doc['mechanism']}' over {doc['configurations']} configurations "
+                     f"({doc['geometric_errors']}); workspace: {doc['workspace']['source']}:\n")
+    for name, v in doc["coefficients"].items():
+        sys.stdout.write(f"  {name:<11} min {v['min']:.9g}  mean {v['mean']:.6g}  max {v['max']:.9g}  "
+                         f"[{doc['coefficient_units'][name]}]\n")
+        for kind in ("max", "min"):
+            e = doc["extremes"].get(name, {}).get(kind)
+            if e is not None and e["location"] != "constant":
+                sys.stdout.write(f"      {kind} {e['value']:.9g} (sampled {e['sampled']:.6g}, tolerance "
+                                 f"{e['tolerance']:.2g}): {e['where']}\n")
+    allocation = doc["allocation"]
+    for cls, c in allocation["classes"].items():
+        if c["tolerance"] is not None:
+            sys.stdout.write(f"  class {cls}: tolerance {c['tolerance']:.6g} {c['unit']} per parameter"
+                             f"{' (given)' if c['given'] else ''}\n")
+    for key in ("orientation_bound", "position_bound"):
+        if allocation.get(key) is not None:
+            sys.stdout.write(f"  {key.replace('_', ' ')}: {allocation[key]:.6g}\n")
+    sys.stdout.write("\n" + _tolerance_lines(doc["tolerances"]))
+
+
+def _accuracy_document(args: argparse.Namespace) -> dict:
+    """The JSON document of ``hyperstat accuracy`` (and the map, with ``--map``)."""
     from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate
     from hyperstat.solver.tolerances.worst_case import refine_extremes
 
@@ -194,39 +245,36 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
                                  f"({', '.join(actuated)}).")
         slices = [{k: float(v) for k, v in (item.split("=") for item in spec.split(","))} for spec in args.slice or []]
         PLOTTERS["accuracy"](mech, analysis, axes, slices, args.map_png, ranges=_ranges(args.range), kinematics=kin)
+    return doc
+
+
+def _cmd_montecarlo(args: argparse.Namespace) -> int:
+    if args.samples < 1:
+        raise HyperstatError(f"--samples must be at least 1, got {args.samples}.")
+    mech, _ = loaded_source(args)
+    doc = cached_document(args, "montecarlo", mech, _options_key(args), lambda: _montecarlo_document(args))
     if args.json:
         write_json(args.json, jsonable(doc))
     if not args.quiet:
-        sys.stdout.write(f"Accuracy coefficients of '{mech.name}' over {len(q)} configurations "
-                         f"({doc['geometric_errors']}); workspace: {args.workspace_used.source}:\n")
-        for name, v in doc["coefficients"].items():
-            sys.stdout.write(f"  {name:<11} min {v['min']:.9g}  mean {v['mean']:.6g}  max {v['max']:.9g}  "
-                             f"[{maps.units[name]}]\n")
-            for kind in ("max", "min"):
-                e = extremes.get((name, kind))
-                if e is not None and e.location != "constant":
-                    sys.stdout.write(f"      {kind} {e.value:.9g} (sampled {e.sampled:.6g}, tolerance {e.tolerance:.2g}): "
-                                     f"{e.where()}\n")
-        for cls, c in allocation["classes"].items():
-            if c["tolerance"] is not None:
-                sys.stdout.write(f"  class {cls}: tolerance {c['tolerance']:.6g} {c['unit']} per parameter"
-                                 f"{' (given)' if c['given'] else ''}\n")
-        for key in ("orientation_bound", "position_bound"):
-            if allocation.get(key) is not None:
-                sys.stdout.write(f"  {key.replace('_', ' ')}: {allocation[key]:.6g}\n")
-        sys.stdout.write("\n" + _tolerance_lines(tolerances))
+        sys.stdout.write(format_montecarlo(doc))
+        for kind, w in doc.get("worst_samples", {}).items():
+            at = ", ".join(f"{k}={v:.6g}" for k, v in w["actuated"].items())
+            sys.stdout.write(f"  largest {kind} error {w['value']:.4g} {w['unit']} (sample {w['sample']}) at {at} "
+                             f"(O_p = {', '.join(f'{v:.4g}' for v in w['position_mm'])} mm)\n")
+        if doc.get("not_assembled"):
+            sys.stdout.write(f"  {doc['not_assembled']} samples did not assemble with their defects (near the "
+                             "workspace's singular boundary a defect can leave a leg too short): left out\n")
         if args.json:
             sys.stdout.write(f"wrote {args.json}\n")
     return 0
 
 
-def _cmd_montecarlo(args: argparse.Namespace) -> int:
+def _montecarlo_document(args: argparse.Namespace) -> dict:
+    """The JSON document of ``hyperstat montecarlo``."""
     from hyperstat.solver.tolerances.accuracy import geometric_parameters
     from hyperstat.solver.tolerances.montecarlo import monte_carlo
     from hyperstat.solver.tolerances.values import monte_carlo_at_values
 
-    if args.samples < 1:
-        raise HyperstatError(f"--samples must be at least 1, got {args.samples}.")
     uniform = args.angle_tolerance is not None or args.length_tolerance is not None
     with stages(args, ["stationarity analysis", "workspace sampling", "tolerances", "Monte Carlo"]) as progress:
         mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress)
@@ -263,20 +311,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
            "drawn": drawn, "tolerance_counts": cl.counts(), **summary}
     if uniform:
         doc["worst_samples"] = _worst_samples(mech, kin, q, res)
-    if args.json:
-        write_json(args.json, jsonable(doc))
-    if not args.quiet:
-        sys.stdout.write(format_montecarlo(doc))
-        for kind, w in doc.get("worst_samples", {}).items():
-            at = ", ".join(f"{k}={v:.6g}" for k, v in w["actuated"].items())
-            sys.stdout.write(f"  largest {kind} error {w['value']:.4g} {w['unit']} (sample {w['sample']}) at {at} "
-                             f"(O_p = {', '.join(f'{v:.4g}' for v in w['position_mm'])} mm)\n")
-        if doc.get("not_assembled"):
-            sys.stdout.write(f"  {doc['not_assembled']} samples did not assemble with their defects (near the "
-                             "workspace's singular boundary a defect can leave a leg too short): left out\n")
-        if args.json:
-            sys.stdout.write(f"wrote {args.json}\n")
-    return 0
+    return doc
 
 
 def _nothing_to_draw(mech, cl) -> str:
@@ -383,6 +418,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                            help="also refine the minima (slower: a largest singular value is not smooth at its "
                                 "minima; the allocation uses only the maxima)")
         common_options(p)
+        cache_option(p)
         if name == "accuracy":
             p.add_argument("--map", metavar="J1,J2", help="map the coefficients over a grid of two actuated joints")
             p.add_argument("--slice", action="append", metavar="J=V[,J=V]", help="one map row per slice")

@@ -76,6 +76,10 @@ class PlanResult:
         its origin, base axes.
     closure_q : ndarray, (K, 6 L, n_q) or None
         ``dr/dq`` of the loop closures (``run(closure_rows=True)``).
+    parents : ndarray, (K, E, 3, 4) or None
+        Top three rows ``[R | p]`` of the frame each element of ``FramePlan(tapped=...)``
+        starts from (the frame before its ``D``), in the order of ``tapped``
+        (``run(parents=True)``).
     """
 
     frames: dict
@@ -83,6 +87,7 @@ class PlanResult:
     joint_twists: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     closure_q: np.ndarray | None = None
+    parents: np.ndarray | None = None
 
 
 class FramePlan:
@@ -95,6 +100,9 @@ class FramePlan:
     matrices : dict
         ``(chain, element)`` -> (4, 4) matrix ``D`` of every element at the geometry of
         interest (what :meth:`hyperstat.solver.kinematics.closure.Kinematics.element_matrices` returns).
+    tapped : list of (chain, element), optional
+        Elements whose parent frame ``run(parents=True)`` returns (the frames the defect
+        twists of :meth:`hyperstat.solver.kinematics.closure.Kinematics.evaluate` are built from).
 
     Examples
     --------
@@ -103,22 +111,26 @@ class FramePlan:
     (K, 4, 4)
     """
 
-    def __init__(self, mechanism: Mechanism, matrices: dict) -> None:
+    def __init__(self, mechanism: Mechanism, matrices: dict, tapped: list | None = None) -> None:
         m = mechanism
         self.mechanism = m
         self.n_q = len(m.joints)
         self.base = m.base
-        self._chains = []  # (start, [(D (4,4), joint index or -1, type or None)], end, closing chain or None)
+        self.tapped = [tuple(key) for key in (tapped or [])]
+        slot_of = {key: i for i, key in enumerate(self.tapped)}
+        # (start, [(D (4,4), joint index or -1, type or None, tap slot or -1)], end, closing chain or None)
+        self._chains = []
         defined = {m.base}
         for ci in m.topology["order"]:
             ch = m.chains[ci]
             ops = []
             for ei, el in enumerate(ch.elements):
                 d = np.ascontiguousarray(np.asarray(matrices[(ci, ei)], dtype=float)[:4, :4])
+                slot = slot_of.get((ci, ei), -1)
                 if isinstance(el, Joint):
-                    ops.append((d, m.joint_index[el.name], el.type))
+                    ops.append((d, m.joint_index[el.name], el.type, slot))
                 else:
-                    ops.append((d, -1, None))
+                    ops.append((d, -1, None, slot))
             closing = ci if ch.end in defined else None
             defined.add(ch.end)
             self._chains.append((ch.start, ops, ch.end, closing))
@@ -158,7 +170,7 @@ class FramePlan:
         flops = 0
         pairs = 0
         for start, ops, _, _ in self._chains:
-            for k, (_, j, typ) in enumerate(ops):
+            for k, (_, j, typ, _slot) in enumerate(ops):
                 if not (k == 0 and start == self.base):
                     flops += 63  # the first element after the base is D itself
                 if typ == "R":
@@ -178,6 +190,7 @@ class FramePlan:
         frames: list[str] | None = None,
         jacobian_at: str | None = None,
         closure_rows: bool = False,
+        parents: bool = False,
     ) -> PlanResult:
         """Frames at configurations ``q`` (and the joint twists, or a frame's Jacobian).
 
@@ -201,6 +214,8 @@ class FramePlan:
         closure_rows : bool
             Also return ``dr/dq`` of the loop closures (eqs. 7, 9), ``(K, 6 L, n_q)``:
             per loop the signed joint screws at the origin of the loop's frame.
+        parents : bool
+            Also return the parent frame of every tapped element (see :class:`PlanResult`).
 
         Returns
         -------
@@ -234,13 +249,14 @@ class FramePlan:
                 if isinstance(el, Joint):
                     path[self.mechanism.joint_index[el.name]] = True
         rows_q = np.empty((k, 6 * len(self._closures), self.n_q)) if closure_rows else None
+        par = np.empty((k, len(self.tapped), 3, 4)) if parents else None
         qt = np.ascontiguousarray(q.T)  # (n_q, K): joint rows are contiguous
         chunk = max(int(chunk), 1)
         starts = list(range(0, k, chunk))
         n_threads = min(threads or os.cpu_count() or 1, len(starts))
 
         def work(s: int) -> None:
-            self._chunk(qt[:, s : s + chunk], s, out_frames, out_closing, tw, jac, jacobian_at, path, rows_q)
+            self._chunk(qt[:, s : s + chunk], s, out_frames, out_closing, tw, jac, jacobian_at, path, rows_q, par)
 
         if n_threads <= 1:
             for s in starts:
@@ -251,9 +267,9 @@ class FramePlan:
             out_frames[self.base][:, :3, :] = np.eye(4)[:3]
         if frames is not None and jacobian_at is not None and jacobian_at not in frames:
             out_frames.pop(jacobian_at)
-        return PlanResult(out_frames, out_closing, tw, jac, rows_q)
+        return PlanResult(out_frames, out_closing, tw, jac, rows_q, par)
 
-    def _chunk(self, q, s, out_frames, out_closing, tw, jac, jacobian_at, path, rows_q) -> None:
+    def _chunk(self, q, s, out_frames, out_closing, tw, jac, jacobian_at, path, rows_q, par=None) -> None:
         """Evaluate one chunk ``q`` (n_q, k) and write its rows ``s:s+k`` of the outputs."""
         k = q.shape[1]
         e = None
@@ -275,7 +291,12 @@ class FramePlan:
         end_frame = None
         for start, ops, end, closing in self._chains:
             t = reached[start]
-            for d, j, typ in ops:
+            for d, j, typ, slot in ops:
+                if par is not None and slot >= 0:
+                    if t is None:
+                        par[rows, slot] = np.eye(4)[:3]
+                    else:
+                        par[rows, slot] = t.transpose(1, 0, 2)
                 y = np.empty((3, k, 4))
                 if t is None:
                     y[...] = d[:3, None, :]

@@ -39,8 +39,10 @@ def triangle(a: np.ndarray) -> np.ndarray:
     return np.sum(np.linalg.norm(a, axis=1), axis=1)
 
 
-#: floats of one block of the sign-pattern enumeration (32 MiB)
-PATTERN_BLOCK = 1 << 22
+#: configurations per block of :meth:`LinearWorstCase.values` (the same values whatever the block)
+VALUES_BLOCK = 16384
+#: floats of one block of the sign-pattern enumeration (8 MiB; the same maxima whatever the block)
+PATTERN_BLOCK = 1 << 20
 
 
 def attainable(a: np.ndarray, chunk: int = 16) -> np.ndarray:
@@ -130,5 +132,10 @@ class LinearWorstCase(Objective):
         self.rows, self.values_ = rows, np.asarray(values, dtype=float)
 
     def values(self, q: np.ndarray) -> dict:
-        a = self.rows(np.atleast_2d(q)) * self.values_[None, None, :]
-        return {"attainable": attainable(a), "triangle": triangle(a)}
+        q = np.atleast_2d(q)
+        out = {"attainable": np.empty(len(q)), "triangle": np.empty(len(q))}
+        for start in range(0, len(q), VALUES_BLOCK):  # a whole sample's rows at once held 300 MiB at 700,000
+            a = self.rows(q[start:start + VALUES_BLOCK]) * self.values_[None, None, :]
+            out["attainable"][start:start + VALUES_BLOCK] = attainable(a)
+            out["triangle"][start:start + VALUES_BLOCK] = triangle(a)
+        return out

@@ -89,8 +89,35 @@ def _misfit(measured: tuple, predicted: tuple, ls: float) -> np.ndarray:
     return np.concatenate(out, axis=1)
 
 
+def calibration_setup(kin: Kinematics, analysis, decl, q_cal: np.ndarray, q_task: np.ndarray) -> dict:
+    """What every :func:`simulate_calibration` at the same poses shares: the nominal machine's design and maps.
+
+    The nominal measurement design (its identifiable subspace by SVD), the nominal measurements at
+    ``q_cal`` and the nominal task poses, actuator maps and chord inverses at ``q_task`` depend on the
+    poses only, not on the simulated machines: computed once (one batched Jacobian evaluation at each
+    set of poses) and handed to every simulation of :func:`calibrated_values`.
+    """
+    from hyperstat.solver.tolerances.classification import _measurement_maps
+
+    ls = kin.length_scale
+    basis = analysis.admissible_basis  # dimensionless
+    n_s = basis.shape[1]
+    k_c = len(q_cal)
+    st0 = kin.evaluate(q_cal, None, jacobians=True)
+    meas0, nuis0, _ = _measurement_maps(decl, st0, output_twist_maps(kin, st0)[0], ls, kin.parameter_scale)
+    design = np.concatenate([(meas0 @ basis).reshape(-1, n_s), nuis0.reshape(k_c * nuis0.shape[1], -1)], axis=1)
+    _, sv, vt = np.linalg.svd(design, full_matrices=False)
+    seen = vt[sv > IDENTIFIABLE * sv[0]].T if sv.size and sv[0] > 0 else np.zeros((design.shape[1], 0))
+    st_n = kin.evaluate(q_task, None, jacobians=True)
+    sel_n = task_rows(decl.task, st_n.output_pose)
+    rows_n = sel_n @ output_twist_maps(kin, st_n)[1]  # (K_t, r, n_a)
+    return {"q_cal": q_cal, "q_task": q_task, "design": design, "seen": seen,
+            "at_nominal": _measure(kin, q_cal, None, decl), "goal": st_n.output_pose, "chord": _damped_inverse(rows_n)}
+
+
 def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, xi_true: np.ndarray,
-                         q_cal: np.ndarray, q_task: np.ndarray, iterations: int = 3) -> tuple[np.ndarray, np.ndarray]:
+                         q_cal: np.ndarray, q_task: np.ndarray, iterations: int = 3,
+                         setup: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Task errors of machines with defects ``xi_true`` (M, n_xi) after calibration and compensation, noise-free.
 
     Calibration: the declared measurements at ``q_cal`` (actuated values held, passive joints solved on
@@ -98,6 +125,8 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     the nuisances the declaration leaves unknown (tracker frame, target offsets).  Compensation: at each
     ``q_task`` the actuators are solved in the fitted model so that it reaches the nominal task pose
     there (Newton); the true machine is then assembled at those actuated values.
+
+    ``setup``: :func:`calibration_setup` at the same ``q_cal`` and ``q_task`` (computed here if omitted).
 
     Returns
     -------
@@ -131,12 +160,9 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     # identify fits them); a direction they do not see stays at zero.  Orientation rows compare rotations (the
     # rotation from the predicted to the measured one), as the measurement maps' rows do.  The first step starts
     # from the nominal machine, whose configurations and maps are known (one design for every machine)
-    st0 = kin.evaluate(q_cal, None, jacobians=True)
-    meas0, nuis0, _ = _measurement_maps(decl, st0, output_twist_maps(kin, st0)[0], ls, pscale)
-    design = np.concatenate([(meas0 @ basis).reshape(-1, n_s), nuis0.reshape(k_c * nuis0.shape[1], -1)], axis=1)
-    _, sv, vt = np.linalg.svd(design, full_matrices=False)
-    seen = vt[sv > IDENTIFIABLE * sv[0]].T if sv.size and sv[0] > 0 else np.zeros((design.shape[1], 0))
-    at_nominal = _measure(kin, q_cal, None, decl)
+    if setup is None or setup["q_cal"] is not q_cal or setup["q_task"] is not q_task:
+        setup = calibration_setup(kin, analysis, decl, q_cal, q_task)
+    design, seen, at_nominal = setup["design"], setup["seen"], setup["at_nominal"]
     at_nominal = (np.tile(at_nominal[0], (n_m, 1)),
                   None if at_nominal[1] is None else np.tile(at_nominal[1], (n_m, 1, 1)))
     first = _misfit(y, at_nominal, ls).reshape(n_m, -1)
@@ -159,11 +185,8 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     # the nominal machine's actuator map (the same for every machine: no Jacobian per machine), then Newton steps
     # with the fitted model's own map where the chord has not converged
     n_rot = n_rotation_rows(decl.task)
-    st_n = kin.evaluate(q_task, None, jacobians=True)
-    sel_n = task_rows(decl.task, st_n.output_pose)
-    rows_n = sel_n @ output_twist_maps(kin, st_n)[1]  # (K_t, r, n_a)
-    chord = np.tile(_damped_inverse(rows_n), (n_m, 1, 1))
-    goal = np.tile(st_n.output_pose, (n_m, 1, 1))
+    chord = np.tile(setup["chord"], (n_m, 1, 1))
+    goal = np.tile(setup["goal"], (n_m, 1, 1))
     qt = np.tile(q_task, (n_m, 1))
     xt = np.repeat(xi_est, k_t, axis=0)
     cap = 0.05 * kin.joint_scale[act]
@@ -295,7 +318,8 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     dirs = np.stack([t.direction for t in items])  # (n, n_xi) per unit of each tolerance
     # 1. every direction alone at its probe: kappa (residual per probe^2), position and orientation
     sizes = np.array([probe[t.id] for t in items])
-    pos, rot, ok = simulate_calibration(m, kin, cl.analysis, decl, dirs * sizes[:, None], q_cal, q_task)
+    setup = calibration_setup(kin, cl.analysis, decl, q_cal, q_task)  # shared by every simulation below
+    pos, rot, ok = simulate_calibration(m, kin, cl.analysis, decl, dirs * sizes[:, None], q_cal, q_task, setup=setup)
     # a residual at the round-off of the probe reads as that round-off: kappa is never below it (it shapes the values)
     floor = 1e-11 * ls / sizes**2
     kappa = {"position_mm": np.maximum(np.where(ok, pos, 0.0).max(axis=1) / sizes**2, floor),
@@ -324,7 +348,7 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
             break
         values = np.minimum(scale * unit, cap)
         pos_c, rot_c, ok_c = simulate_calibration(m, kin, cl.analysis, decl, (signs * values[None, :]) @ dirs, q_cal,
-                                                  q_task)
+                                                  q_task, setup=setup)
         found = {"position_mm": float(np.where(ok_c, pos_c, 0.0).max()),
                  "orientation_rad": float(np.where(ok_c, rot_c, 0.0).max())}
         ratio, kind = min(((math.sqrt(b / found[k]) if found[k] > 0 else np.inf, k) for k, b in budget.items()),

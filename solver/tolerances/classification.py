@@ -618,7 +618,10 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
         if p.verdict == "coupled":
             # the admissible motion of a coupled parameter moves others with it: the statement says so, so that the
             # direction is never read as the parameter alone (whose class is its relation's, assembly)
-            followers = [(names[k], _clean(float(direction[k]))) for k in np.argsort(-np.abs(d))
+            # largest first; terms of the same size (to 10 digits: a relation's +-200 and -200) in parameter order,
+            # not in the order round-off would give them
+            size = np.round(np.abs(d) / max(float(np.max(np.abs(d))), 1e-300), 10)
+            followers = [(names[k], _clean(float(direction[k]))) for k in np.lexsort((np.arange(len(d)), -size))
                          if names[k] not in params and abs(direction[k]) > 1e-9]
             # every follower, written out (a statement a workshop reads is never cut short)
             shown = [f"{n} = {'' if c == 1 else '-' if c == -1 else f'{c:.4g}*'}{p.name}" for n, c in followers

@@ -44,12 +44,16 @@ __all__ = ["assign_values", "task_maps", "monte_carlo_at_values", "ASSEMBLY_SAMP
 
 #: configurations of the stationarity sample on which the assemblability programme runs (report, accuracy)
 ASSEMBLY_SAMPLE = 8
+#: configurations per block of :func:`task_maps` (their full Jacobians: the bounds' search over a 100,000-
+#: configuration sample peaked at 220 MiB of arrays with blocks of 10,000)
+TASK_BLOCK = 2048
 
 def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, task: tuple,
               directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Task rotation rows (rad) and position rows (mm) per unit of each direction, (K, r, n).
 
-    Evaluated in blocks of 10,000 configurations on threads (:func:`in_chunks`, as the accuracy maps).
+    Evaluated in blocks of :data:`TASK_BLOCK` configurations on threads (:func:`in_chunks`, as the accuracy
+    maps): memory bounded by the blocks, the same rows bit for bit whatever the block.
     """
     q = np.atleast_2d(np.asarray(configurations, dtype=float))
     n_rot = n_rotation_rows(task)
@@ -57,12 +61,12 @@ def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
     out = np.zeros((len(q), rows, directions.shape[1]))
 
     def block(start: int) -> None:
-        sl = slice(start, start + 10000)
+        sl = slice(start, start + TASK_BLOCK)
         st = kin.evaluate(q[sl], None, jacobians=True)
         k_xi, _ = output_twist_maps(kin, st)
         out[sl] = task_rows(task, st.output_pose) @ k_xi @ directions
 
-    in_chunks(block, len(q))
+    in_chunks(block, len(q), TASK_BLOCK)
     return out[:, :n_rot], out[:, n_rot:]
 
 

@@ -624,6 +624,11 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
     z_act = pool_q[:, m.actuated] / space.scale[m.actuated] if len(pool_q) else np.zeros((0, len(m.actuated)))
     spread_box = np.ptp(z_act, axis=0) if len(z_act) else np.zeros(len(m.actuated))
     spread_box = np.where(spread_box > 0, spread_box, 1.0)
+    # the kind of every configuration of the pool (a label starts with its kind), as masks over the pool
+    distinct = {lb: i for i, lb in enumerate(dict.fromkeys(pool_label))}
+    label_kind = np.array([distinct[lb] for lb in pool_label], dtype=int)
+    in_category = {c: np.array([lb.startswith(c) for lb in distinct], dtype=bool)[label_kind]
+                   for c in ("sample", "corner", "edge", "face", "dead centre")}
     for name in names:
         v = values.get(name)
         if v is None or len(v) == 0:
@@ -648,11 +653,9 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
             for category in ("sample", "corner", "edge", "face", "dead centre"):  # the best separate ones of each kind
                 limit = starts if category == "sample" else (1 if category == "dead centre" else structured)
                 taken = 0
-                for i in order:
+                for i in order[in_category[category][order]]:  # the configurations of this kind, best first
                     if taken == limit or not np.isfinite(sv[i]):
                         break
-                    if not pool_label[i].startswith(category):
-                        continue
                     if all(np.linalg.norm((z_act[i] - z_act[j]) / spread_box) > 0.05 for j in chosen):
                         chosen.append(int(i))
                         taken += 1

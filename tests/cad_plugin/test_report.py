@@ -284,6 +284,11 @@ def test_report_is_deterministic_and_prints_no_absolute_path(tmp_path, monkeypat
         assert main(["report", str(outside), "--out", str(out), "--quiet"]) == 0
     for name in ("report.json", "report.md", "report.html", "skeleton_views.png"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    # --json-only (the FreeCAD workbench's Analyse): the same report.json, nothing else drawn or written
+    c = tmp_path / "c"
+    assert main(["report", str(outside), "--out", str(c), "--quiet", "--json-only"]) == 0
+    assert sorted(p.name for p in c.iterdir()) == ["report.json"]
+    assert (c / "report.json").read_bytes() == (a / "report.json").read_bytes()
     doc = json.loads((a / "report.json").read_text())
     assert doc["title"]["date"] == "2026-01-01" and doc["title"]["template"] == "my_crank.py"
     for name in ("report.json", "report.md", "report.html"):

@@ -201,7 +201,7 @@ def _analysis_calls(model: Path, folder: Path, configurations: int, seed: int, n
     sample = ["--configurations", str(configurations), "--seed", str(seed)]
     yield Call(["analyze", str(model), "--json", str(folder / "analysis.json"), *sample, "--quiet"],
                "tolerance classes (hyperstat analyze)", name)
-    yield Call(["report", str(model), "--out", str(folder / "report"), *sample, "--quiet"],
+    yield Call(["report", str(model), "--out", str(folder / "report"), *sample, "--json-only", "--quiet"],
                "tolerance values (hyperstat report)", name)
     return ((folder / "analysis.json").read_text(encoding="utf-8"),
             (folder / "report" / "report.json").read_text(encoding="utf-8"))

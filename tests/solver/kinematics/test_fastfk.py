@@ -102,13 +102,18 @@ def test_batched_and_element_by_element_paths_agree_on_templates(fixture, reques
     mech = request.getfixturevalue(fixture)
     kin = Kinematics(mech)
     rng = np.random.default_rng(7)
-    q = mech.home + rng.normal(0.0, 0.3, (40, kin.n_q))
+    from hyperstat.solver.kinematics.closure import PLAN_BATCH
+
+    q = mech.home + rng.normal(0.0, 0.3, (PLAN_BATCH, kin.n_q))  # a batch this large takes the plan
     xi = rng.normal(0.0, 1e-3, kin.n_xi)
     fast = kin.evaluate(q, xi, jacobians="joints")
-    full = kin.evaluate(q, xi, jacobians=True)  # always element by element
+    full = kin.evaluate(q, xi, jacobians=True)  # the plan's parent frames and the defect screws of one geometry
     kin.use_plan = False
     slow = kin.evaluate(q, xi, jacobians="joints")
+    slow_full = kin.evaluate(q, xi, jacobians=True)  # element by element
     tol = 1e-10 * kin.length_scale
+    for field in ("residual", "closure_xi", "closure_q", "output_xi", "output_q", "defect_twists"):
+        assert np.allclose(getattr(full, field), getattr(slow_full, field), rtol=0, atol=tol), field
     assert np.allclose(fast.residual, slow.residual, rtol=0, atol=tol)
     assert np.allclose(fast.closure_q, slow.closure_q, rtol=0, atol=tol)
     assert np.allclose(fast.output_pose, slow.output_pose, rtol=0, atol=tol)
@@ -125,3 +130,24 @@ def test_flop_count_of_a_6r_chain():
     kin = Kinematics(_random_chain(8, "RRRRRR"))
     # first D is copied from the base; 5 more products by D, 6 rotations, the tool product
     assert kin.plan().flops_per_configuration() == {"flops": 5 * 63 + 6 * 18 + 63, "trig_pairs": 6}
+
+
+def test_few_configurations_are_walked_many_planned_with_the_same_answer(tripteor):
+    """A defect vector at a few configurations is evaluated element by element (building its plan would cost more),
+    at many on its plan; the choice depends on the call only (the same call gives the same bits whatever ran
+    before), and both paths give the same state to round-off."""
+    from hyperstat.solver.kinematics.closure import PLAN_BATCH
+
+    kin = Kinematics(tripteor)
+    rng = np.random.default_rng(3)
+    q = tripteor.home + rng.normal(0.0, 0.2, (PLAN_BATCH, kin.n_q))
+    xi = rng.normal(0.0, 1e-3, kin.n_xi)
+    few = kin.evaluate(q[:3], xi, jacobians=True)
+    assert len(kin._plans) == 1  # the nominal geometry's only (built for the length scale)
+    many = kin.evaluate(q, xi, jacobians=True)
+    assert len(kin._plans) == 2
+    again = kin.evaluate(q[:3], xi, jacobians=True)  # its plan exists now: still walked, the same bits
+    tol = 1e-10 * kin.length_scale
+    for field in ("residual", "closure_xi", "closure_q", "output_pose", "output_xi", "output_q", "defect_twists"):
+        assert np.allclose(getattr(few, field), getattr(many, field)[:3], rtol=0, atol=tol), field
+        assert np.array_equal(getattr(few, field), getattr(again, field)), field

@@ -1,0 +1,212 @@
+"""The commands' stages through the on-disk cache (:mod:`hyperstat.solver.cache`): computed once per model.
+
+Units: lengths in mm, angles in rad.
+
+What is cached, and what its key holds besides the version of the code (:func:`hyperstat.solver.cache.key`):
+
+* ``sample``: a workspace sample (:func:`hyperstat.solver.tolerances.accuracy.sample_workspace`); the model,
+  the number of draws, the seed and the workspace's bounds.  Samples of more than :data:`SAMPLE_BYTES` are
+  not stored (a million configurations would take 120 MB);
+* ``values``: what :func:`hyperstat.solver.tolerances.values.assign_values` writes into a classification
+  (the values, their sources and evidence, the allocation, the calibrated values, the drawing values, the
+  warnings); the model, the classification it starts from, the configurations (their bytes) and every
+  option of the call.  The classification is recomputed (it is cheap) and the stored changes are applied
+  to it, tolerance by tolerance, after checking that the tolerances are the same;
+* ``diagnosis-selection``: the effects the diagnosis selects and the violated defect it names, which
+  ``export-controller --diagnose`` adds to the controller file; the model, the analysis' configurations and
+  the bytes of the data files.  ``report --data`` stores it when it diagnoses;
+* ``accuracy`` and ``montecarlo``: the command's whole JSON document; the model and every option.
+
+``--no-cache`` (or ``HYPERSTAT_CACHE=off``) computes everything and stores nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from hyperstat.solver.cache import Cache, default_directory, encode, file_digest, key
+
+__all__ = ["cache_option", "command_cache", "model_identity", "cached_sample", "cached_values",
+           "cached_document", "store_selection", "cached_selection", "SAMPLE_BYTES"]
+
+#: the largest workspace sample stored (bytes of its configurations)
+SAMPLE_BYTES = 32 * 2**20
+
+
+def cache_option(p: argparse.ArgumentParser) -> None:
+    """``--no-cache``: compute every stage, read and store nothing."""
+    p.add_argument("--no-cache", action="store_true",
+                   help="compute everything again: do not read or write the cache of results "
+                        "(folder: $HYPERSTAT_CACHE, default ~/.cache/hyperstat; safe to delete)")
+
+
+def command_cache(args: argparse.Namespace) -> Cache:
+    """The cache of a command (one per command run, kept on ``args``): off with ``--no-cache``."""
+    cache = getattr(args, "_cache", None)
+    if cache is None:
+        cache = Cache(None if getattr(args, "no_cache", False) else default_directory())
+        args._cache = cache
+    return cache
+
+
+def model_identity(args: argparse.Namespace, mechanism) -> dict:
+    """The model as a key: the SHA-256 of its model-file text and of the bytes of the source it was read from."""
+    ident = getattr(args, "_model_identity", None)
+    if ident is None:
+        from hyperstat.solver.kinematics.modelfile import dumps_model
+
+        source = getattr(args, "source", None)
+        ident = {"model": hashlib.sha256(dumps_model(mechanism).encode()).hexdigest(),
+                 "source": file_digest(source) if source and Path(source).is_file() else None,
+                 "parameters": list(getattr(args, "param", None) or [])}
+        args._model_identity = ident
+    return ident
+
+
+def _digest(a: Any) -> str:
+    """SHA-256 of an array's bytes, dtype and shape (or of anything :func:`encode` takes)."""
+    return hashlib.sha256(json.dumps(encode(a), separators=(",", ":")).encode()).hexdigest()
+
+
+def _workspace_key(ws) -> Any:
+    return None if ws is None else {k: v for k, v in vars(ws).items()}
+
+
+def cached_sample(args: argparse.Namespace, mechanism, n: int, seed: int, workspace,
+                  compute: Callable[[], np.ndarray]) -> np.ndarray:
+    """The workspace sample of ``compute()`` (``n`` draws, ``seed``, ``workspace``), from the cache when stored."""
+    cache = command_cache(args)
+    if not cache.enabled:
+        return compute()
+    k = key("sample", model_identity(args, mechanism), int(n), int(seed), _workspace_key(workspace))
+    q = cache.load("sample", k)
+    if isinstance(q, np.ndarray) and q.ndim == 2 and q.shape[1] == len(mechanism.joints):
+        return q
+    q = compute()
+    if q.nbytes <= SAMPLE_BYTES:
+        cache.store("sample", k, q)
+    return q
+
+
+# ---------------------------------------------------------------------------------------------- values
+#: attributes of a classification that hold the objects it was computed from (never cached, never compared)
+_INPUTS = {"analysis", "declaration", "configurations", "items"}
+
+
+def _signature(obj, skip: set = frozenset()) -> dict:
+    """Attribute -> its encoded JSON text, or its identity when it cannot be encoded."""
+    out = {}
+    for name, value in vars(obj).items():
+        if name in skip:
+            continue
+        try:
+            out[name] = json.dumps(encode(value), separators=(",", ":"))
+        except (TypeError, ValueError):
+            out[name] = ("object", type(value).__name__, id(value))
+    return out
+
+
+def _keyed(signature: dict) -> dict:
+    """A signature without identities (the same in every process): an object that cannot be encoded counts by
+    its type (it comes from the model and the analysis, which the key holds)."""
+    return {name: sig[:2] if isinstance(sig, tuple) else sig for name, sig in signature.items()}
+
+
+def _changes(before: dict, after: dict, obj) -> dict | None:
+    """Attributes of ``obj`` whose signature changed: name -> value; None if one of them cannot be stored."""
+    out = {}
+    for name, sig in after.items():
+        if before.get(name) != sig:
+            if isinstance(sig, tuple):
+                return None
+            out[name] = getattr(obj, name)
+    return out
+
+
+def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: np.ndarray,
+                  assign: Callable, **options) -> Any:
+    """``assign(cl, mechanism, kin, configurations, **options)`` (:func:`assign_values`), its changes cached.
+
+    The key holds the model, the classification as it is before the call, the configurations and
+    the options (arrays by their bytes).  On a hit the stored changes are applied to ``cl``; a
+    stored entry whose tolerances are not those of ``cl`` is ignored.
+    """
+    cache = command_cache(args)
+    if not cache.enabled:
+        return assign(cl, mechanism, kin, configurations, **options)
+    before_cl = _signature(cl, _INPUTS)
+    before_items = [_signature(t) for t in cl.items]
+    ids = [t.id for t in cl.items]
+    opts = {name: (_digest(v) if isinstance(v, (np.ndarray, tuple)) and name != "workspace" else
+                   _workspace_key(v) if name == "workspace" else v) for name, v in sorted(options.items())}
+    k = key("values", model_identity(args, mechanism), _digest(_keyed(before_cl)),
+            _digest([_keyed(b) for b in before_items]),
+            _digest(np.asarray(configurations)),
+            None if cl.analysis is None else _digest(np.asarray(cl.analysis.configurations)), opts)
+    stored = cache.load("values", k)
+    if isinstance(stored, dict) and stored.get("ids") == ids and len(stored.get("items", [])) == len(ids):
+        for name, value in stored["classification"].items():
+            setattr(cl, name, value)
+        for t, changes in zip(cl.items, stored["items"]):
+            for name, value in changes.items():
+                setattr(t, name, value)
+        return cl
+    result = assign(cl, mechanism, kin, configurations, **options)
+    changed_cl = _changes(before_cl, _signature(cl, _INPUTS), cl)
+    changed_items = [_changes(b, _signature(t), t) for b, t in zip(before_items, cl.items)]
+    if changed_cl is not None and all(c is not None for c in changed_items) and [t.id for t in cl.items] == ids:
+        cache.store("values", k, {"ids": ids, "classification": changed_cl, "items": changed_items})
+    return result
+
+
+# ---------------------------------------------------------------------------------------------- whole documents
+def cached_document(args: argparse.Namespace, command: str, mechanism, options: dict,
+                    compute: Callable[[], dict]) -> dict:
+    """A command's JSON document (``compute()``), from the cache when stored under the model and ``options``."""
+    cache = command_cache(args)
+    if not cache.enabled:
+        return compute()
+    k = key(command, model_identity(args, mechanism), options)
+    doc = cache.load(command, k)
+    if isinstance(doc, dict):
+        return doc
+    doc = compute()
+    cache.store(command, k, doc)
+    return doc
+
+
+# ---------------------------------------------------------------------------------------------- diagnosis
+def _selection_key(args, mechanism, result, data_paths: list) -> str:
+    files = [file_digest(p) if p else None for p in data_paths]
+    return key("diagnosis-selection", model_identity(args, mechanism), _digest(np.asarray(result.configurations)),
+               files)
+
+
+def store_selection(args: argparse.Namespace, mechanism, result, data_paths: list, diagnosis) -> None:
+    """Keep what ``export-controller --diagnose`` takes from a diagnosis of these data (selected effects,
+    violated defect)."""
+    cache = command_cache(args)
+    if cache.enabled:
+        cache.store("diagnosis-selection", _selection_key(args, mechanism, result, data_paths),
+                    {"selected": list(diagnosis.selected), "violated_defect": diagnosis.violated_defect})
+
+
+def cached_selection(args: argparse.Namespace, mechanism, result, data_paths: list,
+                     diagnose: Callable) -> tuple[list, dict | None]:
+    """(selected effects, violated defect) of the diagnosis of these data: stored, or ``diagnose()`` run."""
+    cache = command_cache(args)
+    k = _selection_key(args, mechanism, result, data_paths) if cache.enabled else None
+    stored = cache.load("diagnosis-selection", k) if k else None
+    if isinstance(stored, dict) and isinstance(stored.get("selected"), list):
+        return stored["selected"], stored.get("violated_defect")
+    diag = diagnose()
+    if k:
+        cache.store("diagnosis-selection", k, {"selected": list(diag.selected),
+                                               "violated_defect": diag.violated_defect})
+    return list(diag.selected), diag.violated_defect

@@ -1,0 +1,138 @@
+"""Compute once per model (issue 39): a cached run writes the same JSON as an uncached one, and a changed model,
+data file or option is never answered from the cache (units: mm, rad)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from hyperstat.solver import save_model
+from hyperstat.solver.cli.cached import cached_selection, cached_values
+
+from tests.conftest import TEMPLATES, run_cli
+
+#: a small Monte Carlo on the slider-crank: the sample, the tolerance values and the document are cached
+MC = ["--workspace-configurations", "60", "--samples", "200", "--quiet"]
+
+
+@pytest.fixture()
+def cache_dir(tmp_path, monkeypatch):
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("HYPERSTAT_CACHE", str(folder))
+    return folder
+
+
+def _montecarlo(source, out, *extra):
+    code, _, err = run_cli(["montecarlo", source, *MC, "--json", out, *extra])
+    assert code == 0, err
+    return out.read_text()
+
+
+def _entries(folder, stage):
+    return sorted(p.name for p in (folder / stage).rglob("*.json")) if (folder / stage).exists() else []
+
+
+def test_cached_and_uncached_runs_write_the_same_json(tmp_path, cache_dir):
+    source = TEMPLATES / "slider_crank.py"
+    first = _montecarlo(source, tmp_path / "a.json")
+    assert _entries(cache_dir, "sample") and _entries(cache_dir, "values") and _entries(cache_dir, "montecarlo")
+    again = _montecarlo(source, tmp_path / "b.json")  # read from the cache
+    fresh = _montecarlo(source, tmp_path / "c.json", "--no-cache")
+    assert again == first == fresh  # the same text: stored floats come back bit for bit
+    assert len(_entries(cache_dir, "montecarlo")) == 1  # --no-cache stored nothing new
+
+
+def test_a_changed_option_or_model_is_computed_again(tmp_path, cache_dir, slider_crank):
+    model = save_model(slider_crank, tmp_path / "sc.json")
+    base = _montecarlo(model, tmp_path / "a.json")
+    # an option the answer depends on: a new entry, and the answer of an uncached run
+    seeded = _montecarlo(model, tmp_path / "b.json", "--seed", "3")
+    assert seeded != base and seeded == _montecarlo(model, tmp_path / "c.json", "--seed", "3", "--no-cache")
+    assert len(_entries(cache_dir, "montecarlo")) == 2
+    # the same file name with another model in it (the crank's range narrowed around home): not the stored answer
+    doc = json.loads(model.read_text())
+    crank = next(el for chain in doc["chains"] for el in chain["elements"] if el.get("role") == "actuated")
+    crank["range"] = [crank["home"] - 0.5, crank["home"] + 0.5]
+    model.write_text(json.dumps(doc))
+    edited = _montecarlo(model, tmp_path / "d.json")
+    assert edited != base
+    assert edited == _montecarlo(model, tmp_path / "e.json", "--no-cache")
+    assert len(_entries(cache_dir, "sample")) == 3  # seed 3, then the edited model: each its own sample
+
+
+def test_the_values_stage_restores_what_it_computed(cache_dir, slider_crank, slider_crank_analysis):
+    """The changes :func:`assign_values` makes to a classification, stored and applied to a fresh one, give the
+    same classification (every tolerance's value, source, evidence, drawing, the allocation, the warnings)."""
+    from hyperstat.solver.kinematics.closure import Kinematics
+    from hyperstat.solver.tolerances.classification import classify
+    from hyperstat.solver.tolerances.values import assign_values
+
+    kin = Kinematics(slider_crank)
+    q = slider_crank_analysis.configurations[:12]
+    args = argparse.Namespace(source=str(TEMPLATES / "slider_crank.py"), param=None)
+    calls = []
+
+    def assign(*a, **k):
+        calls.append(1)
+        return assign_values(*a, **k)
+
+    docs = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for _ in range(2):
+            cl = classify(slider_crank, slider_crank_analysis, kin)
+            cached_values(args, cl, slider_crank, kin, q, assign, position_accuracy=0.05, assembly=False)
+            docs.append(json.dumps(cl.to_dict(), sort_keys=True, default=str))
+        assert len(calls) == 1  # the second classification was filled from the cache
+        cl = classify(slider_crank, slider_crank_analysis, kin)
+        cached_values(args, cl, slider_crank, kin, q, assign, position_accuracy=0.04, assembly=False)
+    assert docs[0] == docs[1]
+    assert len(calls) == 2 and json.dumps(cl.to_dict(), sort_keys=True, default=str) != docs[0]  # another spec
+
+
+def test_the_diagnosis_selection_follows_the_data_files(tmp_path, cache_dir, slider_crank, slider_crank_analysis):
+    data = tmp_path / "m.csv"
+    data.write_text("x\n1\n")
+    args = argparse.Namespace(source=str(TEMPLATES / "slider_crank.py"), param=None)
+    runs = []
+
+    class Diagnosis:
+        selected = ["backlash"]
+        violated_defect = {"defect": "dI21"}
+
+    def diagnose():
+        runs.append(1)
+        return Diagnosis()
+
+    first = cached_selection(args, slider_crank, slider_crank_analysis, [data, None], diagnose)
+    assert first == (["backlash"], {"defect": "dI21"}) and len(runs) == 1
+    assert cached_selection(args, slider_crank, slider_crank_analysis, [data, None], diagnose) == first
+    assert len(runs) == 1
+    data.write_text("x\n2\n")  # the same file, other measurements
+    cached_selection(args, slider_crank, slider_crank_analysis, [data, None], diagnose)
+    assert len(runs) == 2
+    args.no_cache = True
+    args._cache = None
+    cached_selection(args, slider_crank, slider_crank_analysis, [data, None], diagnose)
+    assert len(runs) == 3
+
+
+def test_export_controller_reads_the_selection_and_writes_the_same_file(tmp_path, cache_dir):
+    """``export-controller --diagnose`` with the diagnosis' selection from the cache writes the very bytes of the run
+    that diagnosed (the controller file is hashed: a result must not depend on what the process computed before)."""
+    data = tmp_path / "m.csv"
+    code, _, err = run_cli(["simulate", TEMPLATES / "tripteor_x7.py", "--effect", "backlash", "--out", data,
+                            "--truth", tmp_path / "truth.json", "--quiet"])
+    assert code == 0, err
+    outs = []
+    for name in ("a.json", "b.json"):
+        code, _, err = run_cli(["export-controller", TEMPLATES / "tripteor_x7.py", data, "--validation",
+                                tmp_path / "m.validation.csv", "--diagnose", "--out", tmp_path / name, "--quiet"])
+        assert code == 0, err
+        outs.append((tmp_path / name).read_bytes())
+    assert _entries(cache_dir, "diagnosis-selection")  # the first run stored it, the second read it
+    assert outs[0] == outs[1]
