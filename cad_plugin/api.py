@@ -23,6 +23,7 @@ from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.errors import HyperstatError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
+from hyperstat.cad_plugin.templates import template_path
 
 if TYPE_CHECKING:  # imported where used: the identification and the diagnosis pull in scipy's optimisers
     from hyperstat.solver.calibration.identify import IdentificationResult
@@ -30,28 +31,6 @@ if TYPE_CHECKING:  # imported where used: the identification and the diagnosis p
     from hyperstat.solver.diagnosis.diagnose import Diagnosis
 
 __all__ = ["load", "analyze", "accuracy", "identify", "diagnose", "report", "template_path"]
-
-
-def template_path(name: str) -> Path:
-    """Path of a bundled template from its name (``"tripteor_x7"``, a corpus name such as ``"bennett"``) or of a
-    file as given.
-
-    >>> template_path("slider_crank").name
-    'slider_crank.py'
-    """
-    from hyperstat.cad_plugin.templates import bundled_template, list_corpus, list_templates
-
-    path = Path(name)
-    if path.suffix or path.exists():
-        return path
-    bundled = bundled_template(name)
-    if bundled is None:
-        from hyperstat.solver.cli.suggest import did_you_mean
-
-        names = [p.stem for p in list_templates() + list_corpus()]
-        raise HyperstatError(f"'{name}' is neither a file nor a bundled template{did_you_mean(name, names)} "
-                             f"({', '.join(names)}).")
-    return bundled
 
 
 def load(source: str | Path, **parameters: Any) -> Mechanism:

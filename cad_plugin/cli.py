@@ -50,7 +50,7 @@ def _plot_accuracy(*args, **kwargs):
 
 def _bundled(name: str) -> Path:
     """A bundled template's path from its name (``tripteor_x7``, ``bennett``); one sentence if there is none."""
-    from hyperstat.cad_plugin.api import template_path
+    from hyperstat.cad_plugin.templates import template_path
 
     return template_path(name)
 
@@ -156,6 +156,13 @@ def _cmd_report(args) -> int:
         from hyperstat.solver.tolerances.declaration import check_workspace_loss
 
         check_workspace_loss(args.workspace_loss, "--workspace-loss")
+    if args.pdf:  # a missing printer is said before any work
+        from hyperstat.cad_plugin.report_pdf import chromium
+        from hyperstat.solver.errors import HyperstatError
+
+        if args.json_only:
+            raise HyperstatError("--pdf prints the HTML report, which --json-only does not write; give one of them.")
+        chromium()
     stages = ["stationarity analysis", "verification", "calibration and diagnosis", "tolerances and accuracy",
               "layout and pictures"]
     with solver_cli.stages(args, stages) as progress:
@@ -226,7 +233,11 @@ def _cmd_report(args) -> int:
             if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
                 images["rendered"] = drawn
             written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
-                                       step_drawings=args.step_drawings)
+                                   step_drawings=args.step_drawings)
+            if args.pdf:
+                from hyperstat.cad_plugin.report_pdf import print_pdf
+
+                written.append(print_pdf(Path(args.out) / "report.html", Path(args.out) / "report.pdf"))
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
@@ -360,11 +371,12 @@ def build_parser():
     p.add_argument("--date", metavar="YYYY-MM-DD", help="date printed in the title block (default: today, or "
                    "SOURCE_DATE_EPOCH when set)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
+    p.add_argument("--pdf", action="store_true", help="also print the report on A4 as DIR/report.pdf (headless Chromium)")
     p.add_argument("--json-only", action="store_true", help="write report.json only: the same content, without the "
                    "pictures, the HTML and the Markdown (what the FreeCAD workbench's Analyse reads)")
     cache_option(p)
     p.set_defaults(func=_cmd_report, known_outputs=("report.json", "report.md", "report.html", "skeleton_views.png",
-                                               "skeleton_views.png.json"))
+                                               "skeleton_views.png.json", "report.pdf"))
     p = sub.add_parser("parameters", help="list a template's parameters: name, default, unit, meaning, bounds")
     p.add_argument("template", help="template file (.py)")
     p.add_argument("--json", metavar="OUT.json", help="write them as JSON")

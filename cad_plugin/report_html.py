@@ -52,7 +52,7 @@ table.tol { font-size: .8em; width: 100%; } table.tol td.stmt { font-family: "De
        print-color-adjust: exact; }
 .fcf { display: inline-flex; border: 1px solid #111; vertical-align: middle; margin: 1px 0; white-space: nowrap; }
 .fcf > span { border-left: 1px solid #111; padding: 0 .25em; line-height: 1.2; display: inline-flex; align-items: center; }
-.fcf > span:first-child { border-left: none; } svg.gdt { display: block; }
+.fcf > span:first-child { border-left: none; } .req { white-space: normal; overflow-wrap: anywhere; } svg.gdt { display: block; }
 img { max-width: 100%; } figure { margin: .3em 0; break-inside: avoid; page-break-inside: avoid; }
 figure svg { max-width: 100%; height: auto; display: block; } .limit { font-size: .8em; color: #333; } td.num .limit { white-space: normal; }
 ul.limits { font-size: .75em; columns: 2; column-gap: 1.2em; margin: .2em 0; padding-left: 1.2em; } ul.limits li { break-inside: avoid; } figcaption, .note { color: #333; font-size: .85em; }
@@ -87,7 +87,14 @@ def _image(image, alt: str) -> str:
 
 
 def _fcf(callout: dict) -> str:
-    """One feature control frame as boxes: symbol, zone (mm), datums; the callout's sentence as tooltip."""
+    """One feature control frame as boxes: symbol, zone (mm), datums; the callout's sentence as tooltip.
+
+    A requirement met at assembly (no ISO 1101 symbol: it relates features of several parts) is words that wrap
+    in their cell, not a frame: a frame does not wrap and ran over the next column of the printed table.
+    """
+    if not callout.get("symbol") and callout.get("characteristic") == "assembly requirement":
+        return (f'<span class="req" title="{_e(callout.get("text", ""))}">assembly requirement '
+                f'{_e(callout.get("frame_id", ""))}: ± {_e(zone_text(callout))} {_e(callout.get("unit") or "mm")}</span>')
     cells = [symbol_svg(symbol_of(callout), 11), _e(zone_text(callout))] + [_e(d) for d in callout.get("datums") or []]
     return (f'<span class="fcf" title="{_e(callout.get("text", ""))}">'
             + "".join(f"<span>{c}</span>" for c in cells) + "</span>")

@@ -23,7 +23,7 @@ from hyperstat.solver.errors import HyperstatError, TemplateError
 from hyperstat.cad_plugin.params import make_parameters, parse_overrides
 from hyperstat.cad_plugin.skeleton import Skeleton
 
-__all__ = ["load_template", "template_parameters", "build_template", "TEMPLATE_DIR", "CORPUS_DIR", "list_templates",
+__all__ = ["template_path", "load_template", "template_parameters", "build_template", "TEMPLATE_DIR", "CORPUS_DIR", "list_templates",
            "list_corpus", "bundled_template"]
 
 TEMPLATE_DIR = Path(__file__).resolve().parent.parent / "templates"
@@ -178,3 +178,23 @@ def _workspace(module: ModuleType, params: Any, path: Path) -> dict:
     except (TypeError, ValueError, IndexError):
         raise TemplateError(f"{path}: workspace() ranges must map joint names to (lo, hi) numbers.") from None
     return {"ranges": ranges, "note": str(declared.get("note", ""))}
+
+
+def template_path(name: str) -> Path:
+    """Path of a bundled template from its name (``"tripteor_x7"``, a corpus name such as ``"bennett"``) or of a
+    file as given.
+
+    >>> template_path("slider_crank").name
+    'slider_crank.py'
+    """
+    path = Path(name)
+    if path.suffix or path.exists():
+        return path
+    bundled = bundled_template(name)
+    if bundled is None:
+        from hyperstat.solver.cli.suggest import did_you_mean
+
+        names = [p.stem for p in list_templates() + list_corpus()]
+        raise HyperstatError(f"'{name}' is neither a file nor a bundled template{did_you_mean(name, names)} "
+                             f"({', '.join(names)}).")
+    return bundled

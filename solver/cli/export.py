@@ -95,7 +95,7 @@ def _region_words(region: dict, ranges) -> str:
     parts = []
     for name, unit, lo, hi, (rlo, rhi) in zip(region["joints"], region["units"], region["low"], region["high"], ranges):
         share = (hi - lo) / (rhi - rlo) if rhi > rlo else 1.0
-        parts.append(f"{name} [{lo:.4g}, {hi:.4g}] {unit} ({100 * share:.0f} % of its range)")
+        parts.append(f"joint {name} [{lo:.4g}, {hi:.4g}] {unit} ({100 * share:.0f} % of its range)")
     return ", ".join(parts)
 
 

@@ -12,10 +12,10 @@ from hyperstat.solver import TemplateError
 
 from tests.conftest import TEMPLATES
 
-NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"]
+NAMES = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar", "planar_3rrr"]
 
 
-def test_the_six_templates_are_shipped():
+def test_the_seven_templates_are_shipped():
     assert sorted(p.stem for p in list_templates()) == sorted(NAMES)
 
 

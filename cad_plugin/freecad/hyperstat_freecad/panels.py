@@ -440,9 +440,10 @@ class ResultsPanel(_NonModal):
         self._observer = _FollowDocument(self)
         FreeCAD.addDocumentObserver(self._observer)
 
-    #: the columns as shown: the values next to the id and the class, the long texts last (the data keep the
-    #: report's order, COLUMNS); at FreeCAD's default dock width the values are in view
-    SHOWN = ["id", "class", "without calibration", "with calibration", "drawing", "statement", "feature"]
+    #: the columns as shown: the value next to the id (whose cell carries the class colour), then the class, the
+    #: long texts last (the data keep the report's order, COLUMNS); at FreeCAD's default dock width (about 190 px
+    #: of table) the id and the value are in view, and the class by its colour
+    SHOWN = ["id", "without calibration", "class", "with calibration", "drawing", "statement", "feature"]
 
     def _values_first(self, table) -> None:
         header = table.horizontalHeader()
@@ -454,7 +455,10 @@ class ResultsPanel(_NonModal):
         from PySide import QtGui
 
         table = QtGui.QTableWidget(0, len(headers))
-        table.setHorizontalHeaderLabels(headers)
+        # two-word value heads on two lines ("without / calibration"): at FreeCAD's default dock width the values
+        # stay in view next to the id and the class; no row numbers (the id column names the row)
+        table.setHorizontalHeaderLabels([h.replace(" ", "\n", 1) if h.endswith("calibration") else h for h in headers])
+        table.verticalHeader().setVisible(False)
         table.setEditTriggers(QtGui.QAbstractItemView.NoEditTriggers)
         table.setSelectionBehavior(QtGui.QAbstractItemView.SelectRows)
         table.itemSelectionChanged.connect(on_select)
@@ -572,10 +576,11 @@ class ResultsPanel(_NonModal):
         for i, row in enumerate(rows):
             for j, text in enumerate(row):
                 item = QtGui.QTableWidgetItem(str(text))
-                if j == class_column and text in CLASS_RGB:
-                    item.setBackground(QtGui.QColor.fromRgbF(*CLASS_RGB[text]))
+                klass = row[class_column] if class_column is not None else None
+                if klass in CLASS_RGB and j in (0, class_column):  # the class cell, and the id cell in its colour
+                    item.setBackground(QtGui.QColor.fromRgbF(*CLASS_RGB[klass]))
                     item.setForeground(QtGui.QColor("white"))
-                    item.setToolTip(CLASS_LABELS.get(text, text))
+                    item.setToolTip(CLASS_LABELS.get(klass, klass))
                 if len(str(text)) > 40:  # a long statement: cut in its column, whole in its tooltip
                     item.setToolTip(str(text))
                 table.setItem(i, j, item)

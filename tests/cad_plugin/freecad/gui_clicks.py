@@ -158,22 +158,29 @@ def table_rows(t):
     return [[t.item(r, c).text() if t.item(r, c) else "" for c in range(t.columnCount())] for r in range(t.rowCount())]
 
 
+def _head(table, column: int) -> str:
+    """A column's head as words (a head drawn on two lines reads as one)."""
+    return " ".join(table.horizontalHeaderItem(column).text().split())
+
+
 def panel_contents(panel):
     """What a panel shows: its table(s), their heads, its summary."""
     out = {}
     if panel is not None and hasattr(panel, "table"):
         t = panel.table
         out["table"] = table_rows(t)
-        out["table_header"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]
+        out["table_header"] = [_head(t, c) for c in range(t.columnCount())]
+        out["id_class_colours"] = [(t.item(r, 0).background().color().name(), t.item(r, 1).background().color().name())
+                                   for r in range(t.rowCount()) if t.item(r, 0) is not None and t.item(r, 1) is not None]
         header, width = t.horizontalHeader(), t.viewport().width()
-        out["columns_in_view"] = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())
+        out["columns_in_view"] = [_head(t, c) for c in map(header.logicalIndex, range(t.columnCount()))  # as shown
                                   if 0 <= header.sectionViewportPosition(c)
                                   and header.sectionViewportPosition(c) + header.sectionSize(c) <= width]
     if panel is not None and hasattr(panel, "parameters") and hasattr(panel.parameters, "rowCount"):
         out["parameter_table"] = table_rows(panel.parameters)
     if panel is not None and hasattr(panel, "drawings") and hasattr(panel.drawings, "rowCount"):
         out["frame_table"] = table_rows(panel.drawings)
-        out["frame_table_header"] = [panel.drawings.horizontalHeaderItem(c).text()
+        out["frame_table_header"] = [_head(panel.drawings, c)
                                      for c in range(panel.drawings.columnCount())]
         out["datum_table"] = table_rows(panel.datums)
         out["drawings_note"] = panel.drawings_note.text()

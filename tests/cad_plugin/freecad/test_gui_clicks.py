@@ -339,9 +339,12 @@ def test_panels_fit_the_default_dock_width(clicks):
     for name in ("after_ok", "refused", "insert", "identify", "diagnose", "edit", "analyse"):
         # the panel's right edge is inside the dock (FreeCAD's default width): nothing cut off
         assert steps[name]["panel_right"] <= steps[name]["dock_right"], (name, steps[name])
-    # the Results panel at that width shows the values next to the ids and classes, the long statements after them
+    # the Results panel at that width shows the values next to the ids, the ids in their class's colour, the long
+    # statements after them
     shown = steps["analyse"]["columns_in_view"]
-    assert shown[:3] == ["id", "class", "without calibration"], shown
+    assert shown[:2] == ["id", "without calibration"] and "statement" not in shown, shown
+    colours = steps["analyse"]["id_class_colours"]
+    assert colours and all(a == b and a != "#000000" for a, b in colours), colours
 
 
 def test_stale_state_spreadsheet_marks_identify_does_not(clicks):

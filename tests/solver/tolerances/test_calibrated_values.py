@@ -26,7 +26,7 @@ from hyperstat.solver.tolerances.declaration import task_rows
 
 from tests.solver.tolerances.common import classified
 
-LIMITS = ("second-order residual", "identification noise", "actuator stroke", "workspace loss")
+LIMITS = ("second-order residual", "identification noise", "actuator stroke", "workspace loss", "workspace loss together")
 
 
 @pytest.fixture(scope="module")

@@ -55,8 +55,12 @@ def test_counts_and_classes_are_equal_across_outputs(template, tmp_path):
         rep_v = {t["id"]: t[key] for t in report["tolerances"]["items"]}
         for tid, v in rep_v.items():
             assert (v is None) == (acc[tid] is None), (template.stem, tid, key)
-            if v is not None:
-                assert acc[tid] == pytest.approx(v, rel=1e-6), (template.stem, tid, key, acc[tid], v)
+            if v is None:
+                continue
+            if key == "drawing_value":  # the value the drawing prints and a workshop makes: the same number
+                assert acc[tid] == v, (template.stem, tid, key, acc[tid], v)
+            else:  # the searched worst cases behind it converge to the same optimum within the search's tolerance
+                assert acc[tid] == pytest.approx(v, rel=1e-4), (template.stem, tid, key, acc[tid], v)
     if template.stem in ("slider_crank", "tripteor_x7"):
         c = tmp_path / "mc.json"
         assert main(["montecarlo", str(template), "--workspace-configurations", "60", "--samples", "100",

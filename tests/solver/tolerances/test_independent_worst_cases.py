@@ -37,6 +37,17 @@ def _stated(name: str):
     return mech, cl, own, directions
 
 
+def _alone(item) -> float:
+    """A condition's value alone (the single-condition worst case the independent search replicates).
+
+    The report then scales the conditions together so that the drawing as a whole assembles
+    (:mod:`hyperstat.solver.tolerances.whole_drawing`): the stated value is at most this one.
+    """
+    alone = float(item.evidence.get("assemblability", {}).get("value_alone", item.value))
+    assert item.value <= alone * (1 + 1e-12), (item.statement, item.value, alone)
+    return alone
+
+
 def _check(stated: float, found: float, what: str) -> None:
     assert stated <= found * (1 + NOISE), f"{what}: stated {stated:.8g} exceeds the independent minimum {found:.8g}"
     assert stated >= found * (1 - 1e-3), f"{what}: stated {stated:.8g} far below the independent minimum {found:.8g}"
@@ -76,7 +87,7 @@ def test_slider_crank_assembly_values_never_exceed_the_minimum_over_the_crank_tu
     t = own.violations(q, dirs)
     box = (np.array([-math.pi]), np.array([math.pi]))
     for j, item in enumerate(items):
-        _check(item.value, _refined(own, q, [[0]] * len(q), t, j, dirs, box), item.statement)
+        _check(_alone(item), _refined(own, q, [[0]] * len(q), t, j, dirs, box), item.statement)
 
 
 def test_tripteor_assembly_values_never_exceed_the_minimum_over_edges_faces_and_dead_centres():
@@ -133,9 +144,9 @@ def test_tripteor_assembly_values_never_exceed_the_minimum_over_edges_faces_and_
         found = _refined(own, q, free, t, j, dirs, box, tops=2, levels=10) if item.statement in refine else \
             float(np.nanmin(t[:, j]))
         if item.statement in refine:
-            _check(item.value, found, item.statement)
+            _check(_alone(item), found, item.statement)
         else:
-            assert item.value <= found * (1 + NOISE), (item.statement, item.value, found)
+            assert _alone(item) <= found * (1 + NOISE), (item.statement, item.value, found)
 
 
 def test_triflex_allocation_holds_over_the_workspace_and_every_sign_pattern():

@@ -30,12 +30,12 @@ def test_montecarlo_prints_out_of_spec_and_both_rankings(tmp_path, capsys):
     for share, label in (("position_share", "position"), ("orientation_share", "orientation")):
         line = next(ln for ln in text.splitlines() if f"main contributors to the {label} variance" in ln)
         ranked = sorted(doc["contributors"], key=lambda c: -c[share])[:3]
-        printed = re.findall(r"(T\d+) \S+ \((\d+) %\)", line)
+        printed = re.findall(r"(T\d+) [^()]*?\((\d+) %\)", line)  # a statement written out in full has spaces
         assert [p[0] for p in printed[:3]] == [c["parameter"] for c in ranked]
         for (tid, pct_text), c in zip(printed, ranked):
             assert int(pct_text) == round(100 * c[share])
-    # the drawn tolerances are the classification's values (accuracy-critical and compensable)
-    assert doc["drawn"].startswith("every accuracy tolerance at its value")
+    # the drawn parts are made to the drawing: the accuracy-critical and compensable tolerances at their drawing values
+    assert doc["drawn"].startswith("parts made to the drawing: every accuracy-critical and compensable tolerance")
     assert doc["tolerance_counts"]["accuracy-critical"] + doc["tolerance_counts"]["compensable"] == \
         sum(1 for k in doc["tolerances"] if k.startswith("T"))
     # shares are fractions of the first-order variance: they sum to one per kind
