@@ -233,11 +233,7 @@ def _cmd_report(args) -> int:
             if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
                 images["rendered"] = drawn
             written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
-                                   step_drawings=args.step_drawings)
-            if args.pdf:
-                from hyperstat.cad_plugin.report_pdf import print_pdf
-
-                written.append(print_pdf(Path(args.out) / "report.html", Path(args.out) / "report.pdf"))
+                                   step_drawings=args.step_drawings, pdf=args.pdf)
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))

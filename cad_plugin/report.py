@@ -54,14 +54,15 @@ def skeleton_drawing(rendered: dict, items: list, title: str) -> tuple[str, byte
 
 
 def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: dict | None = None,
-                 images: dict | None = None, step_drawings: bool = False) -> list[Path]:
+                 images: dict | None = None, step_drawings: bool = False, pdf: bool = False) -> list[Path]:
     """Draw the skeleton and write the report's files atomically into ``out_dir``.
 
     ``images`` may hold ``rendered`` (views already rendered, e.g. by a background process), or a
     finished ``views`` picture; otherwise the views of ``mechanism`` are rendered here.  The part
     drawings of ``doc["drawings"]`` get a page each (:mod:`hyperstat.cad_plugin.report_parts`); with
     ``step_drawings``, each part is also written as ``parts/<part>.step``, STEP AP242 with its datums
-    and frames as semantic PMI (:mod:`hyperstat.cad_plugin.pmi`), with the report's files or not at all.
+    and frames as semantic PMI (:mod:`hyperstat.cad_plugin.pmi`), with the report's files or not at all;
+    with ``pdf``, ``report.pdf`` printed on A4 by headless Chromium (:mod:`hyperstat.cad_plugin.report_pdf`).
     """
     out_dir = Path(out_dir)
     images = dict(images or {})
@@ -92,10 +93,15 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
         svg, png, words = skeleton_drawing(rendered, items, f"Skeleton of {doc['mechanism']}")
         images["views"] = svg
         extra += [(out_dir / "skeleton_views.png", png), (out_dir / "skeleton_views.png.json", dumps_json(words))]
+    html = render_html(doc, images)
+    if pdf:
+        from hyperstat.cad_plugin.report_pdf import print_pdf
+
+        extra.append((out_dir / "report.pdf", print_pdf(html)))
     with all_or_nothing():  # every file of the report or none
         written = [write_text(out_dir / "report.json", dumps_json(doc)),
                    write_text(out_dir / "report.md", render_markdown(doc)),
-                   write_text(out_dir / "report.html", render_html(doc, images))]
+                   write_text(out_dir / "report.html", html)]
         for path, data in extra:
             written.append(write_bytes(path, data) if isinstance(data, bytes) else write_text(path, data))
     return written

@@ -9,7 +9,6 @@ test_report.py``): a second layout engine would print another document.
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import tempfile
@@ -37,27 +36,30 @@ def chromium() -> str:
     return exe
 
 
-def print_pdf(html: str | os.PathLike, pdf: str | os.PathLike, timeout: float = 300.0) -> Path:
-    """Print ``html`` to ``pdf`` (A4), written to a temporary file beside it, then renamed.
+def print_pdf(html: str, timeout: float = 300.0) -> bytes:
+    """The bytes of the PDF Chromium prints (A4) from the self-contained report ``html``.
+
+    Printed in a temporary folder outside the output directory: the caller writes the bytes with the
+    report's other files, all of them or none.
 
     Raises
     ------
     HyperstatError
-        When Chromium is missing, fails or writes no PDF (nothing is left at ``pdf``).
+        When Chromium is missing, fails or prints no PDF.
     """
-    html, pdf = Path(html), Path(pdf)
     exe = chromium()
-    with tempfile.TemporaryDirectory(prefix=".pdf-", dir=pdf.parent) as tmp:
-        out = Path(tmp) / "report.pdf"
+    with tempfile.TemporaryDirectory(prefix="hyperstat-pdf-") as tmp:
+        page, out = Path(tmp) / "report.html", Path(tmp) / "report.pdf"
+        page.write_text(html, encoding="utf-8")
         try:
             run = subprocess.run([exe, *FLAGS, f"--user-data-dir={Path(tmp) / 'profile'}", f"--print-to-pdf={out}",
-                                  html.resolve().as_uri()], capture_output=True, text=True, timeout=timeout)
+                                  page.as_uri()], capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
-            raise HyperstatError(f"{pdf}: not written: Chromium did not print {html.name} within {timeout:.0f} s.") \
-                from None
-        if not out.is_file() or out.read_bytes()[:5] != b"%PDF-":
+            raise HyperstatError(f"--pdf: Chromium did not print the report within {timeout:.0f} s; nothing was "
+                                 "written.") from None
+        data = out.read_bytes() if out.is_file() else b""
+        if data[:5] != b"%PDF-":
             last = (run.stderr.strip().splitlines() or ["no message"])[-1]
-            raise HyperstatError(f"{pdf}: not written: Chromium printed no PDF of {html.name} (exit {run.returncode}: "
-                                 f"{last}).")
-        os.replace(out, pdf)
-    return pdf
+            raise HyperstatError(f"--pdf: Chromium printed no PDF (exit {run.returncode}: {last}); nothing was "
+                                 "written.")
+    return data

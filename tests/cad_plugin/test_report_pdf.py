@@ -23,7 +23,8 @@ def test_report_pdf_is_a4_and_carries_the_tables(tmp_path, capsys):
     text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True, check=True).stdout
     assert "Tolerance report: slider_crank" in text
     assert "Skeleton and tolerances" in text
-    assert not [p for p in out.iterdir() if p.name.startswith(".pdf-")]  # no temporary left behind
+    assert sorted(p.name for p in out.iterdir()) == ["report.html", "report.json", "report.md", "report.pdf",
+                                                     "skeleton_views.png", "skeleton_views.png.json"]
 
 
 def test_report_pdf_with_json_only_is_refused_before_any_work(tmp_path, capsys):
