@@ -2,7 +2,7 @@
 
 Units: lengths in mm, angles in rad.
 
-Environment: ``HYPERSTAT_SCENARIO_TEMPLATE`` (a shipped template's name) and
+Environment: ``HYPERSTAT_SCENARIO_TEMPLATE`` (a shipped template's name, or a template file's path) and
 ``HYPERSTAT_SCENARIO_OUT`` (a folder).  Writes ``OUT/result.json`` with the state of
 the skeleton after the analysis and again after saving, closing and reopening the
 document; exits 0, or 1 with the traceback in ``result.json`` (``freecadcmd`` would

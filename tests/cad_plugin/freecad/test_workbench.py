@@ -40,11 +40,15 @@ SCENARIO = Path(__file__).resolve().parent / "fc_scenario.py"
 SHIPPED = ["slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"]
 #: corpus members inserted and analysed by name too (issue 38): a spatial loop and a parallel robot
 CORPUS = ["bennett", "tsai_3upu"]
-NAMES = SHIPPED + CORPUS
+#: a Bennett linkage and a planar 3-RRR written from docs/authoring.md alone by an author who read no source (issue 38)
+GUIDE = {name: ROOT / "docs" / "validation" / "guide_authoring" / f"{name}.py" for name in ("bennett_user", "rrr3_user")}
+NAMES = SHIPPED + CORPUS + list(GUIDE)
 
 
 def template_file(name: str) -> Path:
-    """A shipped template's or a corpus template's file."""
+    """A shipped template's, a corpus template's or a guide-written template's file."""
+    if name in GUIDE:
+        return GUIDE[name]
     return TEMPLATES / f"{name}.py" if name in SHIPPED else TEMPLATES / "corpus" / f"{name}.py"
 REQUIRED = os.environ.get("HYPERSTAT_REQUIRE_FREECAD") == "1"
 TIMEOUT_S = 900
@@ -133,7 +137,8 @@ def jobs(installed, tmp_path_factory):
     started: dict[str, Job] = {}
     for name in NAMES:
         started[name] = _start(name, [tools["freecadcmd"], str(SCENARIO)],
-                               {**env, "HYPERSTAT_SCENARIO_TEMPLATE": name, "HYPERSTAT_SCENARIO_OUT": str(root / name)},
+                               {**env, "HYPERSTAT_SCENARIO_TEMPLATE": str(GUIDE.get(name, name)),
+                                "HYPERSTAT_SCENARIO_OUT": str(root / name)},
                                root / name)
     started["unit"] = _start("unit", [tools["freecadcmd"], "-t", "TestHyperstatWorkbench"], env, root / "unit")
     yield started
