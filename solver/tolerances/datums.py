@@ -41,7 +41,7 @@ __all__ = ["Datum", "Component", "DatumSystem", "datum_system"]
 
 _TOL = 1e-9
 _AXES = ("bore", "journal", "guide", "slide")
-_PLANES = ("face", "shoulder", "stop")
+_PLANES = ("face", "shoulder", "stop", "seatface", "seatflat")
 
 
 @dataclass

@@ -51,6 +51,7 @@ SYMBOLS = {"parallelism": "\u2225", "perpendicularity": "\u27c2", "angularity": 
 _DIAMETER = "\u2300"
 _ORIENTATION = ("parallelism", "perpendicularity", "angularity")
 _PRIORITY = {"tilt": 0, "normal": 1, "shift": 2}
+_SEAT_ORDER = {"seat": 0, "seatface": 1, "seatflat": 2}  # the seat's bore first: the longest lever, the widest zone
 
 
 def safe_round(value: float | None, digits: int = 3) -> float | None:
@@ -195,8 +196,10 @@ def _frames_of(ds, feature, group: str, comps: list) -> list:
 
 def _independent(comps: list) -> list:
     """The components whose rows add rank, tilts first, then faces, then shifts (a shift that only follows a tilt
-    carries nothing of its own)."""
-    order = sorted(range(len(comps)), key=lambda i: _PRIORITY[comps[i].group])
+    carries nothing of its own); a tool seat's last, so that it carries only what no joint's feature sees (the rows
+    kept are independent: a statement the joints' features express keeps the same expression)."""
+    order = sorted(range(len(comps)), key=lambda i: (comps[i].feature.side == "output",
+                                                     _SEAT_ORDER.get(comps[i].feature.role, 0), _PRIORITY[comps[i].group]))
     kept, basis = [], np.zeros((0, len(comps[0].row))) if comps else np.zeros((0, 0))
     for i in order:
         row = comps[i].row

@@ -54,10 +54,13 @@ _ROLE_WORDS = {"bore": "bore of joint {j}", "face": "end face of the bore of joi
                "guide": "guide way of joint {j}", "flank": "flank of the guide way of joint {j}",
                "slide": "slide of joint {j}", "sflank": "flank of the slide of joint {j}",
                "stop": "stop of the slide of joint {j} (where its zero is taken)",
-               "mounting": "mounting face of the base (the face its machine frame {j} is set on about datum A)"}
+               "mounting": "mounting face of the base (the face its machine frame {j} is set on about datum A)",
+               "seat": "tool seat (the bore the tool or effector is mounted in; it carries the output frame {j})",
+               "seatface": "end face of the tool seat (it locates the output frame {j} along the seat)",
+               "seatflat": "flat of the tool seat (it locates the turn of the output frame {j} about the seat)"}
 _KIND = {"bore": "axis", "journal": "axis", "guide": "axis", "slide": "axis", "face": "plane", "shoulder": "plane",
          "stop": "plane", "flank": "plane", "sflank": "plane", "drive": "median plane", "keyway": "median plane",
-         "mounting": "plane"}
+         "mounting": "plane", "seat": "axis", "seatface": "plane", "seatflat": "plane"}
 
 
 @dataclass
@@ -253,6 +256,7 @@ def find_parts(mechanism: Mechanism, declaration) -> list[Part]:
         if b == m.base:
             _mounting_face(part, m)
         parts.append(part)
+    _tool_seat(parts, w, m)
     return parts
 
 
@@ -343,6 +347,37 @@ def _mounting_face(part: Part, m: Mechanism) -> None:
     part.features.append(Feature(f"{part.id}.mounting", part.id, "mounting", "plane",
                                  _ROLE_WORDS["mounting"].format(j=m.base), first.name, "fixed", f"L:{first.name}",
                                  bore.point.copy(), normal, None, None, None))
+
+
+def _tool_seat(parts: list, w: _Walk, m: Mechanism) -> None:
+    """The tool seat on the part that carries the output frame: a bore along the frame's ``z`` at its origin, its end
+    face, and a flat (normal to the frame's ``y``, at the seat's radius) that locates the turn about it.
+
+    The output frame sits on a part through fixed transforms (a platform's centre, a wrist's flange): without a
+    feature there, defects that move none of the part's joint features can still move the output (on a 3-RRR, the
+    platform's in-plane geometry with a passive joint's zero turns the platform about one journal and moves its
+    centre), and no frame would bound them.  The seat's length is not in the model: it is taken as the longest
+    support span of the part's joints (``length_source`` says so).
+    """
+    node = w.alias.get(m.output)
+    if node is None or node.startswith("L:") or node.startswith("P:"):
+        return  # the output is a joint's own frame: that joint's features carry it
+    part = next((p for p in parts if node in p.nodes), None)
+    if part is None:
+        return
+    frame = part.nodes[node]
+    origin, x_axis, y_axis, z_axis = frame[:3, 3], frame[:3, 0], frame[:3, 1], frame[:3, 2]
+    spans = [f.length for f in part.features if f.kind == "axis" and f.length]
+    length = max(spans) if spans else None
+    source = "assumed: the longest support span of the part's joints" if length is not None else None
+    element = node[2:]
+    radius = 0.5 * length if length else 10.0
+    for role, point, direction, size, src in (
+            ("seat", origin, z_axis, length, source), ("seatface", origin, z_axis, None, None),
+            ("seatflat", origin + radius * x_axis, y_axis, None, None)):
+        part.features.append(Feature(f"{part.id}.{role}{element}", part.id, role, _KIND[role],
+                                     _ROLE_WORDS[role].format(j=m.output), element, "output", node,
+                                     np.asarray(point, float), np.asarray(direction, float), size, None, src))
 
 
 def _feature(part: Part, role: str, joint: Joint, side: str, node: str, point, direction, length, source) -> Feature:

@@ -10,8 +10,9 @@ the linear programmes are this module's.
 The reading (what a frame admits):
 
 * a feature is realised by a joint's frame: the part before the joint (``side`` ``fixed``) carries ``L_j``, the
-  part after it (``moving``) ``P_j = L_j M_j(q_home)``; its small displacement is read from the part's own
-  chain of element matrices, relative to the frame of its datum ``A`` (central differences);
+  part after it (``moving``) ``P_j = L_j M_j(q_home)``; a tool seat (``side`` ``output``) by the output frame the
+  element named reaches; its small displacement is read from the part's own chain of element matrices, relative
+  to the frame of its datum ``A`` (central differences);
 * the datum reference frame of a frame: ``A`` (an axis) locks the two tilts across it and the two shifts across
   it at its point; ``B`` (a plane normal to ``A``) the translation along ``A``; ``C`` the rotation about ``A``
   (a plane containing ``A``'s direction: by its own turn about ``A``; an axis parallel to ``A``: by its shift
@@ -150,6 +151,8 @@ class DrawingReader:
 
     # ------------------------------------------------------------------------------------------- geometry
     def node_of(self, feature: dict) -> str:
+        if feature["side"] == "output":  # a tool seat: the output frame, reached by the element named
+            return self.bodies.canon("F:" + feature["element"])
         return self.bodies.canon(("L:" if feature["side"] == "fixed" else "P:") + feature["element"])
 
     def displacement(self, ref: str, node: str, point: np.ndarray, h: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
