@@ -343,11 +343,22 @@ def part_drawings(cl, mechanism: Mechanism, kin=None) -> dict:
                     del active[id(f)]
     for f in frames:
         f.bound = fixed.get(id(f), 0.0)
+    _drop_idle_seats(parts, frames)
     out = _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, items, calibrated)
     _setup_requirements(out, setups, mechanism)
     out["invisible"] = invisible
     out["expressions"] = expr
     return out
+
+
+def _drop_idle_seats(parts: list, frames: list) -> None:
+    """A tool seat stays on its part's drawing only where a frame carries it: where the joints' features already fix
+    the output frame (a wrist's flange on its journal), the part is drawn as before, with no seat (in place)."""
+    used = {id(f.feature) for f in frames if f.bound > 0}
+    for part in parts:
+        seat = [ft for ft in part.features if ft.side == "output"]
+        if seat and not any(id(ft) in used for ft in seat):
+            part.features = [ft for ft in part.features if ft.side != "output"]
 
 
 def _zone(f: _Frame) -> tuple[float, float | None]:

@@ -351,7 +351,8 @@ def _mounting_face(part: Part, m: Mechanism) -> None:
 
 def _tool_seat(parts: list, w: _Walk, m: Mechanism) -> None:
     """The tool seat on the part that carries the output frame: a bore along the frame's ``z`` at its origin, its end
-    face, and a flat (normal to the frame's ``y``, at the seat's radius) that locates the turn about it.
+    face, and a flat (normal to the frame's ``y``, one seat length from its axis along ``x``) that locates the turn
+    about it.
 
     The output frame sits on a part through fixed transforms (a platform's centre, a wrist's flange): without a
     feature there, defects that move none of the part's joint features can still move the output (on a 3-RRR, the
@@ -371,7 +372,7 @@ def _tool_seat(parts: list, w: _Walk, m: Mechanism) -> None:
     length = max(spans) if spans else None
     source = "assumed: the longest support span of the part's joints" if length is not None else None
     element = node[2:]
-    radius = 0.5 * length if length else 10.0
+    radius = length if length else 20.0  # beside the seat's boss (a bore of the seat's length in diameter at most)
     for role, point, direction, size, src in (
             ("seat", origin, z_axis, length, source), ("seatface", origin, z_axis, None, None),
             ("seatflat", origin + radius * x_axis, y_axis, None, None)):
