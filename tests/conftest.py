@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -11,9 +13,36 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 TEMPLATES = ROOT / "templates"
 
-# The cache of results (hyperstat.solver.cache) is off in the tests, in this process and the commands it starts:
-# every test computes what it checks.  The cache's own tests turn it on in a temporary folder.
-os.environ["HYPERSTAT_CACHE"] = "off"
+# One folder for the whole test session (created here, by the process that starts the session, and inherited
+# through the environment by the pytest-xdist workers and every command the tests start): it holds the session's
+# cache of results and the background corpus run (tests/templates/conftest.py).  Removed when the session ends.
+SESSION_ENV = "HYPERSTAT_TEST_SESSION_DIR"
+_OWN_SESSION_DIR = not os.environ.get(SESSION_ENV)
+if _OWN_SESSION_DIR:
+    os.environ[SESSION_ENV] = tempfile.mkdtemp(prefix="hyperstat-tests-")
+SESSION_DIR = Path(os.environ[SESSION_ENV])
+
+# The cache of results (hyperstat.solver.cache) is one folder for the whole session, shared by this process, the
+# xdist workers and the commands they start: the first run of a stage on a model computes it (uncached), every
+# later run with the same model, data and options reads it, so the same report of the same template is computed
+# once per session, not once per test.  The session starts with an empty folder: nothing computed by an earlier
+# session or an older code is read.  Tests that must compute twice (determinism) or must exercise the uncached
+# computation take the ``no_cache`` fixture; the cache's own tests use their own folders.
+os.environ["HYPERSTAT_CACHE"] = str(SESSION_DIR / "cache")
+
+
+@pytest.fixture
+def no_cache(monkeypatch):
+    """The cache of results off for this test and the commands it starts: every stage is computed."""
+    monkeypatch.setenv("HYPERSTAT_CACHE", "off")
+
+
+def pytest_unconfigure(config) -> None:
+    if _OWN_SESSION_DIR and not hasattr(config, "workerinput"):
+        from tests.templates.conftest import stop_shared_corpus
+
+        stop_shared_corpus()
+        shutil.rmtree(SESSION_DIR, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")
@@ -99,3 +128,58 @@ def assert_refused(argv: list, *needles: str, outputs: tuple = ()) -> str:
     for path in outputs:
         assert not Path(path).exists(), f"{path} was written"
     return lines[0]
+
+
+# ------------------------------------------------------------------ pytest-xdist: which tests share a worker
+#: modules that start LinuxCNC: one at a time (its simulations interfere with each other), so all on one worker
+LINUXCNC_MODULES = ("tests/solver/export/test_genserkins.py", "tests/solver/export/test_linuxcnc")
+#: session fixtures that compute a whole report: the modules that read them run on one worker (computed once)
+SHARED_REPORTS = ("tripteor_report", "slider_crank_report")
+#: modules that take minutes, sent to the workers first (under ``--dist loadgroup``) so that they do not end the
+#: run alone on one worker: the FreeCAD clicking scenario, the analyze/accuracy/report of every template, ...
+FIRST = ("tests/cad_plugin/freecad/test_gui_clicks.py", "tests/solver/tolerances/test_equal_counts.py",
+         "tests/cad_plugin/freecad/test_workbench.py", "tests/solver/tolerances/test_part_drawings.py",
+         "@reports", "@linuxcnc", "tests/solver/tolerances/test_independent_worst_cases.py")
+
+
+def xdist_group(item) -> str:
+    """The worker group of a test under ``--dist loadgroup``: its module (its module-scoped fixtures are computed
+    once), all LinuxCNC modules together, all readers of the session's reports together."""
+    module = item.nodeid.split("::", 1)[0]
+    if module.startswith(LINUXCNC_MODULES):
+        return "@linuxcnc"
+    if any(name in getattr(item, "fixturenames", ()) for name in SHARED_REPORTS):
+        return "@reports"
+    return module
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items) -> None:
+    """Under ``pytest -n N --dist loadgroup`` (``make test``): every test gets its group (:func:`xdist_group`), and
+    the groups that take minutes come first.  Without xdist nothing changes."""
+    if getattr(config.option, "dist", "no") != "loadgroup" or not getattr(config.option, "numprocesses", None) \
+            and not hasattr(config, "workerinput"):
+        return
+    groups = {}
+    for item in items:
+        group = xdist_group(item)
+        groups[id(item)] = group
+        item.add_marker(pytest.mark.xdist_group(group.replace("/", "-").replace("@", "")))
+    rank = {g: k for k, g in enumerate(FIRST)}
+    items.sort(key=lambda item: rank.get(groups[id(item)], len(FIRST)))  # stable: the rest keep their order
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_node_collection_finished(node, ids) -> None:
+    """The controller of an xdist run starts the corpus' background worker once, for every xdist worker."""
+    from tests.templates.conftest import start_shared_corpus
+
+    start_shared_corpus()
+
+
+def pytest_terminal_summary(terminalreporter) -> None:
+    """Records a test left for the reader (``record`` user property: the corpus' durations), after the run."""
+    for report in terminalreporter.stats.get("passed", []):
+        for name, text in getattr(report, "user_properties", ()):
+            if name == "record":
+                terminalreporter.write_line(text)
