@@ -133,40 +133,52 @@ def assert_refused(argv: list, *needles: str, outputs: tuple = ()) -> str:
 # ------------------------------------------------------------------ pytest-xdist: which tests share a worker
 #: modules that start LinuxCNC: one at a time (its simulations interfere with each other), so all on one worker
 LINUXCNC_MODULES = ("tests/solver/export/test_genserkins.py", "tests/solver/export/test_linuxcnc")
-#: session fixtures that compute a whole report: the modules that read them run on one worker (computed once)
+#: session fixtures that compute a whole report (tests/cad_plugin/conftest.py): the modules that read them run on
+#: one worker, so each report is computed once
 SHARED_REPORTS = ("tripteor_report", "slider_crank_report")
-#: modules that take minutes, sent to the workers first (under ``--dist loadgroup``) so that they do not end the
-#: run alone on one worker: the FreeCAD clicking scenario, the analyze/accuracy/report of every template, ...
+#: groups that take minutes, sent to the workers first so that none of them ends the run alone on one worker: the
+#: FreeCAD clicking scenario, the analyze/accuracy/report of every template, freecadcmd, the part drawings, ...
 FIRST = ("tests/cad_plugin/freecad/test_gui_clicks.py", "tests/solver/tolerances/test_equal_counts.py",
          "tests/cad_plugin/freecad/test_workbench.py", "tests/solver/tolerances/test_part_drawings.py",
          "@reports", "@linuxcnc", "tests/solver/tolerances/test_independent_worst_cases.py")
+_READERS: set = set()
 
 
-def xdist_group(item) -> str:
-    """The worker group of a test under ``--dist loadgroup``: its module (its module-scoped fixtures are computed
-    once), all LinuxCNC modules together, all readers of the session's reports together."""
-    module = item.nodeid.split("::", 1)[0]
+def xdist_group(nodeid: str) -> str:
+    """The worker group of a test under ``make test`` (``-n 2 --dist loadgroup``): its module (its module-scoped
+    fixtures are computed once), except that all LinuxCNC modules are one group and all readers of the session's
+    reports (:data:`SHARED_REPORTS`) another.  From the test id alone: the xdist controller collects nothing."""
+    module = nodeid.split("::", 1)[0]
     if module.startswith(LINUXCNC_MODULES):
         return "@linuxcnc"
-    if any(name in getattr(item, "fixturenames", ()) for name in SHARED_REPORTS):
-        return "@reports"
-    return module
+    if not _READERS:
+        _READERS.update(p.relative_to(ROOT).as_posix() for p in (ROOT / "tests").rglob("test_*.py")
+                        if any(name in p.read_text(encoding="utf-8") for name in SHARED_REPORTS))
+    return "@reports" if module in _READERS else module
 
 
-@pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadgroup`` by :func:`xdist_group`.  (xdist's own loadgroup reads an ``@group`` suffix it appends to
+    the test ids, which pytest 9's structured test ids drop: its groups would be lost.)"""
+    if config.getoption("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ByGroup(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return xdist_group(nodeid)
+
+    return ByGroup(config, log)
+
+
 def pytest_collection_modifyitems(config, items) -> None:
-    """Under ``pytest -n N --dist loadgroup`` (``make test``): every test gets its group (:func:`xdist_group`), and
-    the groups that take minutes come first.  Without xdist nothing changes."""
-    if getattr(config.option, "dist", "no") != "loadgroup" or not getattr(config.option, "numprocesses", None) \
-            and not hasattr(config, "workerinput"):
+    """In an xdist worker: the groups that take minutes first (:data:`FIRST`; the controller hands the groups out in
+    the order the workers collected them).  Without xdist nothing changes."""
+    if not hasattr(config, "workerinput"):
         return
-    groups = {}
-    for item in items:
-        group = xdist_group(item)
-        groups[id(item)] = group
-        item.add_marker(pytest.mark.xdist_group(group.replace("/", "-").replace("@", "")))
     rank = {g: k for k, g in enumerate(FIRST)}
-    items.sort(key=lambda item: rank.get(groups[id(item)], len(FIRST)))  # stable: the rest keep their order
+    items.sort(key=lambda item: rank.get(xdist_group(item.nodeid), len(FIRST)))  # stable: the rest keep their order
 
 
 @pytest.hookimpl(optionalhook=True)
