@@ -141,16 +141,22 @@ SHARED_REPORTS = ("tripteor_report", "slider_crank_report")
 FIRST = ("tests/cad_plugin/freecad/test_gui_clicks.py", "tests/solver/tolerances/test_equal_counts.py",
          "tests/cad_plugin/freecad/test_workbench.py", "tests/solver/tolerances/test_part_drawings.py",
          "@reports", "@linuxcnc", "tests/solver/tolerances/test_independent_worst_cases.py")
+#: modules whose tests share no module-scoped fixture and each take a minute or more: one group per test, so that
+#: both workers share them
+SPLIT = ("tests/solver/tolerances/test_equal_counts.py",)
 _READERS: set = set()
 
 
 def xdist_group(nodeid: str) -> str:
     """The worker group of a test under ``make test`` (``-n 2 --dist loadgroup``): its module (its module-scoped
-    fixtures are computed once), except that all LinuxCNC modules are one group and all readers of the session's
-    reports (:data:`SHARED_REPORTS`) another.  From the test id alone: the xdist controller collects nothing."""
+    fixtures are computed once), except that all LinuxCNC modules are one group, all readers of the session's
+    reports (:data:`SHARED_REPORTS`) another, and each test of :data:`SPLIT` its own.  From the test id alone: the
+    xdist controller collects nothing."""
     module = nodeid.split("::", 1)[0]
     if module.startswith(LINUXCNC_MODULES):
         return "@linuxcnc"
+    if module in SPLIT:
+        return nodeid
     if not _READERS:
         _READERS.update(p.relative_to(ROOT).as_posix() for p in (ROOT / "tests").rglob("test_*.py")
                         if any(name in p.read_text(encoding="utf-8") for name in SHARED_REPORTS))
@@ -178,7 +184,8 @@ def pytest_collection_modifyitems(config, items) -> None:
     if not hasattr(config, "workerinput"):
         return
     rank = {g: k for k, g in enumerate(FIRST)}
-    items.sort(key=lambda item: rank.get(xdist_group(item.nodeid), len(FIRST)))  # stable: the rest keep their order
+    items.sort(key=lambda item: min(rank.get(xdist_group(item.nodeid), len(FIRST)),
+                                    rank.get(item.nodeid.split("::", 1)[0], len(FIRST))))  # stable: the rest keep their order
 
 
 @pytest.hookimpl(optionalhook=True)
