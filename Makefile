@@ -50,8 +50,10 @@ demo: setup
 
 # The FreeCAD workbench tests run the real FreeCAD: HYPERSTAT_REQUIRE_FREECAD=1 makes them fail, not skip,
 # if it is missing.
+# -n 2 --dist loadgroup (pytest-xdist): the tests on both cores, a module's tests on one worker, the LinuxCNC tests
+# on one worker, one at a time (tests/conftest.py).
 test: setup system-deps freecad-deps
-	HYPERSTAT_REQUIRE_FREECAD=1 $(PY) -m pytest -q --durations=15
+	HYPERSTAT_REQUIRE_FREECAD=1 $(PY) -m pytest -q --durations=15 -n 2 --dist loadgroup
 
 # The README's and the docs' pictures (docs/img/, committed), drawn again by the real commands: the templates'
 # skeleton drawings, the report's page 1 in Chromium, the accuracy maps (docs/make_images.py), and FreeCAD's

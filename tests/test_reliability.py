@@ -81,7 +81,8 @@ def test_killed_controller_export_keeps_the_previous_file(tmp_path):
     assert not [p.name for p in ctl.iterdir() if p.name.endswith(".part")]
 
 
-def test_same_inputs_give_byte_identical_outputs(tmp_path):
+def test_same_inputs_give_byte_identical_outputs(tmp_path, no_cache):
+    """Two runs computed from scratch (no cache) give the same bytes."""
     data = tmp_path / "d.csv"
     assert main(["simulate", SC, "--poses", "30", "--validation", "10", "--out", str(data), "--quiet"]) == 0
     outputs = []

@@ -274,7 +274,8 @@ def test_every_tolerance_of_the_json_is_in_the_html(plain_report):
         assert html.escape(t["statement"]) in row and t["class"] in row and tolerance_value(t) in row
 
 
-def test_report_is_deterministic_and_prints_no_absolute_path(tmp_path, monkeypatch):
+def test_report_is_deterministic_and_prints_no_absolute_path(tmp_path, monkeypatch, no_cache):
+    """Two runs computed from scratch (no cache) give the same bytes."""
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")  # 2026-01-01
     outside = tmp_path / "designs" / "my_crank.py"  # a template outside the repository
     outside.parent.mkdir()

@@ -29,7 +29,7 @@ import pytest
 
 from hyperstat.cad_plugin.templates import CORPUS_DIR, build_template
 
-from tests.templates.conftest import corpus_job
+from tests.templates.conftest import corpus_job, wait_shared_corpus
 from tests.templates.corpus_runner import LEFT_OUT, MEMBERS, OUTPUTS, ROBOTS, TEMPLATES, commands, member_dir, run, \
     theory_of
 from tests.templates.screw_theory import screw_model
@@ -42,10 +42,14 @@ WAIT_S = 3600
 def corpus(tmp_path_factory) -> dict:
     """Every command on every member, once per session: outcome, stderr, wall and CPU seconds per (member, command).
 
-    Read from the background worker that the collection started (``tests/templates/conftest.py``); run here, in
-    this process, when there is none.
+    Read from the background worker that the collection started (``tests/templates/conftest.py``; under xdist, the
+    one the controller started); run here, in this process, when there is none.
     """
     job = corpus_job()
+    try:
+        shared = None if job else wait_shared_corpus(WAIT_S)
+    except (TimeoutError, RuntimeError) as exc:
+        pytest.fail(str(exc))
     if job:
         try:
             job["proc"].wait(timeout=WAIT_S)
@@ -53,6 +57,8 @@ def corpus(tmp_path_factory) -> dict:
             pytest.fail(f"the corpus worker did not finish within {WAIT_S} s")
         root = job["root"]
         assert (root / "done").is_file(), (root / "worker.log").read_text(encoding="utf-8")[-4000:]
+    elif shared is not None:
+        root = shared
     else:
         root = tmp_path_factory.mktemp("corpus")
         run(root, MEMBERS)
@@ -164,21 +170,20 @@ def test_a_controller_file_comes_out_of_the_bennett_linkage(corpus):
     assert corpus["runs"][("bennett", "check-controller")]["code"] == 0
 
 
-def test_the_corpus_duration_is_reported(corpus, capsys):
-    """Not a timing assertion: the corpus's outcomes and durations, for the record (wall and CPU seconds)."""
+def test_the_corpus_duration_is_reported(corpus, record_property):
+    """Not a timing assertion: the corpus's outcomes and durations, for the record (wall and CPU seconds), printed
+    after the run (``tests/conftest.py``: also from an xdist worker)."""
     by_member: dict = {}
     for (m, c), r in corpus["runs"].items():
         by_member.setdefault(m, []).append(f"{c} {r['code']}")
     slow = sorted(corpus["runs"].items(), key=lambda kv: -kv[1]["cpu"])[:5]
-    with capsys.disabled():
-        print(f"\ncorpus: {len(MEMBERS)} members, {len(corpus['runs'])} commands, {corpus['seconds']:.1f} s wall and "
-              f"{corpus['cpu']:.1f} s CPU in the worker; most CPU: "
-              + ", ".join(f"{m} {c} {r['cpu']:.1f} s" for (m, c), r in slow))
-        for m, outcomes in by_member.items():
-            print(f"  {m}: " + ", ".join(outcomes))
-        for (m, c), r in corpus["runs"].items():
-            if r["code"] != 0:
-                print(f"  {m} {c}: {r['stderr'].strip().splitlines()[-1]}")
+    lines = [f"corpus: {len(MEMBERS)} members, {len(corpus['runs'])} commands, {corpus['seconds']:.1f} s wall and "
+             f"{corpus['cpu']:.1f} s CPU in the worker; most CPU: "
+             + ", ".join(f"{m} {c} {r['cpu']:.1f} s" for (m, c), r in slow)]
+    lines += [f"  {m}: " + ", ".join(outcomes) for m, outcomes in by_member.items()]
+    lines += [f"  {m} {c}: {r['stderr'].strip().splitlines()[-1]}" for (m, c), r in corpus["runs"].items()
+              if r["code"] != 0]
+    record_property("record", "\n".join(lines))
     assert corpus["cpu"] > 0
 
 
