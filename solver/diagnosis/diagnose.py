@@ -39,7 +39,8 @@ from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
 from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MASS_FIELD, MASS_FIELD_SHORT, applicable_effects,
                                                 available_effects, gravity_source, harmonic_name, harmonic_order,
                                                 is_jointwise, is_known_effect, is_library_effect, make_effect)
-from hyperstat.solver.diagnosis.equivalence import bending_alternatives, equivalence_sets, gravity_family
+from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_WORDS, bending_alternatives,
+                                                    equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
 from hyperstat.solver.diagnosis.periodic import periodic_gate, refined_order, screw_period, spectral_candidates
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
@@ -112,9 +113,11 @@ class Diagnosis:
 
     @property
     def confidence(self) -> str:
-        """``"low"`` when the targets tell different stories or the named effects could not be compared with the
-        gravity-driven effects (no masses); ``"high"`` otherwise."""
-        if self.targets_agree is False or self.verdict.get("unchecked_against"):
+        """``"low"`` when the targets tell different stories, the named effects could not be compared with the
+        gravity-driven effects (no masses), or a named effect cannot be told from the stand (the machine's base)
+        moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them);
+        ``"high"`` otherwise."""
+        if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion"):
             return "low"
         return "high"
 
@@ -594,12 +597,19 @@ def _answer(run: _Run) -> Diagnosis:
         members = [e["effect"] for e in run.ranking if not e.get("note") and e["effect"] not in refused]
         pairs = LinkBending(run.mechanism, run.kin).pairs if masses and "compliance" in selected else {}
         bending = bending_alternatives(run.mechanism, run.kin, run.data, run.act_jac, pairs) if "compliance" in selected else []
+        stand = stand_motion_family(run.data, run.at_rigid["world"], run.r_trk, len(screen.w))
         sets = equivalence_sets(screen, selected, columns, members, family, run.data, spectrum_peaks(run.plain),
-                                run.effects, masses, bending)
+                                run.effects, masses, bending, stand)
     overfit = overfitting(run.test, run.rigid, 3 * len(screen.w), run.structure["structured"])
     outcome, words = verdict(run.data, run.validation, run.significant, run.test, final, selected, run.structure,
                              after_structure, run.ceiling, run.rigid.noise_rms, run.share, sets, run.rejected,
                              run.cannot_size, overfit, None)
+    moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
+    if moved and outcome in ("explained", "partly explained"):
+        words["stand_motion"] = moved
+        words["evidence"] += (f"; confidence low: {' and '.join(moved)} cannot be told from the machine's stand moving "
+                              f"relative to the floor during the campaign (the same relative motion of the base and "
+                              f"the tracker); {STAND_MOTION_WORDS} would separate them")
     return Diagnosis(run.significant, run.test, run.where, run.ranking, selected, run.ties, run.not_applicable,
                      run.rigid.validation, run.validation_after, run.share, run.ceiling, run.effect_parameters,
                      run.violated, run.rigid, final, 0.0, outcome, words, run.rejected, sets, run.cannot_size,
