@@ -50,7 +50,7 @@ from hyperstat.solver.diagnosis.selection import forward_selection
 from hyperstat.solver.diagnosis.observations import oriented, residual_rows, row_view, stack_rows
 from hyperstat.solver.diagnosis.targets import per_target_check, targets_to_check, targets_agree
 from hyperstat.solver.diagnosis.where import (ResidualField, describe_where, spectrum_peaks, structure_tests,
-                                             where_summary)
+                                             targets_words, where_summary)
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
@@ -117,7 +117,8 @@ class Diagnosis:
         gravity-driven effects (no masses), or a named effect cannot be told from the stand (the machine's base)
         moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them);
         ``"high"`` otherwise."""
-        if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion"):
+        if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
+                or self.verdict.get("targets_differ"):
             return "low"
         return "high"
 
@@ -342,7 +343,10 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         whole = {"outcome": diag.outcome, "named_effects": diag.named_effects,
                  "equivalence_sets": diag.equivalence_sets, "effect_joints": diag.effect_joints}
         diag.targets_agree, diag.targets_evidence = targets_agree(whole, diag.per_target)
-        if not diag.targets_agree and "evidence" in diag.verdict:  # another story: the answer says so
+        if diag.verdict.get("targets_differ"):  # the whole file's residuals already say one target differs
+            diag.targets_agree = False
+            diag.targets_evidence = "the targets disagree: " + diag.verdict["targets_differ"]
+        if not diag.targets_agree and "evidence" in diag.verdict and not diag.verdict.get("targets_differ"):
             diag.verdict["targets_disagree"] = diag.targets_evidence
             diag.verdict["evidence"] += (f"; {diag.targets_evidence} (confidence low: check the targets' offsets and "
                                          f"measure again before acting on this answer)")
@@ -396,6 +400,11 @@ def _screen_candidates(run: _Run, names: list, options: dict) -> None:
     if st["structured"] and not run.significant:
         run.significant = True
         run.test["significant_by"] = "structure"
+    if not st["targets_homogeneous"]:  # one reflector's residuals larger than the others': a gap the noise is not
+        run.test["targets"] = {k: st["targets"][k] for k in ("p_value", "factors", "worst")}
+        if not run.significant:
+            run.significant = True
+            run.test["significant_by"] = "targets"
 
 
 def _select(run: _Run, max_effects: int) -> None:
@@ -600,10 +609,14 @@ def _answer(run: _Run) -> Diagnosis:
         stand = stand_motion_family(run.data, run.at_rigid["world"], run.r_trk, len(screen.w))
         sets = equivalence_sets(screen, selected, columns, members, family, run.data, spectrum_peaks(run.plain),
                                 run.effects, masses, bending, stand)
-    overfit = overfitting(run.test, run.rigid, 3 * len(screen.w), run.structure["structured"])
+    overfit = overfitting(run.test, run.rigid, 3 * len(screen.w),
+                          run.structure["structured"] or not run.structure["targets_homogeneous"])
     outcome, words = verdict(run.data, run.validation, run.significant, run.test, final, selected, run.structure,
                              after_structure, run.ceiling, run.rigid.noise_rms, run.share, sets, run.rejected,
                              run.cannot_size, overfit, None)
+    left = after_structure if outcome in ("explained", "partly explained") and after_structure else run.structure
+    if not left["targets_homogeneous"] and "evidence" in words:  # one reflector tells another story
+        words["targets_differ"] = targets_words(left["targets"])
     moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
     if moved and outcome in ("explained", "partly explained"):
         words["stand_motion"] = moved
