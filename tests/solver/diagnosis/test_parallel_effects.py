@@ -32,9 +32,9 @@ def tripteor_model():
         return mech, analyze(mech, n_configurations=24, seed=0), Kinematics(mech)
 
 
-def _diagnose(model, case: str, seed: int):
+def _diagnose(model, case: str, seed: int, **options):
     mech, analysis, kin = model
-    id_text, val_text, truth = gen.campaign(gen.MODELS[mech.name], case, seed, n_id=60, n_val=20)
+    id_text, val_text, truth = gen.campaign(gen.MODELS[mech.name], case, seed, n_id=60, n_val=20, **options)
     data = parse_measurements(id_text, mech, "id.csv")
     val = parse_measurements(val_text, mech, "val.csv")
     with warnings.catch_warnings():
@@ -96,3 +96,45 @@ def test_a_parallel_machine_effect_is_named(tripteor_model, case, expected):
     if "joints" in truth and case in d.effect_joints:
         assert set(d.effect_joints[case]) <= set(truth["joints"])
     assert d.validation_after["rms"] < d.validation_before["rms"]
+
+
+# ---------------------------------------------------------------- the misses of the fifth blind run (issue 40)
+@pytest.mark.parametrize("case, seed", [("tracker-drift", 0), ("stand-creep", 4)])
+def test_a_moving_stand_is_never_answered_with_high_confidence(tripteor_model, case, seed):
+    """The tracker moved between the sessions, or the stand crept with time: the measurements see one relative motion
+    of the base and the tracker, so no answer names one of them with high confidence.  A tracker drift is named with
+    the family ``stand-motion`` in its set, confidence low, and the words give the separating measurement (reflectors
+    fixed to the floor and to the base).  Before: the drift "explained by tracker-drift", confidence high; the creep
+    (seed 4) "explained by leg-thermal (42, 43)", a set of one, confidence high."""
+    d, truth = _diagnose(tripteor_model, case, seed)
+    sets = {s["effect"]: s for s in d.to_dict()["equivalence_evidence"]}
+    if case == "tracker-drift":
+        assert d.outcome == "explained" and d.named_effects == ["tracker-drift"]
+        assert "stand-motion" in sets["tracker-drift"]["members"]
+        assert "fixed to the floor" in sets["tracker-drift"]["separating_measurement"]
+    if d.outcome in ("explained", "partly explained"):  # whatever is named, the stand is in its set
+        assert all("stand-motion" in sets[n]["members"] for n in d.named_effects)
+        assert d.confidence == "low" and "stand moving" in d.verdict["evidence"]
+
+
+def test_a_loose_reflector_nest_is_not_understated_noise(tripteor_model):
+    """Reflector T2 sits loosely in its nest (it settles by 0.05 mm towards gravity, with a seating scatter): its
+    residuals are larger than T1's, which the tracker's noise cannot do (both reflectors share it).  The answer names
+    the target, not the noise model, and its confidence is low.  Before: "understated noise" (factor 1.28)."""
+    d, truth = _diagnose(tripteor_model, "loose-nest", 2)
+    assert d.outcome == "unexplained" and d.confidence == "low"
+    assert "target T2" in d.verdict["where"]
+    factors = d.gap_test["targets"]["factors"]
+    assert d.gap_test["targets"]["worst"] == "T2" and factors["T2"] > 1.2 * factors["T1"]
+
+
+def test_the_compliance_of_a_pkm_wrist_is_bounded_as_a_wrist(tripteor_model):
+    """The legs (1e-4 mm/N) and the two wrist revolutes (2.5e-8 rad/(N mm), 4e4 N m/rad) yield under the 120 kg head:
+    compliance is named, its wrist estimates within their (wrist) bound.  Before: the platform's wrist revolutes were
+    bounded as main axes (1e-8), compliance refused at 2.1x that bound, and the answer was "partly explained by
+    angle-scale (joint 7) + backlash-gravity"."""
+    d, truth = _diagnose(tripteor_model, "compliance", 1, wrist_compliance=2.5e-8)
+    assert d.outcome in ("explained", "partly explained") and d.named_effects == ["compliance"]
+    params = {p["name"]: p["estimate"] for p in d.effect_parameters}
+    assert params["compliance_7"] == pytest.approx(truth["wrist"], rel=0.3)
+    assert d.validation_after["rms"] < 0.5 * d.validation_before["rms"]
