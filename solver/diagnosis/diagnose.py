@@ -465,8 +465,10 @@ def _select(run: _Run, max_effects: int) -> None:
         order, _ = refined_order(field_after(list(chosen)) or run.plain["field"], run.act_jac[:, :, a],
                                  run.rows.q[:, a], why["peak_cycles_per_revolution"])
         spec = next((sp for sp in run.plain["revolute_spectra"] if sp["joint"] == joint), None)
-        if spec is None or order <= 0 or (order not in (1.0, 2.0) and order < spec["resolution_cycles_per_revolution"]):
-            return None  # 1 and 2 always (the library's orders); another below the resolution is a trend
+        if spec is None or order <= 0 or (order not in (1.0, 2.0)
+                                          and order < min(spec["resolution_cycles_per_revolution"], 1.0)):
+            return None  # 1 and 2 always (the library's orders); below 1 and the resolution, a trend (the gate
+            # asks the data to establish an order of 1 or more seen over less than one period)
         name = harmonic_name(order)
         new = atom_key(name, joint)
         if new == key or new in pool:
