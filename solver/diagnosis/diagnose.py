@@ -609,8 +609,9 @@ def _answer(run: _Run) -> Diagnosis:
         pairs = LinkBending(run.mechanism, run.kin).pairs if masses and "compliance" in selected else {}
         bending = bending_alternatives(run.mechanism, run.kin, run.data, run.act_jac, pairs) if "compliance" in selected else []
         stand = stand_motion_family(run.data, run.at_rigid["world"], run.r_trk, len(screen.w))
+        declared = gravity_source(run.mechanism) is not None  # link masses or a parallel machine's moving mass
         sets = equivalence_sets(screen, selected, columns, members, family, run.data, spectrum_peaks(run.plain),
-                                run.effects, masses, bending, stand)
+                                run.effects, declared, bending, stand)
     overfit = overfitting(run.test, run.rigid, 3 * len(screen.w),
                           run.structure["structured"] or not run.structure["targets_homogeneous"])
     outcome, words = verdict(run.data, run.validation, run.significant, run.test, final, selected, run.structure,

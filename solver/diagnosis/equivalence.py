@@ -210,6 +210,9 @@ def separating_measurement(x: str, y: str, data, spectra: dict, effects: dict, m
         eff = effects.get(name)
         return list(getattr(eff, "joints", [])) if eff is not None else []
 
+    if {x, y} == {"joint-clearance", "backlash-gravity"}:
+        return ("measuring the play of each leg's joints and of its screw's nut directly (a dial gauge across the "
+                "joint under a reversed load): both follow the sign of the leg's force")
     if STAND_MOTION in (x, y):
         other = y if x == STAND_MOTION else x
         if other in ("thermal", "leg-thermal"):

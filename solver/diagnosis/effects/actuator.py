@@ -488,6 +488,7 @@ class GravityBacklash(Effect):
     """
 
     name = "backlash-gravity"
+    sign_of_load = True  # its columns are steps with the sign of the gravity load (screening prior: the bound)
     domain_note = "a clearance is never negative (beta >= 0), and above 0.1 mm or 1.5 mrad it is a loose joint"
 
     def __init__(self, mechanism, magnitude_mm: float = 0.03, magnitude_rad: float = 1.5e-4,

@@ -291,13 +291,14 @@ def _bow(machine: Machine, joint: str, q: np.ndarray, c: np.ndarray) -> np.ndarr
 
 
 def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30, size: float = 1.0,
-             lead: float | None = None, wrist_compliance: float = 0.0) -> tuple[str, str, dict]:
+             lead: float | None = None, wrist_compliance: float = 0.0, pivot: float = 0.0) -> tuple[str, str, dict]:
     """Identification and validation files (CSV text, two targets) of one campaign, and its truth.
 
     ``size`` scales the effect (1: the magnitudes below, drawn in [0.7, 1] with a random sign where the
     physics allows one); ``lead``: the screw lead of a ``screw-periodic`` case (mm; default the model's
     ``metadata.screw_lead``, else 10 mm); ``wrist_compliance``: in a ``compliance`` case, the compliance of
-    the actuated revolutes too (rad/(N mm); 0: the legs only).  Magnitudes: leg expansion 1.2e-5 /degC, periodic screw error
+    the actuated revolutes too (rad/(N mm); 0: the legs only); ``pivot``: in a ``base-deformation`` case, how far
+    below the base origin the frame tilts (mm: a table standing on feet below the base joints; 0: about the origin).  Magnitudes: leg expansion 1.2e-5 /degC, periodic screw error
     0.01 mm, leg stiffness 10 N/um, clearance 0.05 mm, backlash 0.03 mm, guide bow 0.02 mm, frame tilt
     stiffness 1.25e6 N m/rad (the structural effects near the upper end of their plausible range, so that
     the campaigns show them).
@@ -414,7 +415,7 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         moment = np.cross(p, mass[:, None] * G[None, :])
         c = 8e-10 * amount  # rad/(N mm): a light frame of 1.25e6 N m/rad
         tilt = c * moment * np.array([1.0, 1.0, 0.0])
-        truth.update(value=c)
+        truth.update(value=c, pivot=pivot)
     # tracker: twice the reach away, turned about a near-vertical axis
     tool = mach.tool(q)
     reach = float(np.max(np.linalg.norm(tool[:, :3, 3], axis=1)))
@@ -430,8 +431,8 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
             down = G / np.linalg.norm(G)
             across = down[None, :] - (axis @ down)[:, None] * axis
             world = world + truth["value"] * (across + rng.normal(0, 1.0 / 3.0, (n, 3)))
-        if tilt is not None:
-            world = world + np.cross(tilt, world)
+        if tilt is not None:  # the frame turns about a point ``pivot`` mm below the base origin
+            world = world + np.cross(tilt, world + np.array([0.0, 0.0, pivot]))
         if case == "stand-creep":  # the stand turns about the base origin by an angle growing with time
             world = np.stack([_rot(truth["axis"], truth["value"] * tk / t[-1]) @ wk for tk, wk in zip(t, world)])
         local = (world - trk_org) @ trk_rot
