@@ -389,6 +389,9 @@ def _screen_candidates(run: _Run, names: list, options: dict) -> None:
     run.rejected, run.violated, run.atoms = scr["rejected"], scr["violated"], scr["atoms"]
     run.options = options
     signatures = {e["effect"]: run.columns[e["effect"]][0] for e in run.ranking if not e.get("note")}
+    stand = stand_motion_family(data, run.at_rigid["world"], run.r_trk, len(screen.w))
+    if stand is not None:  # the stand or the tracker moving with time: structure, never noise
+        signatures[STAND_MOTION] = stand
     run.structure = structure_tests(run.mechanism, run.rows, screen.resid, screen.w, screen.prepared()["qb"],
                                     run.r_trk, run.act_jac, run.target_jac, signatures, positions=run.k)
     run.where = where_summary(run.rigid, data, screen.schemes[0][1][:run.k], run.structure)
