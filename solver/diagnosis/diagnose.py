@@ -623,6 +623,8 @@ def _answer(run: _Run) -> Diagnosis:
     left = after_structure if outcome in ("explained", "partly explained") and after_structure else run.structure
     if not left["targets_homogeneous"] and "evidence" in words:  # one reflector tells another story
         words["targets_differ"] = targets_words(left["targets"])
+        if outcome in ("explained", "partly explained"):
+            words["evidence"] += f"; confidence low: what remains is in {words['targets_differ']}"
     moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
     if moved and outcome in ("explained", "partly explained"):
         words["stand_motion"] = moved
