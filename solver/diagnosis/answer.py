@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from hyperstat.solver.diagnosis.gap import gap_test, noise_statement
-from hyperstat.solver.diagnosis.where import describe_where
+from hyperstat.solver.diagnosis.where import describe_where, targets_words
 
 __all__ = ["OUTCOMES", "verdict", "format_outcome", "set_words", "BLACK_BOX_NOTHING"]
 
@@ -130,6 +130,9 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
             out["evidence"] += f"; what was added is one of {ambiguous}"
         if rest["structured"]:
             out["evidence"] += "; what remains follows " + out["where"]
+        elif not rest.get("targets_homogeneous", True):
+            out["where"] = targets_words(rest["targets"])
+            out["evidence"] += "; what remains is in " + out["where"]
         elif rest["isotropic"]:
             out["evidence"] += ("; what remains has no structure (no joint, frequency or metadata trend, equal in "
                                 "every direction): consistent with a noise model of "
@@ -145,11 +148,14 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
     out = {"structure": {k: structure[k] for k in ("best", "structured", "isotropy", "isotropic", "threshold",
                                                    "n_tests")},
            "black_box_share": bb_share}
+    homogeneous = structure.get("targets_homogeneous", True)
+    if not homogeneous:
+        out["structure"]["targets"] = structure["targets"]
     if overfit is not None:
         out["overfitting"] = overfit
         out["evidence"] = overfit["evidence"] + tail
         return "over-fitting", out
-    if not structure["structured"] and structure["isotropic"] and bb_share < BLACK_BOX_NOTHING:
+    if not structure["structured"] and structure["isotropic"] and homogeneous and bb_share < BLACK_BOX_NOTHING:
         out["noise_consistent"] = noise_statement(data, factor)
         if "validation" in test:
             out["noise_consistent"]["factor_validation"] = test["validation"]["noise_factor"]
@@ -162,8 +168,13 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
                            f"cross-validation. A noise of {out['noise_consistent']['text']} would make the data "
                            f"consistent." + tail)
         return "understated noise", out
-    if structure["structured"]:
+    if structure["structured"] and not homogeneous:
+        out["where"] = (targets_words(structure["targets"]) + "; and "
+                        + describe_where(structure["best"], structure["revolute_spectra"]))
+    elif structure["structured"]:
         out["where"] = describe_where(structure["best"], structure["revolute_spectra"])
+    elif not homogeneous:
+        out["where"] = targets_words(structure["targets"])
     elif not structure["isotropic"]:
         s2 = structure["isotropy"]["weighted_variance"]
         axis = max(s2, key=s2.get)

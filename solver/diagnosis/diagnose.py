@@ -39,7 +39,8 @@ from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
 from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MASS_FIELD, MASS_FIELD_SHORT, applicable_effects,
                                                 available_effects, gravity_source, harmonic_name, harmonic_order,
                                                 is_jointwise, is_known_effect, is_library_effect, make_effect)
-from hyperstat.solver.diagnosis.equivalence import bending_alternatives, equivalence_sets, gravity_family
+from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_WORDS, bending_alternatives,
+                                                    equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
 from hyperstat.solver.diagnosis.periodic import periodic_gate, refined_order, screw_period, spectral_candidates
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
@@ -49,7 +50,7 @@ from hyperstat.solver.diagnosis.selection import forward_selection
 from hyperstat.solver.diagnosis.observations import oriented, residual_rows, row_view, stack_rows
 from hyperstat.solver.diagnosis.targets import per_target_check, targets_to_check, targets_agree
 from hyperstat.solver.diagnosis.where import (ResidualField, describe_where, spectrum_peaks, structure_tests,
-                                             where_summary)
+                                             targets_words, where_summary)
 from hyperstat.solver.errors import DataError
 from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.model import Mechanism
@@ -112,9 +113,12 @@ class Diagnosis:
 
     @property
     def confidence(self) -> str:
-        """``"low"`` when the targets tell different stories or the named effects could not be compared with the
-        gravity-driven effects (no masses); ``"high"`` otherwise."""
-        if self.targets_agree is False or self.verdict.get("unchecked_against"):
+        """``"low"`` when the targets tell different stories, the named effects could not be compared with the
+        gravity-driven effects (no masses), or a named effect cannot be told from the stand (the machine's base)
+        moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them);
+        ``"high"`` otherwise."""
+        if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
+                or self.verdict.get("targets_differ"):
             return "low"
         return "high"
 
@@ -339,7 +343,10 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         whole = {"outcome": diag.outcome, "named_effects": diag.named_effects,
                  "equivalence_sets": diag.equivalence_sets, "effect_joints": diag.effect_joints}
         diag.targets_agree, diag.targets_evidence = targets_agree(whole, diag.per_target)
-        if not diag.targets_agree and "evidence" in diag.verdict:  # another story: the answer says so
+        if diag.verdict.get("targets_differ"):  # the whole file's residuals already say one target differs
+            diag.targets_agree = False
+            diag.targets_evidence = "the targets disagree: " + diag.verdict["targets_differ"]
+        if not diag.targets_agree and "evidence" in diag.verdict and not diag.verdict.get("targets_differ"):
             diag.verdict["targets_disagree"] = diag.targets_evidence
             diag.verdict["evidence"] += (f"; {diag.targets_evidence} (confidence low: check the targets' offsets and "
                                          f"measure again before acting on this answer)")
@@ -382,6 +389,9 @@ def _screen_candidates(run: _Run, names: list, options: dict) -> None:
     run.rejected, run.violated, run.atoms = scr["rejected"], scr["violated"], scr["atoms"]
     run.options = options
     signatures = {e["effect"]: run.columns[e["effect"]][0] for e in run.ranking if not e.get("note")}
+    stand = stand_motion_family(data, run.at_rigid["world"], run.r_trk, len(screen.w))
+    if stand is not None:  # the stand or the tracker moving with time: structure, never noise
+        signatures[STAND_MOTION] = stand
     run.structure = structure_tests(run.mechanism, run.rows, screen.resid, screen.w, screen.prepared()["qb"],
                                     run.r_trk, run.act_jac, run.target_jac, signatures, positions=run.k)
     run.where = where_summary(run.rigid, data, screen.schemes[0][1][:run.k], run.structure)
@@ -393,6 +403,11 @@ def _screen_candidates(run: _Run, names: list, options: dict) -> None:
     if st["structured"] and not run.significant:
         run.significant = True
         run.test["significant_by"] = "structure"
+    if not st["targets_homogeneous"]:  # one reflector's residuals larger than the others': a gap the noise is not
+        run.test["targets"] = {k: st["targets"][k] for k in ("p_value", "factors", "worst")}
+        if not run.significant:
+            run.significant = True
+            run.test["significant_by"] = "targets"
 
 
 def _select(run: _Run, max_effects: int) -> None:
@@ -453,8 +468,10 @@ def _select(run: _Run, max_effects: int) -> None:
         order, _ = refined_order(field_after(list(chosen)) or run.plain["field"], run.act_jac[:, :, a],
                                  run.rows.q[:, a], why["peak_cycles_per_revolution"])
         spec = next((sp for sp in run.plain["revolute_spectra"] if sp["joint"] == joint), None)
-        if spec is None or order <= 0 or (order not in (1.0, 2.0) and order < spec["resolution_cycles_per_revolution"]):
-            return None  # 1 and 2 always (the library's orders); another below the resolution is a trend
+        if spec is None or order <= 0 or (order not in (1.0, 2.0)
+                                          and order < min(spec["resolution_cycles_per_revolution"], 1.0)):
+            return None  # 1 and 2 always (the library's orders); below 1 and the resolution, a trend (the gate
+            # asks the data to establish an order of 1 or more seen over less than one period)
         name = harmonic_name(order)
         new = atom_key(name, joint)
         if new == key or new in pool:
@@ -594,12 +611,26 @@ def _answer(run: _Run) -> Diagnosis:
         members = [e["effect"] for e in run.ranking if not e.get("note") and e["effect"] not in refused]
         pairs = LinkBending(run.mechanism, run.kin).pairs if masses and "compliance" in selected else {}
         bending = bending_alternatives(run.mechanism, run.kin, run.data, run.act_jac, pairs) if "compliance" in selected else []
+        stand = stand_motion_family(run.data, run.at_rigid["world"], run.r_trk, len(screen.w))
+        declared = gravity_source(run.mechanism) is not None  # link masses or a parallel machine's moving mass
         sets = equivalence_sets(screen, selected, columns, members, family, run.data, spectrum_peaks(run.plain),
-                                run.effects, masses, bending)
-    overfit = overfitting(run.test, run.rigid, 3 * len(screen.w), run.structure["structured"])
+                                run.effects, declared, bending, stand)
+    overfit = overfitting(run.test, run.rigid, 3 * len(screen.w),
+                          run.structure["structured"] or not run.structure["targets_homogeneous"])
     outcome, words = verdict(run.data, run.validation, run.significant, run.test, final, selected, run.structure,
                              after_structure, run.ceiling, run.rigid.noise_rms, run.share, sets, run.rejected,
                              run.cannot_size, overfit, None)
+    left = after_structure if outcome in ("explained", "partly explained") and after_structure else run.structure
+    if not left["targets_homogeneous"] and "evidence" in words:  # one reflector tells another story
+        words["targets_differ"] = targets_words(left["targets"])
+        if outcome in ("explained", "partly explained"):
+            words["evidence"] += f"; confidence low: what remains is in {words['targets_differ']}"
+    moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
+    if moved and outcome in ("explained", "partly explained"):
+        words["stand_motion"] = moved
+        words["evidence"] += (f"; confidence low: {' and '.join(moved)} cannot be told from the machine's stand moving "
+                              f"relative to the floor during the campaign (the same relative motion of the base and "
+                              f"the tracker); {STAND_MOTION_WORDS} would separate them")
     return Diagnosis(run.significant, run.test, run.where, run.ranking, selected, run.ties, run.not_applicable,
                      run.rigid.validation, run.validation_after, run.share, run.ceiling, run.effect_parameters,
                      run.violated, run.rigid, final, 0.0, outcome, words, run.rejected, sets, run.cannot_size,

@@ -30,10 +30,16 @@ from hyperstat.solver.diagnosis.effects import (MASS_FIELD, gravity_loads, gravi
 from hyperstat.solver.diagnosis.periodic import EQUIVALENT_CHI2
 from hyperstat.solver.diagnosis.screening import Screen
 
-__all__ = ["equivalence_sets", "gravity_family", "bending_alternatives", "separating_measurement", "GRAVITY_FAMILY",
-           "DEFORMATIONS", "BEAM_BENDING"]
+__all__ = ["equivalence_sets", "gravity_family", "stand_motion_family", "bending_alternatives", "separating_measurement",
+           "GRAVITY_FAMILY", "STAND_MOTION", "DEFORMATIONS", "BEAM_BENDING"]
 
 GRAVITY_FAMILY = "gravity-deformation"
+#: the family "the machine's stand (its base) moved relative to the floor during the campaign": a rigid motion of
+#: the base frame relative to the tracker between sessions or with time, which the tracker moving gives as well
+STAND_MOTION = "stand-motion"
+STAND_MOTION_WORDS = ("measuring reference reflectors fixed to the floor (drift nests) and reflectors fixed to the "
+                      "machine's base at the start and end of each session (a tracker that moved sees both move "
+                      "alike; a stand that moved moves the base's reflectors against the floor's)")
 DEFORMATIONS = ("compliance", "link-bending")  # gravity-driven deformations of the library
 _GRAVITY = DEFORMATIONS + ("backlash-gravity", GRAVITY_FAMILY)
 ZERO_LOAD = 1e-6  # N mm (per kg, per kg mm): a gravity load below this is round-off (a joint about the vertical)
@@ -91,6 +97,51 @@ def gravity_family(mech, kin, data, act_jac: np.ndarray, masses_known: bool) -> 
     if not cols:
         return None
     return np.concatenate(cols, axis=2)
+
+
+def stand_motion_family(data, world: np.ndarray, r_trk: np.ndarray, n_rows: int) -> np.ndarray | None:
+    """Columns (R, 3, m) of "the stand moved": a rigid motion of the base frame relative to the tracker over time.
+
+    A translation and a small rotation about the base origin (``t + omega x p``, ``p`` the target in the base
+    frame, mm) per session after the first (the ``session`` column) and growing with the ``time[s]`` column
+    (linear), seen in the tracker frame (``R_trk^T``); an orientation row (6-D) turns by ``omega``.  The
+    measurements alone cannot tell this from the tracker moving the other way: both are the same relative
+    motion of the two frames.  None without a session or time column that varies.
+
+    Parameters
+    ----------
+    data : MeasurementSet
+        Poses and metadata (``session``, ``time``).
+    world : ndarray, (K, 3)
+        Target points in the base frame (mm) at the rigid solution.
+    r_trk : ndarray, (3, 3)
+        Tracker rotation in the base frame.
+    n_rows : int
+        Rows of the fit (K, or 2K with orientation rows).
+    """
+    k = len(data)
+    drivers = []
+    sessions = data.metadata.get("session")
+    if sessions is not None:
+        for s in sorted(set(sessions.tolist()))[1:]:
+            drivers.append((sessions == s).astype(float))
+    time_s = data.metadata.get("time")
+    if time_s is not None and np.ptp(time_s) > 0:
+        drivers.append((time_s - time_s.mean()) / np.ptp(time_s))
+    if not drivers:
+        return None
+    cols = []
+    for d in drivers:
+        for c in range(3):
+            e = np.zeros(3)
+            e[c] = 1.0
+            pos = np.tile(r_trk.T @ e, (k, 1)) * d[:, None]  # translation along base axis c
+            rot = (np.cross(e[None, :], world) @ r_trk) * d[:, None]  # rotation about base axis c, R^T (e x p)
+            if n_rows > k:
+                pos = np.concatenate([pos, np.zeros((n_rows - k, 3))])
+                rot = np.concatenate([rot, np.tile(r_trk.T @ e, (n_rows - k, 1)) * d[:, None]])
+            cols += [pos, rot]
+    return np.stack(cols, axis=2)
 
 
 #: Joint rotations equivalent to the bending of a link between parallel revolutes ``a`` and ``b``
@@ -159,6 +210,15 @@ def separating_measurement(x: str, y: str, data, spectra: dict, effects: dict, m
         eff = effects.get(name)
         return list(getattr(eff, "joints", [])) if eff is not None else []
 
+    if {x, y} == {"joint-clearance", "backlash-gravity"}:
+        return ("measuring the play of each leg's joints and of its screw's nut directly (a dial gauge across the "
+                "joint under a reversed load): both follow the sign of the leg's force")
+    if STAND_MOTION in (x, y):
+        other = y if x == STAND_MOTION else x
+        if other in ("thermal", "leg-thermal"):
+            return ("the same poses measured again at another temperature, the temperature no longer following the "
+                    "time, or " + STAND_MOTION_WORDS)
+        return STAND_MOTION_WORDS
     kx, ky = harmonic_order(x), harmonic_order(y)
     gx, gy = x in _GRAVITY, y in _GRAVITY
     if kx is not None and ky is not None and kx != ky:
@@ -192,7 +252,8 @@ def separating_measurement(x: str, y: str, data, spectra: dict, effects: dict, m
 
 
 def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: list, family: np.ndarray | None,
-                     data, spectra: dict, effects: dict, masses_known: bool, bending: list = ()) -> list:
+                     data, spectra: dict, effects: dict, masses_known: bool, bending: list = (),
+                     stand: np.ndarray | None = None) -> list:
     """One equivalence set per named effect (see the module docstring).
 
     Parameters
@@ -278,6 +339,14 @@ def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: 
                 unseen |= min(swap["misses_chi2"], swap["fits_worse_chi2"]) < EQUIVALENT_CHI2
             if (x in DEFORMATIONS and (gravity_members or unseen)) or (x not in DEFORMATIONS and miss < EQUIVALENT_CHI2):
                 members.append(GRAVITY_FAMILY)
+        if stand is not None and stand.shape[2]:
+            w = screen.weighted(stand)
+            k_s = _orth(w - qb @ (qb.T @ w)).shape[1]
+            swap = {"effect": STAND_MOTION, "misses_chi2": misses(w),
+                    "fits_worse_bic": fits_worse(w) + (k_s - k_x) * np.log(n_rows)}
+            evidence.append(swap)
+            if swap["misses_chi2"] < EQUIVALENT_CHI2 or swap["fits_worse_bic"] < EQUIVALENT_CHI2:
+                members.append(STAND_MOTION)
         ways = list(dict.fromkeys(separating_measurement(x, m, data, spectra, effects, masses_known)
                                   for m in members[1:]))
         out.append({"effect": x, "members": members, "separating_measurement": "; ".join(ways),

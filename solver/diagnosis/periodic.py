@@ -9,7 +9,8 @@ units of the residual variance (:meth:`~hyperstat.solver.diagnosis.where.Residua
   :data:`EQUIVALENT_CHI2`: an integer, else a half, a quarter, a tenth; a two-stage gear
   gives 1.5, :func:`simplest_order`): a general ``angle-harmonic-<k>`` on that joint joins
   the candidates, if at least one period of it fits in the range the joint moved
-  (``k >= 2 pi / range``; below, it is a trend).
+  (``k >= 2 pi / range``), or if ``k >= 1`` (less than a period seen: the gate must then
+  establish the order against its neighbours and against a smooth trend of the joint).
 * **The gate** (:func:`periodic_gate`): a periodic effect of order ``k`` is chosen only if,
   on the joint where it is significant,
 
@@ -88,8 +89,11 @@ def spectral_candidates(structure: dict, data, act_jac: np.ndarray) -> dict:
             continue
         a = data.joints.index(spec["joint"])
         order, refined = refined_order(field, act_jac[:, :, a], data.q[:, a], spec["peak_cycles_per_revolution"])
-        if order in (1.0, 2.0) or order < spec["resolution_cycles_per_revolution"]:
-            continue  # the library tries 1 and 2; below the resolution not one period is seen (a trend)
+        if order in (1.0, 2.0) or order < min(spec["resolution_cycles_per_revolution"], 1.0):
+            continue  # the library tries 1 and 2; below one cycle per revolution and the resolution, a trend
+        # an order of 1 or more below the resolution (less than one period seen) joins too: the gate then asks the
+        # data to establish it against its neighbours and against a smooth trend of the joint (super-resolution
+        # needs the signal, which the chi-square differences measure)
         entry = out.setdefault(harmonic_name(order), {"joints": [], "peaks": {}})
         entry["joints"].append(spec["joint"])
         entry["peaks"][spec["joint"]] = refined
@@ -187,6 +191,18 @@ def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac
                               f"{(e_peak - e_k) / scale:.0f} less (chi-square): the spectrum does not agree with "
                               f"its order")
             return info
+        if k < res and k not in (1.0, 2.0):  # an order from the spectrum seen over less than one period: a smooth
+            # trend of the joint must not fit as well (1 and 2, always tried, keep the checks below alone)
+            x = (qv - qv.mean()) / max(float(np.std(qv)), 1e-300)
+            e_t = field.fit(col[:, :, None] * np.column_stack([x, x**2])[:, None, :])[4]
+            if (e_k - e_t) / scale < EQUIVALENT_CHI2:
+                info["alias"] = 0.0
+                info["reason"] = (f"over the {span:.2g} rad joint {joint} moved, less than one period of {_cycles(k)} "
+                                  f"per revolution is seen, and a smooth trend of joint {joint} fits its error as "
+                                  f"well (chi-square {e_t / scale:.0f} against {e_k / scale:.0f}): the order is not "
+                                  f"established; poses over more than {2.0 * np.pi / k:.2g} rad of joint {joint} "
+                                  f"would establish it")
+                return info
         rivals = [k - 1.0, k + 1.0]
         if abs(k - round(k)) > 1e-9:  # a gear stage's order must also beat the integer orders around it
             rivals += [float(np.floor(k)), float(np.ceil(k))]

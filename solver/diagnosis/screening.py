@@ -299,6 +299,12 @@ def effect_columns(mech, analysis, kin, rigid: IdentificationResult, data, effec
     ``world``, ``r_trk``); it turns no orientation.
     """
     prior = 1000.0 * np.maximum(effect.magnitude, 1e-12)
+    if getattr(effect, "sign_of_load", False):
+        # a step with the sign of a load: in a fold where that sign never changes, the column is a constant offset
+        # the geometry also fits; with a vague prior the fold's refit puts the offset into the effect and the
+        # held-out rows of the other sign get it twice (the hexapod's clearance: CV 257 um against 33 um rigid).
+        # Its physical bound as prior leaves the offset to the geometry there.
+        prior = np.asarray(effect.plausible, dtype=float).copy()
     six_d = oriented(rigid.model, data)
     with plugin_guard(effect.name, "columns"):
         if act_jac is not None and _only_actuator(effect):

@@ -21,7 +21,7 @@ from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.kinematics.model import Mechanism
 
 __all__ = ["ResidualField", "structure_tests", "describe_where", "where_summary", "spectrum_resolution",
-           "spectrum_peaks", "P_THRESHOLD", "SPECTRUM_ORDERS"]
+           "spectrum_peaks", "target_homogeneity", "targets_words", "P_THRESHOLD", "SPECTRUM_ORDERS"]
 
 P_THRESHOLD = 1e-3
 SPECTRUM_ORDERS = np.arange(0.5, 8.01, 0.25)  # cycles per revolution of the revolute spectra
@@ -252,11 +252,58 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
     stat = (3 * npos * np.log(pooled) - float(np.sum(npos * np.log(s2)))) / (1.0 + (3.0 / npos - 1.0 / (3 * npos)) / 6.0)
     iso = {"statistic": float(stat), "p_value": float(chdtrc(2, stat)),
            "weighted_variance": dict(zip("xyz", map(float, s2))), "threshold": P_THRESHOLD}
+    targets = target_homogeneity(data, z)
     return {"tests": tests, "n_tests": n_tests, "threshold": threshold,
             "best": tests[0] if tests else None,
             "structured": bool(tests and tests[0]["p_value"] < threshold),
             "isotropy": iso, "isotropic": bool(iso["p_value"] >= P_THRESHOLD),
+            "targets": targets, "targets_homogeneous": targets is None or targets["p_value"] >= P_THRESHOLD,
             "spectra": spectra, "revolute_spectra": rspectra, "field": field}
+
+
+def target_homogeneity(data: MeasurementSet, z: np.ndarray) -> dict | None:
+    """Do the targets (reflectors) share one noise level?  Bartlett's test of equal variance across targets.
+
+    ``z`` are the weighted, leverage-corrected position residuals (K, 3) of the rigid fit (the first rows
+    of ``data``): under the file's noise model, right or understated by one factor, every reflector of a
+    pose shares the tracker's noise, so their variances are equal whatever the factor.  A reflector whose
+    residuals are larger (a loose or dirty nest, a reflector knocked in its nest) breaks that: the excess
+    is in that target, not in the tracker.  None for one target.
+
+    Returns
+    -------
+    dict or None
+        ``p_value`` (chi-square with ``targets - 1`` dof), ``statistic``, ``factors`` (per target, the RMS
+        of its weighted residuals: its noise factor), ``worst`` (the target with the largest factor), and
+        ``rows`` per target.
+    """
+    names = list(getattr(data, "target_names", []) or [])
+    idx = np.asarray(getattr(data, "target_index", []))[: len(z)]
+    if len(names) < 2 or len(idx) != len(z):
+        return None
+    groups = [(t, z[idx == i]) for i, t in enumerate(names) if np.sum(idx == i) >= 5]
+    if len(groups) < 2:
+        return None
+    n = np.array([3.0 * len(g) for _, g in groups])  # degrees of freedom: three components per row
+    s2 = np.array([float(np.sum(g**2)) for _, g in groups]) / n
+    pooled = float(np.sum(n * s2) / np.sum(n))
+    m = len(groups)
+    corr = 1.0 + (np.sum(1.0 / n) - 1.0 / np.sum(n)) / (3.0 * (m - 1))
+    stat = float((np.sum(n) * np.log(pooled) - np.sum(n * np.log(s2))) / corr)
+    factors = {t: float(np.sqrt(v)) for (t, _), v in zip(groups, s2)}
+    return {"statistic": stat, "p_value": float(chdtrc(m - 1, stat)), "factors": factors,
+            "worst": max(factors, key=factors.get), "rows": {t: len(g) for t, g in groups},
+            "method": "Bartlett's test of equal variance of the weighted rigid residuals across targets"}
+
+
+def targets_words(targets: dict) -> str:
+    """Words for targets whose residuals differ (:func:`target_homogeneity`)."""
+    worst = targets["worst"]
+    others = ", ".join(f"{t} {f:.2f}x" for t, f in targets["factors"].items() if t != worst)
+    return (f"the rows of target {worst}: its residuals are {targets['factors'][worst]:.2f}x the stated noise, "
+            f"the other targets' {others} (Bartlett p = {targets['p_value']:.2g}); the tracker's noise is the "
+            f"same for every reflector of a pose, so the excess is in target {worst} (a loose or dirty reflector "
+            f"nest, a reflector moving in its nest, or its offset), not in the noise model")
 
 
 def spectrum_peaks(structure: dict) -> dict:
@@ -329,4 +376,4 @@ def where_summary(rigid: IdentificationResult, data: MeasurementSet, labels: np.
     return {"regions": regions, "direction_rms": direction, "explained_by": explained,
             "spectra": structure["spectra"], "revolute_spectra": structure["revolute_spectra"],
             "structure": {k: structure[k] for k in ("tests", "n_tests", "threshold", "best", "structured",
-                                                     "isotropy", "isotropic")}}
+                                                     "isotropy", "isotropic", "targets", "targets_homogeneous")}}

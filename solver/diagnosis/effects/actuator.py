@@ -488,6 +488,7 @@ class GravityBacklash(Effect):
     """
 
     name = "backlash-gravity"
+    sign_of_load = True  # its columns are steps with the sign of the gravity load (screening prior: the bound)
     domain_note = "a clearance is never negative (beta >= 0), and above 0.1 mm or 1.5 mrad it is a loose joint"
 
     def __init__(self, mechanism, magnitude_mm: float = 0.03, magnitude_rad: float = 1.5e-4,
@@ -506,10 +507,13 @@ class GravityBacklash(Effect):
 
 
 def _main_axes(mechanism) -> set:
-    """Names of the main axes: the first three actuated joints from the base of a serial chain (all otherwise)."""
+    """Names of the main axes: the first three actuated joints from the base of a serial chain; on a parallel
+    machine the actuated joints of the chains that start at the base (its legs), not those of a serial wrist
+    carried by the platform (the Tripteor X7's two revolutes are wrist axes)."""
     acts = [mechanism.joints[i].name for i in mechanism.actuated]
     if len(mechanism.chains) != 1:
-        return set(acts)
+        legs = {el.name for ch in mechanism.chains if ch.start == mechanism.base for el in ch.elements}
+        return {a for a in acts if a in legs} or set(acts)
     order = [el.name for el in mechanism.chains[0].elements if el.name in acts]
     return set(order[:3])
 

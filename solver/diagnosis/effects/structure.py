@@ -196,6 +196,7 @@ class JointClearance(Effect):
     """
 
     name = "joint-clearance"
+    sign_of_load = True  # its columns are steps with the sign of the leg's force (screening prior: the bound)
     domain_note = "a clearance is never negative (beta >= 0), and above 0.15 mm the joint is worn out"
 
     def __init__(self, mechanism, magnitude: float = 0.01, joints: list | None = None) -> None:

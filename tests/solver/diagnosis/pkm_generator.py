@@ -24,7 +24,11 @@ in the library
     force), ``backlash`` (a dead band crossed from the recorded direction);
 out of the library
     ``tool-thermal`` (the tool grows along its axis with the temperature), ``wrist-coupling``
-    (on a machine with a wrist: its second axis follows the first);
+    (on a machine with a wrist: its second axis follows the first), ``stand-creep`` (the machine's
+    stand tilts slowly with time about a horizontal axis through the base origin: a rigid motion of
+    the machine relative to the tracker, as a drifting tracker gives), ``loose-nest`` (the reflector
+    ``T2`` sits loosely in its nest: it settles by ``sag`` towards gravity across the nest's axis,
+    with a seating scatter of a third of that from pose to pose; the other target is right);
 noise cases
     ``none``, ``understated-noise`` (the tracker 1.6 times noisier than the header says).
 
@@ -48,8 +52,8 @@ HERE = Path(__file__).resolve().parent
 MODELS = {"tripteor_x7": HERE / "data" / "tripteor_x7.skel.json", "hexapod": HERE / "data" / "hexapod.skel.json"}
 
 IN_LIBRARY = ("leg-thermal", "screw-periodic", "guide-straightness", "joint-clearance", "base-deformation",
-              "compliance", "backlash")
-OUT_OF_LIBRARY = ("tool-thermal", "wrist-coupling")
+              "compliance", "backlash", "tracker-drift")
+OUT_OF_LIBRARY = ("tool-thermal", "wrist-coupling", "stand-creep", "loose-nest")
 NOISE_CASES = ("none", "understated-noise")
 STATED_NOISE = (0.005, 0.005)  # mm, mm/m
 G = np.array([0.0, 0.0, -9.81])
@@ -287,12 +291,14 @@ def _bow(machine: Machine, joint: str, q: np.ndarray, c: np.ndarray) -> np.ndarr
 
 
 def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30, size: float = 1.0,
-             lead: float | None = None) -> tuple[str, str, dict]:
+             lead: float | None = None, wrist_compliance: float = 0.0, pivot: float = 0.0) -> tuple[str, str, dict]:
     """Identification and validation files (CSV text, two targets) of one campaign, and its truth.
 
     ``size`` scales the effect (1: the magnitudes below, drawn in [0.7, 1] with a random sign where the
     physics allows one); ``lead``: the screw lead of a ``screw-periodic`` case (mm; default the model's
-    ``metadata.screw_lead``, else 10 mm).  Magnitudes: leg expansion 1.2e-5 /degC, periodic screw error
+    ``metadata.screw_lead``, else 10 mm); ``wrist_compliance``: in a ``compliance`` case, the compliance of
+    the actuated revolutes too (rad/(N mm); 0: the legs only); ``pivot``: in a ``base-deformation`` case, how far
+    below the base origin the frame tilts (mm: a table standing on feet below the base joints; 0: about the origin).  Magnitudes: leg expansion 1.2e-5 /degC, periodic screw error
     0.01 mm, leg stiffness 10 N/um, clearance 0.05 mm, backlash 0.03 mm, guide bow 0.02 mm, frame tilt
     stiffness 1.25e6 N m/rad (the structural effects near the upper end of their plausible range, so that
     the campaigns show them).
@@ -333,7 +339,10 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         f = mach.forces(mach.solve(qa, true=False), payload)
         c = 1e-4 * amount  # mm/N: a 10 N/um leg
         q_true[:, prismatic] += c * f[:, prismatic]
-        truth.update(value=c)
+        revolute = [a for a in range(len(act)) if a not in prismatic]
+        if wrist_compliance and revolute:  # the wrist's axes yield under their gravity torques (N mm)
+            q_true[:, revolute] += wrist_compliance * amount * f[:, revolute]
+        truth.update(value=c, wrist=wrist_compliance * amount)
     elif case == "joint-clearance":
         f = mach.forces(mach.solve(qa, true=False), payload)
         beta = 0.05 * amount
@@ -353,6 +362,16 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         truth.update(value=6e-3 * amount)
     elif case == "understated-noise":
         truth["noise_factor"] = 1.6
+    elif case == "tracker-drift":
+        shift = 0.05 * amount * rng.choice([-1.0, 1.0], 3) * rng.uniform(0.5, 1.0, 3)  # mm, the tracker's move
+        truth.update(value=shift.tolist())
+    elif case == "stand-creep":
+        creep = 7e-5 * amount  # rad at the end of the campaign
+        azimuth = rng.uniform(0, 2 * np.pi)
+        truth.update(value=creep, axis=[float(np.cos(azimuth)), float(np.sin(azimuth)), 0.0])
+    elif case == "loose-nest":
+        sag = 0.06 * amount  # mm
+        truth.update(value=sag, target="T2")
     elif case not in ("none", "guide-straightness", "base-deformation"):
         raise ValueError(f"unknown case {case}")
     q = mach.solve(q_true)
@@ -396,7 +415,7 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         moment = np.cross(p, mass[:, None] * G[None, :])
         c = 8e-10 * amount  # rad/(N mm): a light frame of 1.25e6 N m/rad
         tilt = c * moment * np.array([1.0, 1.0, 0.0])
-        truth.update(value=c)
+        truth.update(value=c, pivot=pivot)
     # tracker: twice the reach away, turned about a near-vertical axis
     tool = mach.tool(q)
     reach = float(np.max(np.linalg.norm(tool[:, :3, 3], axis=1)))
@@ -407,9 +426,18 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         tgt = np.tile(target, (n, 1))
         tgt[:, 2] += tool_growth
         world = tool[:, :3, 3] + np.einsum("kij,kj->ki", tool[:, :3, :3], tgt)
-        if tilt is not None:
-            world = world + np.cross(tilt, world)
+        if case == "loose-nest" and ti == 1:  # the ball settles towards gravity across the nest's axis
+            axis = tool[:, :3, 2]
+            down = G / np.linalg.norm(G)
+            across = down[None, :] - (axis @ down)[:, None] * axis
+            world = world + truth["value"] * (across + rng.normal(0, 1.0 / 3.0, (n, 3)))
+        if tilt is not None:  # the frame turns about a point ``pivot`` mm below the base origin
+            world = world + np.cross(tilt, world + np.array([0.0, 0.0, pivot]))
+        if case == "stand-creep":  # the stand turns about the base origin by an angle growing with time
+            world = np.stack([_rot(truth["axis"], truth["value"] * tk / t[-1]) @ wk for tk, wk in zip(t, world)])
         local = (world - trk_org) @ trk_rot
+        if case == "tracker-drift":
+            local = local - (session == 2.0)[:, None] * np.asarray(truth["value"])[None, :]
         sigma = (STATED_NOISE[0] + STATED_NOISE[1] * np.linalg.norm(local, axis=1) / 1000.0) * truth["noise_factor"]
         pos[f"T{ti + 1}"] = local + rng.normal(0, 1, (n, 3)) * sigma[:, None]
 

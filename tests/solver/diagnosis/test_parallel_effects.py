@@ -32,9 +32,9 @@ def tripteor_model():
         return mech, analyze(mech, n_configurations=24, seed=0), Kinematics(mech)
 
 
-def _diagnose(model, case: str, seed: int):
+def _diagnose(model, case: str, seed: int, **options):
     mech, analysis, kin = model
-    id_text, val_text, truth = gen.campaign(gen.MODELS[mech.name], case, seed, n_id=60, n_val=20)
+    id_text, val_text, truth = gen.campaign(gen.MODELS[mech.name], case, seed, n_id=60, n_val=20, **options)
     data = parse_measurements(id_text, mech, "id.csv")
     val = parse_measurements(val_text, mech, "val.csv")
     with warnings.catch_warnings():
@@ -96,3 +96,78 @@ def test_a_parallel_machine_effect_is_named(tripteor_model, case, expected):
     if "joints" in truth and case in d.effect_joints:
         assert set(d.effect_joints[case]) <= set(truth["joints"])
     assert d.validation_after["rms"] < d.validation_before["rms"]
+
+
+# ---------------------------------------------------------------- the misses of the fifth blind run (issue 40)
+@pytest.mark.parametrize("case, seed", [("tracker-drift", 0), ("stand-creep", 4)])
+def test_a_moving_stand_is_never_answered_with_high_confidence(tripteor_model, case, seed):
+    """The tracker moved between the sessions, or the stand crept with time: the measurements see one relative motion
+    of the base and the tracker, so no answer names one of them with high confidence.  A tracker drift is named with
+    the family ``stand-motion`` in its set, confidence low, and the words give the separating measurement (reflectors
+    fixed to the floor and to the base).  Before: the drift "explained by tracker-drift", confidence high; the creep
+    (seed 4) "explained by leg-thermal (42, 43)", a set of one, confidence high."""
+    d, truth = _diagnose(tripteor_model, case, seed)
+    sets = {s["effect"]: s for s in d.to_dict()["equivalence_evidence"]}
+    if case == "tracker-drift":
+        assert d.outcome == "explained" and d.named_effects == ["tracker-drift"]
+        assert "stand-motion" in sets["tracker-drift"]["members"]
+        assert "fixed to the floor" in sets["tracker-drift"]["separating_measurement"]
+    if d.outcome in ("explained", "partly explained"):  # whatever is named, the stand is in its set
+        assert all("stand-motion" in sets[n]["members"] for n in d.named_effects)
+        assert d.confidence == "low" and "stand moving" in d.verdict["evidence"]
+
+
+def test_a_loose_reflector_nest_is_not_understated_noise(tripteor_model):
+    """Reflector T2 sits loosely in its nest (it settles by 0.05 mm towards gravity, with a seating scatter): its
+    residuals are larger than T1's, which the tracker's noise cannot do (both reflectors share it).  The answer names
+    the target, not the noise model, and its confidence is low.  Before: "understated noise" (factor 1.28)."""
+    d, truth = _diagnose(tripteor_model, "loose-nest", 2)
+    assert d.outcome == "unexplained" and d.confidence == "low"
+    assert "target T2" in d.verdict["where"]
+    factors = d.gap_test["targets"]["factors"]
+    assert d.gap_test["targets"]["worst"] == "T2" and factors["T2"] > 1.2 * factors["T1"]
+
+
+def test_the_compliance_of_a_pkm_wrist_is_bounded_as_a_wrist(tripteor_model):
+    """The legs (1e-4 mm/N) and the two wrist revolutes (2.5e-8 rad/(N mm), 4e4 N m/rad) yield under the 120 kg head:
+    compliance is named, its wrist estimates within their (wrist) bound.  Before: the platform's wrist revolutes were
+    bounded as main axes (1e-8), compliance refused at 2.1x that bound, and the answer was "partly explained by
+    angle-scale (joint 7) + backlash-gravity"."""
+    d, truth = _diagnose(tripteor_model, "compliance", 1, wrist_compliance=2.5e-8)
+    assert d.outcome in ("explained", "partly explained") and d.named_effects == ["compliance"]
+    params = {p["name"]: p["estimate"] for p in d.effect_parameters}
+    assert params["compliance_7"] == pytest.approx(truth["wrist"], rel=0.3)
+    assert d.validation_after["rms"] < 0.5 * d.validation_before["rms"]
+
+
+def test_the_hexapod_clearance_cross_validates_with_its_physical_bound_as_prior():
+    """The hexapod's platform joints with 0.03-0.04 mm of clearance (the PKM generator): two legs' forces change sign
+    over the workspace, the others keep one sign (a constant offset the leg's length absorbs).  In a held-out block
+    where a leg's sign never changes, a vague prior (1000x the realistic 0.01 mm) let the block's refit put the leg's
+    offset into the clearance: the cross-validated RMS rose from 33 to 257 um and the diagnosis answered
+    "unexplained".  Screened with its physical bound (0.15 mm) as prior, the clearance lowers the cross-validated RMS
+    by more than the selection's 5 % (at the screening level: the full diagnosis of the hexapod takes ~40 s of CPU)."""
+    from hyperstat.solver.calibration.identify import identify
+    from hyperstat.solver.diagnosis import diagnose as steps
+    from hyperstat.solver.diagnosis.screening import cv_rms, effect_columns
+    from hyperstat.solver.diagnosis.selection import CV_DROP
+
+    mech = load_model(gen.MODELS["hexapod"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        analysis = analyze(mech, n_configurations=24, seed=0)
+        kin = Kinematics(mech)
+        id_text, val_text, truth = gen.campaign(gen.MODELS["hexapod"], "joint-clearance", 0, n_id=40, n_val=12)
+        data = parse_measurements(id_text, mech, "id.csv")
+        run = steps._Run(mech, analysis, data, None, kin, 4, 0)
+        run.rigid = identify(mech, analysis, data, None, kinematics=kin)
+        steps._rows_and_screen(run)
+        effect = make_effect("joint-clearance", mech)
+        cols, prior = effect_columns(mech, analysis, kin, run.rigid, data, effect, run.screen.q, run.act_jac,
+                                     run.at_rigid)
+    np.testing.assert_allclose(prior, effect.plausible)  # the bound, 0.15 mm
+    cv, _, _, estimates = cv_rms(run.screen, cols, prior)
+    vague, _, _, _ = cv_rms(run.screen, cols, 1000.0 * effect.magnitude)
+    assert cv < CV_DROP * run.base_cv < vague
+    near = [e for e in estimates if abs(e - truth["value"]) < 0.5 * truth["value"]]  # mm
+    assert len(near) >= 2 and np.all(np.abs(estimates) < effect.plausible)

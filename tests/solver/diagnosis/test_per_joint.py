@@ -115,6 +115,20 @@ def test_a_two_stage_gear_is_named_at_its_order(kuka):
     assert not any(r["effect"] == "angle-harmonic-1.5" for r in d.rejected)
 
 
+def test_a_gear_stage_seen_over_less_than_one_period_is_named_when_the_data_establish_it(kuka):
+    """The 1.5/rev stage of joint 1 (9e-5 rad) with joint 1 within +-100 deg (2.9 rad: less than one period of 1.5/rev,
+    resolution 2.2 cycles per revolution).  The spectrum peaks at 1.5, where 1 explains 13 less and 2 explains 49
+    less: the order is established by the data although the Rayleigh limit would let them alias, and it beats a smooth
+    trend of the joint.  Before: the order was never tried below the resolution, 1 and 2 were refused by the
+    spectrum, and the answer was "unexplained"."""
+    d, truth = _diagnose(kuka, "harmonic", 1, joint=0, order=1.5, amplitude=9e-5, narrow={0: (-100.0, 100.0)})
+    assert d.spectrum_peaks["1"]["resolution_cycles_per_rev"] > 1.5
+    assert d.outcome == "explained" and d.named_effects == ["angle-harmonic-1.5"]
+    assert d.effect_joints == {"angle-harmonic-1.5": ["1"]}
+    params = {p["name"]: p["estimate"] for p in d.effect_parameters}
+    assert np.hypot(*params.values()) == pytest.approx(truth["amplitude"], rel=0.35)
+
+
 def test_a_reflector_that_tells_another_story_lowers_the_confidence(kuka):
     """One reflector's nest slides with the wrist (the others are right): alone it is explained by a periodic error of
     joint 6, which the whole file does not find.  The answer says the targets disagree and its confidence is low
