@@ -3,7 +3,9 @@
 Units: whatever each JSON states (mm, rad); the comparison is relative (``|a - b| <= 1e-9 max(1, |a|, |b|)``).
 
 A speed change must not change an answer: this script runs the commands of
-``benchmarks/commands.py`` (and a few more: the hexapod's ``accuracy``, the controller export)
+``benchmarks/commands.py`` (and a few more: the hexapod's ``accuracy``, the controller export, the
+report (``--json-only``) and ``accuracy`` of the slider-crank and the planar 3-RRR, the Tripteor's
+``accuracy``; with ``--with-corpus`` the report and ``accuracy`` of the corpus' revolute Delta, minutes of CPU)
 once each, with the cache off (``--no-cache``, so that every value is computed), and keeps
 their JSON outputs; ``--compare A B`` then lists every number that differs by more than 1e-9
 (relative) and every key present in one only.  The reference is made by running the same
