@@ -92,6 +92,7 @@ GOALS = {
     "accuracy-10k": (None, None, "hyperstat accuracy, Triflex-II, 10,000 configurations"),
     "montecarlo": (5.0, None, "hyperstat montecarlo, Triflex-II, 100,000 samples"),
     "diagnose": (5.0, None, "hyperstat diagnose, Tripteor X7, 107 + 30 points"),
+    "report-delta_r": (None, None, "hyperstat report, the corpus' revolute Delta (47 assembly conditions), cold"),
     **{f"analyze-{t}": (None, None, f"hyperstat analyze templates/{t}.py (2 samples)") for t in TEMPLATES},
 }
 
@@ -133,6 +134,7 @@ def _arguments(work: Path) -> dict:
         "report": ["report", str(t / "tripteor_x7.py"), "--data", str(data / "measurements.csv"),
                    "--validation", str(data / "measurements.validation.csv"),
                    "--hypotheses", str(t / "tripteor_x7.hypotheses.yaml"), "--out", str(work / "report")],
+        "report-delta_r": ["report", str(t / "corpus" / "delta_r.py"), "--out", str(work / "report-delta_r"), "--quiet"],
         "diagnose": ["diagnose", str(t / "tripteor_x7.py"), str(data / "measurements.csv"),
                      "--validation", str(data / "measurements.validation.csv"), "--quiet"],
     })
@@ -347,7 +349,7 @@ def _verdicts(goal, mem_goal, med: float, cpu: float, peak: float) -> list[str]:
 
 
 #: rows without a kernel row (the kernels of issue 32 exist for the rows before issue 39)
-NO_KERNEL = {"demo", "report-cached", "accuracy-hexapod", "freecad"}
+NO_KERNEL = {"demo", "report-cached", "accuracy-hexapod", "freecad", "report-delta_r"}
 
 
 def _freecad_setup(work: Path) -> dict | None:
@@ -390,6 +392,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", action="append", choices=list(GOALS))
     ap.add_argument("--kernel-of", help=argparse.SUPPRESS)  # the child process that times one kernel
     ap.add_argument("--work", help=argparse.SUPPRESS)
+    ap.add_argument("--no-kernels", action="store_true",
+                    help="time the commands only (the kernel rows double a report's time: on a shared machine)")
     ap.add_argument("--draws", type=int, default=0, help=argparse.SUPPRESS)
     ap.add_argument("--certified", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -427,7 +431,7 @@ def main(argv: list[str] | None = None) -> int:
                     _run(cmds[name])  # fills the cache (not timed)
                 runs.append(_run_freecad(fc, work) if name == "freecad" else _run(cmds[name]))
             walls, cpus, peaks = ([r[i] for r in runs] for i in range(3))
-            kernel = None if name in NO_KERNEL else _kernel(name, repeat, work)
+            kernel = None if name in NO_KERNEL or args.no_kernels else _kernel(name, repeat, work)
             goal, mem_goal, what = GOALS[name]
             med, cpu = statistics.median(walls), statistics.median(cpus)
             rows.append((what, med, min(walls), max(walls), cpu, max(peaks), load, kernel, goal, mem_goal))

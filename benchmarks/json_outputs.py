@@ -3,7 +3,9 @@
 Units: whatever each JSON states (mm, rad); the comparison is relative (``|a - b| <= 1e-9 max(1, |a|, |b|)``).
 
 A speed change must not change an answer: this script runs the commands of
-``benchmarks/commands.py`` (and a few more: the hexapod's ``accuracy``, the controller export)
+``benchmarks/commands.py`` (and a few more: the hexapod's ``accuracy``, the controller export, the
+report (``--json-only``) and ``accuracy`` of the slider-crank and the planar 3-RRR, the Tripteor's
+``accuracy``; with ``--with-corpus`` the report and ``accuracy`` of the corpus' revolute Delta, minutes of CPU)
 once each, with the cache off (``--no-cache``, so that every value is computed), and keeps
 their JSON outputs; ``--compare A B`` then lists every number that differs by more than 1e-9
 (relative) and every key present in one only.  The reference is made by running the same
@@ -35,7 +37,7 @@ CLI = [sys.executable, "-m", "hyperstat.cad_plugin.cli"]
 IGNORED = {"hyperstat_version", "date", "elapsed_s", "generated", "created", "cache", "time_s"}
 
 
-def _commands(work: Path, data: Path, sizes: bool) -> dict:
+def _commands(work: Path, data: Path, sizes: bool, corpus: bool = False) -> dict:
     """Name -> (arguments, the JSON file(s) they write)."""
     t = ROOT / "templates"
     out = {
@@ -60,6 +62,18 @@ def _commands(work: Path, data: Path, sizes: bool) -> dict:
     for name in ("slider_crank", "tripteor_x7", "triflex_ii", "scara", "hexapod", "five_bar"):
         out[f"analyze-{name}"] = (["analyze", t / f"{name}.py", "--json", work / f"analyze-{name}.json"],
                                   [f"analyze-{name}.json"])
+    # the searched worst cases, allocations, bounds and drawings of more mechanisms (issue 39: the values stage)
+    for name in ("slider_crank", "planar_3rrr"):
+        out[f"report-{name}"] = (["report", t / f"{name}.py", "--out", work / f"report-{name}", "--date", "2026-01-01",
+                                  "--json-only"], [f"report-{name}/report.json"])
+    for name in ("slider_crank", "tripteor_x7", "planar_3rrr"):
+        out[f"accuracy-{name}"] = (["accuracy", t / f"{name}.py", "--json", work / f"accuracy-{name}.json"],
+                                   [f"accuracy-{name}.json"])
+    if corpus:  # the revolute Delta of the corpus (47 assembly conditions): minutes of CPU
+        c = t / "corpus" / "delta_r.py"
+        out["report-delta_r"] = (["report", c, "--out", work / "report-delta_r", "--date", "2026-01-01", "--json-only"],
+                                 ["report-delta_r/report.json"])
+        out["accuracy-delta_r"] = (["accuracy", c, "--json", work / "accuracy-delta_r.json"], ["accuracy-delta_r.json"])
     if sizes:
         out["accuracy"] = (["accuracy", t / "triflex_ii.py", "--workspace-configurations", "100000",
                             "--orientation-accuracy", "0.026180", "--json", work / "accuracy.json"], ["accuracy.json"])
@@ -71,7 +85,7 @@ def _supports_no_cache() -> bool:
     return "--no-cache" in proc.stdout
 
 
-def write_outputs(out: Path, only: list | None, sizes: bool) -> None:
+def write_outputs(out: Path, only: list | None, sizes: bool, corpus: bool = False) -> None:
     out.mkdir(parents=True, exist_ok=True)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     no_cache = ["--no-cache"] if _supports_no_cache() else []
@@ -81,7 +95,7 @@ def write_outputs(out: Path, only: list | None, sizes: bool) -> None:
         subprocess.run(CLI + ["simulate", str(ROOT / "templates" / "tripteor_x7.py"), "--effect", "backlash",
                               "--out", str(data / "measurements.csv"), "--truth", str(data / "truth.json"), "--quiet"],
                        check=True, env=env, cwd=ROOT)
-        for name, (args, files) in _commands(work, data, sizes).items():
+        for name, (args, files) in _commands(work, data, sizes, corpus).items():
             if only and name not in only:
                 continue
             cached = args[0] in ("accuracy", "montecarlo", "report", "export-controller")
@@ -144,13 +158,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, help="folder for the JSON outputs")
     ap.add_argument("--only", action="append", help="one command of the list (repeatable)")
     ap.add_argument("--with-100k", action="store_true", help="also the 100,000-configuration accuracy")
+    ap.add_argument("--with-corpus", action="store_true", help="also the report and accuracy of the corpus' delta_r")
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("A", "B"), help="compare two output folders")
     args = ap.parse_args(argv)
     if args.compare:
         return compare(*args.compare)
     if not args.out:
         ap.error("--out or --compare is required")
-    write_outputs(args.out, args.only, args.with_100k)
+    write_outputs(args.out, args.only, args.with_100k, args.with_corpus)
     return 0
 
 

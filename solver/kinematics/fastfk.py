@@ -48,6 +48,9 @@ __all__ = ["FramePlan", "PlanResult", "DEFAULT_CHUNK"]
 DEFAULT_CHUNK = 4096
 
 _POOL: ThreadPoolExecutor | None = None
+#: the number of CPUs, read once (``os.cpu_count`` reads the system's CPU list at every call: 0.1 ms, thousands of
+#: times in a worst-case search of small batches)
+_CPUS = os.cpu_count() or 1
 
 
 def _pool(threads: int) -> ThreadPoolExecutor:
@@ -253,7 +256,7 @@ class FramePlan:
         qt = np.ascontiguousarray(q.T)  # (n_q, K): joint rows are contiguous
         chunk = max(int(chunk), 1)
         starts = list(range(0, k, chunk))
-        n_threads = min(threads or os.cpu_count() or 1, len(starts))
+        n_threads = min(threads or _CPUS, len(starts))
 
         def work(s: int) -> None:
             self._chunk(qt[:, s : s + chunk], s, out_frames, out_closing, tw, jac, jacobian_at, path, rows_q, par)

@@ -163,6 +163,10 @@ class AccuracyMaps:
                 for k, v in self.coefficients.items()}
 
 
+#: the number of CPUs, read once (``os.cpu_count`` reads the system's CPU list at every call)
+_CPUS = os.cpu_count() or 1
+
+
 def in_chunks(block, n: int, chunk: int = 10000, workers: int | None = None) -> None:
     """Run ``block(start)`` for ``start = 0, chunk, 2 chunk, ... < n``, on threads when there are several blocks.
 
@@ -178,7 +182,7 @@ def in_chunks(block, n: int, chunk: int = 10000, workers: int | None = None) -> 
     [0, 10, 20]
     """
     starts = range(0, n, chunk)
-    threads = min(workers or min(os.cpu_count() or 1, 8), len(starts))
+    threads = min(workers or min(_CPUS, 8), len(starts))
     if threads > 1:
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(block, starts))  # list(): re-raises an exception of any block

@@ -264,13 +264,31 @@ def _constraint_blocks(model: ClearanceModel, q: np.ndarray, kin: Kinematics | N
     return out
 
 
+#: blocks per block-diagonal programme of :func:`_solve`: HiGHS' dual simplex takes superlinear time in the number
+#: of blocks (per block on the revolute Delta: 4.1 ms in programmes of 8 blocks, 4.9 ms of 32, 8.9 ms of 128,
+#: 15.9 ms of 256); each block's maximum is its own, so the grouping changes the time, not the programme
+LP_GROUP = 8
+
+
 def _solve(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
-    """Largest violation ``t`` of each ``(U0^T A C, U0^T A d)`` pair: one block-diagonal linear programme.
+    """Largest violation ``t`` of each ``(U0^T A C, U0^T A d)`` pair: block-diagonal linear programmes.
 
     Each block has its own plays ``y`` and its own ``t`` (the objective is their sum, so each is its own
     block's maximum); ``t`` is capped at :data:`_UNBOUNDED` (reported as infinite: the plays absorb any
     small violation to first order).  Returns ``t`` (K,) and the plays of each block (None where unsolved).
+    The blocks are solved :data:`LP_GROUP` at a time.
     """
+    if len(pairs) > LP_GROUP:
+        t, ys = np.full(len(pairs), np.inf), []
+        for start in range(0, len(pairs), LP_GROUP):
+            t[start:start + LP_GROUP], y = _solve_group(model, pairs[start:start + LP_GROUP])
+            ys += y
+        return t, ys
+    return _solve_group(model, pairs)
+
+
+def _solve_group(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
+    """:func:`_solve` of a few blocks: one block-diagonal linear programme."""
     from scipy.optimize import linprog
     from scipy.sparse import block_diag, csr_matrix
 
@@ -308,7 +326,7 @@ def _solve(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
         # the blocks one by one (rare: only at a configuration where the linearisation fails)
         if nb > 1:
             for j, k in enumerate(felt):
-                tk, yk = _solve(model, [pairs[k]])
+                tk, yk = _solve_group(model, [pairs[k]])
                 t[k], ys[k] = tk[0], yk[0]
             return t, ys
         t[felt[0]] = 0.0

@@ -414,10 +414,9 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
         ``corner``, ``edge``, ``face``, ``dead centre of joint 4 along joint 1`` ...
     """
     varied = np.ones(len(kin.mechanism.actuated), dtype=bool) if varied is None else np.asarray(varied, dtype=bool)
-    key = (id(kin), id(workspace), len(sample), float(np.sum(sample)) if len(sample) else 0.0, points_per_edge, grid,
-           tuple(varied))
+    key = _candidates_key(kin, workspace, sample, (points_per_edge, grid, max_edges, tuple(varied)))
     if key in _CANDIDATES:
-        return _CANDIDATES[key]
+        return _CANDIDATES[key][1]
     from hyperstat.solver.kinematics.continuation import continue_nearest
 
     m = kin.mechanism
@@ -463,7 +462,7 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
     all_targets = targets + [p for _, _, pts in grid_rows for p in pts]
     if not all_targets:
         out = (np.zeros((0, kin.n_q)), [])
-        _remember(key, out)
+        _remember(key, kin, out)
         return out
     pool = _spread(sample, POOL) if len(sample) else None
     q, cert = continue_nearest(kin, np.array(all_targets), None, m.home, pool=pool, inside=workspace.inside)
@@ -501,15 +500,32 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
             out_q.append(qd)
             out_l.append(f"dead centre of joint {m.joints[pas[p]].name} along joint {m.joints[m.actuated[a]].name}")
     out = (np.array(out_q) if out_q else np.zeros((0, kin.n_q)), out_l)
-    _remember(key, out)
+    _remember(key, kin, out)
     return out
 
 
-def _remember(key, value) -> None:
+def _candidates_key(kin: Kinematics, workspace: Workspace, sample: np.ndarray, options: tuple) -> tuple:
+    """What the candidates depend on: the kinematics (the object: it is kept alive with its entry, so its ``id`` is
+    not reused), the workspace's bounds by value (every stage builds its own :class:`Workspace` of the same
+    declaration) and the sample's bytes."""
+    import hashlib
+
+    sample = np.ascontiguousarray(sample, dtype=float)
+    bounds = [np.ascontiguousarray(a, dtype=float) for a in (workspace.lower, workspace.upper)]
+    flags = [np.ascontiguousarray(a, dtype=bool) for a in (workspace.passive_declared, workspace.revolute)
+             if a is not None]
+    digest = hashlib.sha256()
+    for a in [sample] + bounds + flags:
+        digest.update(str(a.shape).encode())
+        digest.update(a.tobytes())
+    return (id(kin), workspace.passive_declared is None, workspace.revolute is None, digest.hexdigest(), options)
+
+
+def _remember(key, kin: Kinematics, value) -> None:
     """Keep the candidates of the last few (kinematics, workspace, sample) in memory (one command uses two or three)."""
     if len(_CANDIDATES) >= 4:
         _CANDIDATES.pop(next(iter(_CANDIDATES)))
-    _CANDIDATES[key] = value
+    _CANDIDATES[key] = (kin, value)
 
 
 def _passive_velocity(kin: Kinematics, q: np.ndarray, axis) -> np.ndarray:
