@@ -43,6 +43,10 @@ EXACT_TOP = 4
 #: where more than three rows are left: the upper bound is solved at this many configurations of largest lower bound
 #: and this many of largest triangle bound
 GENERAL_SOLVED = 6
+#: above this many variables per configuration (conditions times plays and polygon rows), the decision rule's linear
+#: programme takes minutes per configuration: the triangle bound is used alone (safe, more conservative); the
+#: revolute Delta has 19,740, the 3-RRR 3,780, the planar 3-RPR 3,477
+DECISION_RULE_VARIABLES = 10000
 
 
 def _pieces_matrix(model, f: np.ndarray) -> np.ndarray:
@@ -476,6 +480,9 @@ def _allocate_general(cl, mechanism, items, model, raw, dirs, at, alone, qq, q, 
     with np.errstate(divide="ignore"):
         inv = np.where(np.isfinite(at) & (at > 0), 1.0 / at, 0.0)
     tri = inv @ alone
+    n_vars = len(items) * (raw[0][0].shape[1] + 2 * model.polygon.shape[0]) if raw else 0
+    if n_vars > DECISION_RULE_VARIABLES:
+        return _allocate_triangle(cl, mechanism, items, model, raw, dirs, alone, tri, qq, q, worst, n_vars)
     lows = np.array([_Block(model, f, ua, dirs)._local(alone, starts=2)[0] for f, ua in raw])
     own = [int(np.argmin(np.linalg.norm(qq - w_q[None, :], axis=1))) for w_q in worst]  # each condition's worst
     picks = list(dict.fromkeys([int(k) for k in np.argsort(-lows)[:GENERAL_SOLVED]] +
@@ -507,6 +514,38 @@ def _allocate_general(cl, mechanism, items, model, raw, dirs, at, alone, qq, q, 
     return {"single_condition_need": best, "clearance_need": best * factor, "method": method, "exact": False,
             "need_lower_bound": low, "configurations": int(len(qq)), "solved": evaluated,
             "unsolved_lower_bound": unsolved_low * factor,
+            "from": {"given": int(len(q)), "workspace_candidates": 0, "single_worst_cases": len(worst)},
+            "worst": {"configuration": qq[k_best].tolist(), "signs": {t.id: float(s) for t, s in zip(items, signs)},
+                      "actuated": {mechanism.joints[i].name: float(qq[k_best][i]) for i in mechanism.actuated}},
+            "single_worst": {"configuration": qq[k_best].tolist()},
+            "factors": {t.id: factor for t in items}, "values": {t.id: float(t.value) for t in items},
+            "values_alone": {t.id: float(a) for t, a in zip(items, alone)}}
+
+
+def _allocate_triangle(cl, mechanism, items, model, raw, dirs, alone, tri, qq, q, worst, n_vars: int) -> dict:
+    """Many conditions and many plays (the revolute Delta's 47 conditions): the decision rule's programme would take
+    minutes per configuration, so every value is scaled on the triangle bound ``sum_i v_i / t_i`` alone, at every
+    configuration (each condition absorbed by plays of its own, each at its own share of the clearances: safe, and
+    never below the decision rule's bound); a local search at the worst configuration gives a lower bound beside it."""
+    k_best = int(np.argmax(tri))
+    best = float(tri[k_best])
+    factor = 1.0 / max(best, 1.0)
+    block = _Block(model, raw[k_best][0], raw[k_best][1], dirs)
+    low, signs, _ = block._local(alone * factor, starts=2)
+    for t, a in zip(items, alone):
+        t.evidence.setdefault("assemblability", {})["value_alone"] = float(a)
+        t.evidence["assemblability"]["together_factor"] = factor
+        t.value = float(factor * a)
+        t.value_source += (f"; together with the other assembly conditions (every one at a corner of its tolerance at "
+                           f"once): {100 * factor:.1f} % of its single value {a:.4g} {t.unit}")
+    method = (f"the triangle bound at every configuration: {len(items)} conditions and more than three closure rows "
+              f"left to the plays make the decision rule's linear programme too large ({n_vars} variables per "
+              "configuration, minutes each); each condition is absorbed by plays of its own at its own share of the "
+              "clearances, sum_i v_i / t_i (t_i: condition i alone there), which is safe and at least the decision "
+              f"rule's bound; at {len(qq)} configurations; every value scaled by one factor")
+    return {"single_condition_need": best, "clearance_need": best * factor, "method": method, "exact": False,
+            "need_lower_bound": low, "configurations": int(len(qq)), "solved": 0,
+            "unsolved_lower_bound": None,
             "from": {"given": int(len(q)), "workspace_candidates": 0, "single_worst_cases": len(worst)},
             "worst": {"configuration": qq[k_best].tolist(), "signs": {t.id: float(s) for t, s in zip(items, signs)},
                       "actuated": {mechanism.joints[i].name: float(qq[k_best][i]) for i in mechanism.actuated}},
