@@ -43,7 +43,7 @@ EXACT_TOP = 4
 #: where more than three rows are left: the upper bound is solved at this many configurations of largest lower bound
 #: and this many of largest triangle bound
 GENERAL_SOLVED = 6
-#: above this many variables per configuration (conditions times plays and polygon rows), the decision rule's linear
+#: above this size per configuration (conditions times plays and twice the polygon rows), the decision rule's linear
 #: programme takes minutes per configuration: the triangle bound is used alone (safe, more conservative); the
 #: revolute Delta has 19,740, the 3-RRR 3,780, the planar 3-RPR 3,477
 DECISION_RULE_VARIABLES = 10000
@@ -498,12 +498,7 @@ def _allocate_general(cl, mechanism, items, model, raw, dirs, at, alone, qq, q, 
     factor = 1.0 / max(best, 1.0)
     block = _Block(model, raw[k_best][0], raw[k_best][1], dirs)
     low, signs, _ = block._local(alone * factor)
-    for t, a in zip(items, alone):
-        t.evidence.setdefault("assemblability", {})["value_alone"] = float(a)
-        t.evidence["assemblability"]["together_factor"] = factor
-        t.value = float(factor * a)
-        t.value_source += (f"; together with the other assembly conditions (every one at a corner of its tolerance at "
-                           f"once): {100 * factor:.1f} % of its single value {a:.4g} {t.unit}")
+    _scale_values(items, alone, factor)
     method = ("an upper bound where it matters most: more than three closure rows are left to the plays, where the "
               "exact need is a mixed-integer programme of minutes per configuration; each condition's violation is "
               "absorbed by plays of its own whose absolute values add up within the clearances (a linear programme, "
@@ -511,15 +506,8 @@ def _allocate_general(cl, mechanism, items, model, raw, dirs, at, alone, qq, q, 
               "bound sum_i v_i / t_i (t_i: condition i alone there) is largest and at every condition's own worst "
               "configuration; at the others only a lower bound is computed, and it stays at "
               f"{unsolved_low / max(best, 1e-300):.2f} of the worst upper bound; every value scaled by one factor")
-    return {"single_condition_need": best, "clearance_need": best * factor, "method": method, "exact": False,
-            "need_lower_bound": low, "configurations": int(len(qq)), "solved": evaluated,
-            "unsolved_lower_bound": unsolved_low * factor,
-            "from": {"given": int(len(q)), "workspace_candidates": 0, "single_worst_cases": len(worst)},
-            "worst": {"configuration": qq[k_best].tolist(), "signs": {t.id: float(s) for t, s in zip(items, signs)},
-                      "actuated": {mechanism.joints[i].name: float(qq[k_best][i]) for i in mechanism.actuated}},
-            "single_worst": {"configuration": qq[k_best].tolist()},
-            "factors": {t.id: factor for t in items}, "values": {t.id: float(t.value) for t in items},
-            "values_alone": {t.id: float(a) for t, a in zip(items, alone)}}
+    return _bound_evidence(mechanism, items, alone, factor, best, method, low, qq, q, worst, k_best, signs,
+                           solved=evaluated, unsolved_lower_bound=unsolved_low * factor)
 
 
 def _allocate_triangle(cl, mechanism, items, model, raw, dirs, alone, tri, qq, q, worst, n_vars: int) -> dict:
@@ -532,20 +520,32 @@ def _allocate_triangle(cl, mechanism, items, model, raw, dirs, alone, tri, qq, q
     factor = 1.0 / max(best, 1.0)
     block = _Block(model, raw[k_best][0], raw[k_best][1], dirs)
     low, signs, _ = block._local(alone * factor, starts=2)
+    _scale_values(items, alone, factor)
+    method = (f"the triangle bound at every configuration: {len(items)} conditions and more than three closure rows "
+              f"left to the plays make the decision rule's linear programme too large (size {n_vars}: conditions "
+              "times plays and polygon rows, minutes per configuration); each condition is absorbed by plays of its own "
+              "at its own share of the clearances, sum_i v_i / t_i (t_i: condition i alone there), which is safe and at least the decision "
+              f"rule's bound; at {len(qq)} configurations; every value scaled by one factor")
+    return _bound_evidence(mechanism, items, alone, factor, best, method, low, qq, q, worst, k_best, signs,
+                           solved=0, unsolved_lower_bound=None)
+
+
+def _scale_values(items: list, alone: np.ndarray, factor: float) -> None:
+    """Every assembly value scaled by one factor from its single value, and the evidence saying so (in place)."""
     for t, a in zip(items, alone):
         t.evidence.setdefault("assemblability", {})["value_alone"] = float(a)
         t.evidence["assemblability"]["together_factor"] = factor
         t.value = float(factor * a)
         t.value_source += (f"; together with the other assembly conditions (every one at a corner of its tolerance at "
                            f"once): {100 * factor:.1f} % of its single value {a:.4g} {t.unit}")
-    method = (f"the triangle bound at every configuration: {len(items)} conditions and more than three closure rows "
-              f"left to the plays make the decision rule's linear programme too large ({n_vars} variables per "
-              "configuration, minutes each); each condition is absorbed by plays of its own at its own share of the "
-              "clearances, sum_i v_i / t_i (t_i: condition i alone there), which is safe and at least the decision "
-              f"rule's bound; at {len(qq)} configurations; every value scaled by one factor")
+
+
+def _bound_evidence(mechanism, items, alone, factor, best, method, low, qq, q, worst, k_best, signs, solved,
+                    unsolved_lower_bound) -> dict:
+    """The whole drawing's evidence when the need is an upper bound (more than three closure rows), JSON-ready."""
     return {"single_condition_need": best, "clearance_need": best * factor, "method": method, "exact": False,
-            "need_lower_bound": low, "configurations": int(len(qq)), "solved": 0,
-            "unsolved_lower_bound": None,
+            "need_lower_bound": low, "configurations": int(len(qq)), "solved": solved,
+            "unsolved_lower_bound": unsolved_lower_bound,
             "from": {"given": int(len(q)), "workspace_candidates": 0, "single_worst_cases": len(worst)},
             "worst": {"configuration": qq[k_best].tolist(), "signs": {t.id: float(s) for t, s in zip(items, signs)},
                       "actuated": {mechanism.joints[i].name: float(qq[k_best][i]) for i in mechanism.actuated}},
