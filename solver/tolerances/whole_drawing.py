@@ -523,9 +523,9 @@ def _allocate_triangle(cl, mechanism, items, model, raw, dirs, alone, tri, qq, q
     _scale_values(items, alone, factor)
     method = (f"the triangle bound at every configuration: {len(items)} conditions and more than three closure rows "
               f"left to the plays make the decision rule's linear programme too large (size {n_vars}: conditions "
-              "times plays and polygon rows, minutes per configuration); each condition is absorbed by plays of its own "
-              "at its own share of the clearances, sum_i v_i / t_i (t_i: condition i alone there), which is safe and at least the decision "
-              f"rule's bound; at {len(qq)} configurations; every value scaled by one factor")
+              "times plays and polygon rows, minutes per configuration); each condition is absorbed by plays of its "
+              "own at its own share of the clearances, sum_i v_i / t_i (t_i: condition i alone there), which is safe "
+              f"and at least the decision rule's bound; at {len(qq)} configurations; every value scaled by one factor")
     return _bound_evidence(mechanism, items, alone, factor, best, method, low, qq, q, worst, k_best, signs,
                            solved=0, unsolved_lower_bound=None)
 
