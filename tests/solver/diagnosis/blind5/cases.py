@@ -17,7 +17,7 @@ _SR_NOISE = (0.008, 0.004)
 
 def _c(cid, family, kind, effect=None, truth=None, joints=None, targets="smr3", design="lhs",
        poses=None, noise=None, understate=1.0, seed=None):
-    fam_poses = {"tripteor_x7": (48, 20), "hexapod": (36, 14), "puma_like": (48, 20), "scara_like": (44, 18)}
+    fam_poses = {"tripteor_x7": (42, 18), "hexapod": (32, 12), "puma_like": (44, 18), "scara_like": (40, 16)}
     fam_noise = {"tripteor_x7": _TX_NOISE, "hexapod": _HX_NOISE, "puma_like": _SR_NOISE, "scara_like": _SR_NOISE}
     return {"id": cid, "family": family, "kind": kind, "effect": effect, "truth": truth, "joints": joints,
             "targets": targets, "design": design, "poses": poses or fam_poses[family],
