@@ -407,7 +407,9 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         from hyperstat.solver.kinematics.closed_form import closed_form_of
 
         form = closed_form_of(mechanism, kin)
-    kept, certs, pool = [], [], None
+    # the kept configurations are written into one buffer of the draws' size: only the rows written become
+    # resident memory, and the sample is not copied again at the end (a concatenation of the chunks held it twice)
+    out, count, certs, pool = np.empty((n, kin.n_q)), 0, [], None
     for start in range(0, n, SAMPLING_CHUNK):  # bounded memory: a chunk of draws at a time
         qa = lo + (hi - lo) * rng.random((min(SAMPLING_CHUNK, n - start), len(lo)))
         if form is None:
@@ -415,10 +417,13 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         else:
             q, cert = _closed_form_chunk(kin, form, qa, ws, pool)
         ok = cert.certified
-        kept.append(q[ok])
+        good = int(ok.sum())
+        out[count:count + good] = q[ok]
         certs.append(cert if certificate else cert.take(~ok))
-        pool = q[ok][:SAMPLING_POOL]  # the next chunk also starts from some of these (spread: in draw order)
-    q = np.concatenate(kept)
+        pool = out[count:count + min(good, SAMPLING_POOL)].copy()  # the next chunk also starts from these (in draw order)
+        count += good
+        del q, cert, qa
+    q = out[:count]
     every = BranchCertificate.concatenate(certs)
     if len(q) < n:
         warnings.warn(f"workspace sampling of '{mechanism.name}': {every.summary(total=n)} They were left out.",
