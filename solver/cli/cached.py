@@ -143,8 +143,11 @@ def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: 
     before_cl = _signature(cl, _INPUTS)
     before_items = [_signature(t) for t in cl.items]
     ids = [t.id for t in cl.items]
+    from hyperstat.solver.tolerances.task_summary import TaskSummary
+
+    keyed = {name: v.as_tuple() if isinstance(v, TaskSummary) else v for name, v in options.items()}
     opts = {name: (_digest(v) if isinstance(v, (np.ndarray, tuple)) and name != "workspace" else
-                   _workspace_key(v) if name == "workspace" else v) for name, v in sorted(options.items())}
+                   _workspace_key(v) if name == "workspace" else v) for name, v in sorted(keyed.items())}
     k = key("values", model_identity(args, mechanism), _digest(_keyed(before_cl)),
             _digest([_keyed(b) for b in before_items]),
             _digest(np.asarray(configurations)),

@@ -169,7 +169,7 @@ class AccuracyMaps:
                 for k, v in self.coefficients.items()}
 
     def per_parameter_summary(self) -> dict:
-        """Parameter name -> {"rotation": {"max", "mean"}, "position": {"max", "mean"}} of its column norms (JSON-ready)."""
+        """Parameter name -> {"rotation": {"max", "mean"}, "position": {...}} of its column norms (JSON-ready)."""
         if self.per_parameter_reduced is not None:
             return self.per_parameter_reduced
         return {n: {k: {"max": float(v.max()), "mean": float(v.mean())} for k, v in d.items()}
@@ -420,7 +420,7 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         good = int(ok.sum())
         out[count:count + good] = q[ok]
         certs.append(cert if certificate else cert.take(~ok))
-        pool = out[count:count + min(good, SAMPLING_POOL)].copy()  # the next chunk also starts from these (in draw order)
+        pool = out[count:count + min(good, SAMPLING_POOL)].copy()  # the next chunk also starts from these
         count += good
         del q, cert, qa
     q = out[:count]

@@ -107,6 +107,13 @@ class TaskSummary:
                              f"({sum(key)} of {len(key)}).")
         return self.coefficients[key]
 
+    def as_tuple(self) -> tuple:
+        """Every field as plain values and arrays (what the cache of results keys on)."""
+        coefficients = [(list(key), [values[name] for name in sorted(values)])
+                        for key, values in sorted(self.coefficients.items())]
+        return (self.configurations, self.n_rot, self.n_pos, self.directions, self.is_length, coefficients,
+                self.moves_rotation, self.moves_position, self.square_sums)
+
     def mean_squares(self) -> np.ndarray:
         """Mean over the configurations of the squared task rows of each direction (see ``square_sums``)."""
         return self.square_sums / max(self.configurations, 1)
