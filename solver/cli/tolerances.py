@@ -217,9 +217,10 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
                   for (name, kind), e in extremes.items() if kind == "max"}
         allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed),
                               maxima=maxima)
+        coefficients = maps.summary()
+        maps.coefficients = {}  # the per-configuration coefficients are not read past here (memory: 8 x 8 B each)
         progress.next("tolerances")
         tolerances = _tolerances(args, mech, kin, q, cl=classes, task_maps_at=maps.task_rows).to_dict()
-    coefficients = maps.summary()
     for name, v in coefficients.items():
         v["sampled_min"], v["sampled_max"] = v["min"], v["max"]
         for kind in ("min", "max"):
