@@ -212,8 +212,11 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
 
     One set of Jacobians per configuration: each block of configurations is evaluated once
     (closure and output Jacobians, ``K = O - O_p B_p^+ B``) and serves the coefficients and,
-    with ``task``, the task-restricted rows of the tolerance values.  Memory is bounded by the
-    blocks (``chunk`` configurations per thread), not by ``len(q)``.
+    with ``task``, the task-restricted rows of the tolerance values.  The Jacobians are held a
+    block at a time (``chunk`` configurations per thread); what is kept per configuration is the
+    eight coefficients, and with ``per_configuration`` (the default) the parameters' column norms,
+    ``O_p`` and the task rows as well (``per_configuration=False`` and ``task_columns``: their
+    reductions instead, 128 bytes per configuration in all for the Triflex-II against 501).
 
     Parameters
     ----------

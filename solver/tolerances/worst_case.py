@@ -627,14 +627,21 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
     sample = np.atleast_2d(np.asarray(sample, dtype=float))
     values = {n: np.asarray(v) for n, v in (sampled or objective.values(sample)).items() if n in names} \
         if len(sample) else {n: np.zeros(0) for n in names}
-    pool_q = _Pool(sample, np.zeros((0, kin.n_q)), [])
+    pool_q, extra = _Pool(sample, np.zeros((0, kin.n_q)), []), {}
     if candidates and len(sample):
         cq, cl = workspace_candidates(kin, ws, sample, varied=space.free[m.actuated])
         if len(cq):
             cv = objective.values(cq)
             pool_q = _Pool(sample, cq, cl)
-            values = {n: np.r_[values[n], cv[n]] for n in names}
+            extra = {n: cv[n] for n in names}
     pool_label = pool_q.label
+
+    def pooled(name: str) -> np.ndarray | None:
+        """The function's values over the pool (the sample's, then the candidates'), joined when needed: one
+        function at a time (a copy of every function's values over a large sample at once is 8 bytes each)."""
+        v = values.get(name)
+        return v if v is None or name not in extra else np.r_[v, extra[name]]
+
     out: dict = {}
     paths, owner, sense, origin = [], [], [], []
     z_act = pool_q.columns(m.actuated, space.scale[m.actuated])
@@ -645,7 +652,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
     in_category = {c: np.array([lb.startswith(c) for lb in distinct], dtype=bool)[label_kind]
                    for c in ("sample", "corner", "edge", "face", "dead centre")}
     for name in names:
-        v = values.get(name)
+        v = pooled(name)
         if v is None or len(v) == 0:
             continue
         finite = np.isfinite(v)
@@ -691,7 +698,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
             ks = [k for k, (n, s) in enumerate(zip(owner, sense)) if n == name and s == sign]
             if not ks:
                 continue
-            v = values[name]
+            v = pooled(name)
             sv = np.where(np.isfinite(v), sign * v, -np.inf)
             best_s = int(np.argmax(sv))
             out[(name, kind)] = _conclude(space, objective, name, kind, sign, float(v[best_s]), pool_q[best_s],
