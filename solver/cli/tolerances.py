@@ -189,6 +189,7 @@ def _print_accuracy(doc: dict) -> None:
 def _accuracy_document(args: argparse.Namespace) -> dict:
     """The JSON document of ``hyperstat accuracy`` (and the map, with ``--map``)."""
     from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate
+    from hyperstat.solver.tolerances.task_summary import value_columns
     from hyperstat.solver.tolerances.worst_case import refine_extremes
 
     names = ["stationarity analysis", "workspace sampling", "accuracy maps"] + ([] if args.no_refine else
@@ -198,8 +199,13 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
         progress.next("accuracy maps")
         # one set of Jacobians per configuration: the coefficients and the task rows of the tolerance values
         classes, directions = _classes(args, mech, kin)
+        # reduced block by block (issue 39): what is kept per configuration is the coefficients, not the
+        # parameters' column norms nor the task rows
+        columns = None if directions is None else value_columns(
+            [t for t in classes.items if t.cls in ("accuracy-critical", "compensable")])
         maps = accuracy_maps(mech, q, analysis, kinematics=kin, task=None if directions is None else
-                             classes.declaration.task, task_directions=directions)
+                             classes.declaration.task, task_directions=directions, per_configuration=False,
+                             task_columns=columns)
         extremes = {}
         if not args.no_refine:
             progress.next("worst cases")
@@ -211,9 +217,10 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
                   for (name, kind), e in extremes.items() if kind == "max"}
         allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed),
                               maxima=maxima)
+        coefficients = maps.summary()
+        maps.coefficients = {}  # the per-configuration coefficients are not read past here (memory: 8 x 8 B each)
         progress.next("tolerances")
         tolerances = _tolerances(args, mech, kin, q, cl=classes, task_maps_at=maps.task_rows).to_dict()
-    coefficients = maps.summary()
     for name, v in coefficients.items():
         v["sampled_min"], v["sampled_max"] = v["min"], v["max"]
         for kind in ("min", "max"):
@@ -230,8 +237,7 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
                "uses the refined maxima" + ("" if args.refine_minima else "; the minima are sampled only "
                                             "(--refine-minima refines them)")),
            "groups": maps.groups, "allocation": allocation,
-           "per_parameter": {n: {k: {"max": float(v.max()), "mean": float(v.mean())} for k, v in d.items()}
-                             for n, d in maps.per_parameter.items()},
+           "per_parameter": maps.per_parameter_summary(),
            "tolerances": tolerances,
            "geometric_errors": "admissible influential defects only (the forced ones are assembly conditions)"
            if over else "every defect parameter of the model"}

@@ -135,18 +135,23 @@ class AccuracyMaps:
     coefficients : dict
         Paper name (:data:`COEFFICIENT_NAMES`) -> (K,) values.
     per_parameter : dict
-        Parameter name -> {"rotation": (K,), "position": (K,)} column norms (its own coefficient).
+        Parameter name -> {"rotation": (K,), "position": (K,)} column norms (its own coefficient);
+        empty when the maps were computed with ``per_configuration=False`` (see
+        :meth:`per_parameter_summary`, which both give).
     groups : dict
         ``fP``, ``fR``, ``gP``, ``gR`` -> parameter names in each group.
     q : ndarray
         The configurations (K, n_q).
     position : ndarray
-        Position of ``O_p`` in the base frame (K, 3), mm.
-    task_rows : tuple of ndarray, optional
+        Position of ``O_p`` in the base frame (K, 3), mm ((0, 3) with ``per_configuration=False``).
+    task_rows : tuple of ndarray or TaskSummary, optional
         With ``accuracy_maps(task=..., task_directions=...)``: the task rotation rows (rad) and
         position rows (mm) of the output twist per unit of each direction, (K, r, n) each, from
         the same Jacobians as the coefficients (what
-        :func:`hyperstat.solver.tolerances.values.task_maps` computes).
+        :func:`hyperstat.solver.tolerances.values.task_maps` computes); with ``task_columns``
+        instead, their reductions (:class:`~hyperstat.solver.tolerances.task_summary.TaskSummary`).
+    per_parameter_reduced : dict, optional
+        With ``per_configuration=False``: parameter name -> {"rotation": {"max", "mean"}, "position": {...}}.
     """
 
     coefficients: dict
@@ -155,12 +160,20 @@ class AccuracyMaps:
     q: np.ndarray
     position: np.ndarray
     units: dict = field(default_factory=dict)
-    task_rows: tuple | None = None
+    task_rows: object = None
+    per_parameter_reduced: dict | None = None
 
     def summary(self) -> dict:
         """min / max / mean of every coefficient (JSON-ready)."""
         return {k: {"min": float(v.min()), "max": float(v.max()), "mean": float(v.mean())}
                 for k, v in self.coefficients.items()}
+
+    def per_parameter_summary(self) -> dict:
+        """Parameter name -> {"rotation": {"max", "mean"}, "position": {...}} of its column norms (JSON-ready)."""
+        if self.per_parameter_reduced is not None:
+            return self.per_parameter_reduced
+        return {n: {k: {"max": float(v.max()), "mean": float(v.mean())} for k, v in d.items()}
+                for n, d in self.per_parameter.items()}
 
 
 #: the number of CPUs, read once (``os.cpu_count`` reads the system's CPU list at every call)
@@ -193,13 +206,17 @@ def in_chunks(block, n: int, chunk: int = 10000, workers: int | None = None) -> 
 
 def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics: Kinematics | None = None,
                   chunk: int = 2048, workers: int | None = None, task: tuple | None = None,
-                  task_directions: np.ndarray | None = None) -> AccuracyMaps:
+                  task_directions: np.ndarray | None = None, per_configuration: bool = True,
+                  task_columns: tuple | None = None) -> AccuracyMaps:
     """The accuracy coefficients at assembled configurations ``q`` (vectorised, in chunks).
 
     One set of Jacobians per configuration: each block of configurations is evaluated once
     (closure and output Jacobians, ``K = O - O_p B_p^+ B``) and serves the coefficients and,
-    with ``task``, the task-restricted rows of the tolerance values.  Memory is bounded by the
-    blocks (``chunk`` configurations per thread), not by ``len(q)``.
+    with ``task``, the task-restricted rows of the tolerance values.  The Jacobians are held a
+    block at a time (``chunk`` configurations per thread); what is kept per configuration is the
+    eight coefficients, and with ``per_configuration`` (the default) the parameters' column norms,
+    ``O_p`` and the task rows as well (``per_configuration=False`` and ``task_columns``: their
+    reductions instead, 128 bytes per configuration in all for the Triflex-II against 501).
 
     Parameters
     ----------
@@ -221,7 +238,21 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
         also fill :attr:`AccuracyMaps.task_rows` for ``task_directions``.
     task_directions : ndarray, (n_xi, n), optional
         Defect vector per unit of each tolerance (rad / mm), with ``task``.
+    per_configuration : bool
+        Keep every parameter's column norms and ``O_p`` at every configuration
+        (:attr:`AccuracyMaps.per_parameter`, :attr:`AccuracyMaps.position`); ``False``: only their maxima
+        and means (:attr:`AccuracyMaps.per_parameter_reduced`, added block by block: the means differ
+        from one ``numpy.mean`` by round-off), so that what is kept per configuration is the eight
+        coefficients (``hyperstat accuracy``, issue 39: the norms were 384 bytes per Triflex-II
+        configuration).
+    task_columns : tuple, optional
+        With ``task``: ``(is_length, column_sets)``
+        (:func:`hyperstat.solver.tolerances.task_summary.value_columns`): reduce the task rows block by
+        block into a :class:`~hyperstat.solver.tolerances.task_summary.TaskSummary` (what the values stage
+        needs of them) instead of keeping them, (K, r, n).
     """
+    from hyperstat.solver.tolerances.task_summary import TaskAccumulator
+
     kin = kinematics or Kinematics(mechanism)
     names, matrix = geometric_parameters(mechanism, analysis)
     units = {p.name: p.unit for p in mechanism.parameters}
@@ -238,38 +269,73 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
     g_idx = {k: [i for i, kk in enumerate(g_kind) if kk == k] for k in "PR"}
     q = np.atleast_2d(np.asarray(q, dtype=float))
     coeffs = {n: np.zeros(len(q)) for n in COEFFICIENT_NAMES}
-    per = {n: {"rotation": np.zeros(len(q)), "position": np.zeros(len(q))} for n in f_names + names}
-    position = np.zeros((len(q), 3))
+    keep = len(q) if per_configuration else 0
+    per = {n: {"rotation": np.zeros(keep), "position": np.zeros(keep)} for n in f_names + names} \
+        if per_configuration else {}
+    position = np.zeros((keep, 3))
     rot_rows, pos_rows = np.s_[:, :3], np.s_[:, 3:]
-    on_task = None
+    on_task = accumulator = None
+    parts: dict = {}  # block start -> its partial reductions (added in block order: independent of the threads)
     if task is not None:
-        on_task = np.zeros((len(q), task_rows(task, np.eye(4)[None]).shape[1], task_directions.shape[1]))
+        n_task = task_rows(task, np.eye(4)[None]).shape[1]
+        if task_columns is None:
+            on_task = np.zeros((len(q), n_task, task_directions.shape[1]))
+        else:
+            accumulator = TaskAccumulator(len(q), n_rotation_rows(task), n_task - n_rotation_rows(task),
+                                          task_columns[0], task_columns[1])
 
     def block(start: int) -> None:
         sl = slice(start, start + chunk)
         st = kin.evaluate(q[sl], None, jacobians=True)
         k_xi, k_a = output_twist_maps(kin, st)
-        if on_task is not None:  # the same rows as values.task_maps, from these Jacobians
-            on_task[sl] = task_rows(task, st.output_pose) @ k_xi @ task_directions
+        part = {}
+        if task is not None:  # the same rows as values.task_maps, from these Jacobians
+            rows = task_rows(task, st.output_pose) @ k_xi @ task_directions
+            if on_task is not None:
+                on_task[sl] = rows
+            else:
+                part["task"] = accumulator.add(start, rows)
         k_g = k_xi @ matrix
-        position[sl] = st.output_pose[:, :3, 3]
+        if per_configuration:
+            position[sl] = st.output_pose[:, :3, 3]
         for kind in "PR":
             for label, cols, src in (("f", f_idx[kind], k_a), ("g", g_idx[kind], k_g)):
                 sub = src[:, :, cols]
                 coeffs[f"delta_{label}{kind}"][sl] = largest_singular_value(sub[rot_rows])
                 coeffs[f"epsilon_{label}{kind}"][sl] = largest_singular_value(sub[pos_rows])
-        for names_of, src in ((f_names, k_a), (names, k_g)):
+        for names_of, src, which in ((f_names, k_a, "f"), (names, k_g, "g")):
             rot = np.sqrt(np.einsum("kij,kij->kj", src[rot_rows], src[rot_rows]))  # column norms
             pos = np.sqrt(np.einsum("kij,kij->kj", src[pos_rows], src[pos_rows]))
-            for j, n in enumerate(names_of):
-                per[n]["rotation"][sl] = rot[:, j]
-                per[n]["position"][sl] = pos[:, j]
+            if per_configuration:
+                for j, n in enumerate(names_of):
+                    per[n]["rotation"][sl] = rot[:, j]
+                    per[n]["position"][sl] = pos[:, j]
+            else:  # running maxima and sums (NaN propagates as in numpy's max and mean)
+                part[which] = (rot.max(axis=0), rot.sum(axis=0), pos.max(axis=0), pos.sum(axis=0))
+        parts[start] = part
 
     in_chunks(block, len(q), chunk, workers)
     unit_of = {"delta_fP": "rad/mm", "delta_fR": "rad/rad", "delta_gP": "rad/mm", "delta_gR": "rad/rad",
                "epsilon_fP": "mm/mm", "epsilon_fR": "mm/rad", "epsilon_gP": "mm/mm", "epsilon_gR": "mm/rad"}
     split = None if on_task is None else (on_task[:, :n_rotation_rows(task)], on_task[:, n_rotation_rows(task):])
-    return AccuracyMaps(coeffs, per, groups, q, position, unit_of, split)
+    if accumulator is not None:
+        split = accumulator.finish({s: p["task"] for s, p in parts.items()})
+    reduced = None
+    if not per_configuration:
+        reduced = {}
+        for names_of, which in ((f_names, "f"), (names, "g")):
+            blocks = [parts[s][which] for s in sorted(parts)]
+            for j, n in enumerate(names_of):
+                reduced[n] = {}
+                for kind, at in (("rotation", 0), ("position", 2)):
+                    top = max((float(b[at][j]) for b in blocks), default=float("nan"))
+                    if any(np.isnan(b[at][j]) for b in blocks):
+                        top = float("nan")
+                    total = 0.0
+                    for b in blocks:
+                        total += float(b[at + 1][j])
+                    reduced[n][kind] = {"max": top, "mean": total / len(q) if len(q) else float("nan")}
+    return AccuracyMaps(coeffs, per, groups, q, position, unit_of, split, reduced)
 
 
 # ---------------------------------------------------------------------------- workspace
@@ -277,6 +343,9 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
 #: starting from up to SAMPLING_POOL configurations certified in the chunk before
 SAMPLING_CHUNK = 200_000
 SAMPLING_POOL = 8192
+#: draws per call of the closed form inside a chunk (memory: its arrays for 200,000 draws at once peaked at
+#: 180 MiB; each draw is assembled alone, so the configurations do not depend on it)
+CLOSED_FORM_BLOCK = 16_384
 #: draws from which a declared closed form assembles the sample (:func:`sample_workspace`)
 CLOSED_FORM_FROM = 20_000
 
@@ -335,25 +404,29 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
     kin = kinematics or Kinematics(mechanism)
     ws = workspace or workspace_of(mechanism, ranges)
     lo, hi = ws.actuated_box(mechanism)
-    rng = np.random.default_rng(seed)
-    qa = lo + (hi - lo) * rng.random((n, len(lo)))
+    rng = np.random.default_rng(seed)  # drawn a chunk at a time: the same numbers as one (n, n_a) draw
     form = None
     if closed_form or (closed_form is None and n >= CLOSED_FORM_FROM):
         from hyperstat.solver.kinematics.closed_form import closed_form_of
 
         form = closed_form_of(mechanism, kin)
-    kept, certs, pool = [], [], None
+    # the kept configurations are written into one buffer of the draws' size: only the rows written become
+    # resident memory, and the sample is not copied again at the end (a concatenation of the chunks held it twice)
+    out, count, certs, pool = np.empty((n, kin.n_q)), 0, [], None
     for start in range(0, n, SAMPLING_CHUNK):  # bounded memory: a chunk of draws at a time
+        qa = lo + (hi - lo) * rng.random((min(SAMPLING_CHUNK, n - start), len(lo)))
         if form is None:
-            q, cert = continue_nearest(kin, qa[start:start + SAMPLING_CHUNK], None, mechanism.home, pool=pool,
-                                       inside=ws.inside)
+            q, cert = continue_nearest(kin, qa, None, mechanism.home, pool=pool, inside=ws.inside)
         else:
-            q, cert = _closed_form_chunk(kin, form, qa[start:start + SAMPLING_CHUNK], ws, pool)
+            q, cert = _closed_form_chunk(kin, form, qa, ws, pool)
         ok = cert.certified
-        kept.append(q[ok])
+        good = int(ok.sum())
+        out[count:count + good] = q[ok]
         certs.append(cert if certificate else cert.take(~ok))
-        pool = q[ok][:SAMPLING_POOL]  # the next chunk also starts from some of these (spread: in draw order)
-    q = np.concatenate(kept)
+        pool = out[count:count + min(good, SAMPLING_POOL)].copy()  # the next chunk also starts from these
+        count += good
+        del q, cert, qa
+    q = out[:count]
     every = BranchCertificate.concatenate(certs)
     if len(q) < n:
         warnings.warn(f"workspace sampling of '{mechanism.name}': {every.summary(total=n)} They were left out.",
@@ -369,7 +442,15 @@ def _closed_form_chunk(kin: Kinematics, form, qa: np.ndarray, ws: Workspace, poo
     from hyperstat.solver.kinematics.closed_form import assemble_closed_form
     from hyperstat.solver.kinematics.continuation import BranchCertificate, continue_nearest
 
-    q, cert, generic = assemble_closed_form(kin, form, qa, ws.inside)
+    blocks = [assemble_closed_form(kin, form, qa[b:b + CLOSED_FORM_BLOCK], ws.inside)
+              for b in range(0, len(qa), CLOSED_FORM_BLOCK)]
+    if len(blocks) == 1:
+        q, cert, generic = blocks[0]
+    else:
+        q = np.concatenate([b[0] for b in blocks])
+        cert = BranchCertificate.concatenate([b[1] for b in blocks])
+        generic = np.concatenate([b[2] for b in blocks])
+    del blocks
     if generic.any():
         seeds = [p for p in (pool, q[cert.certified][:SAMPLING_POOL]) if p is not None and len(p)]
         idx = np.nonzero(generic)[0]
@@ -531,7 +612,8 @@ def weighted_allocation(maps: AccuracyMaps, weights: dict, orientation_max: floa
     for kind, budget in (("rotation", orientation_max), ("position", position_max)):
         if budget is None:
             continue
-        c = np.array([maps.per_parameter[n][kind].max() for n in names])
+        per = maps.per_parameter_summary()
+        c = np.array([per[n][kind]["max"] for n in names])
         w = np.array([float(weights.get(n, 1.0)) for n in names])
         active = c > 1e-12
         if not np.any(active):
@@ -553,7 +635,7 @@ def report_section(mechanism: Mechanism, analysis, kinematics: Kinematics | None
         return {}
     over = analysis is not None and analysis.overconstraint > 0
     maps = accuracy_maps(mechanism, q, analysis if over else None, kinematics=kin)
-    worst = sorted(((float(d["position"].max()), name) for name, d in maps.per_parameter.items()), reverse=True)
+    worst = sorted(((d["position"]["max"], name) for name, d in maps.per_parameter_summary().items()), reverse=True)
     return {"configurations": len(q), "coefficients": maps.summary(), "units": maps.units,
             "allocation": {"largest_position_coefficients": [{"parameter": n_, "max": v} for v, n_ in worst[:10]]},
             "geometric_errors": "admissible influential defects" if over else "every defect parameter"}

@@ -37,10 +37,11 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, in_chunks, output_twist_maps
 from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
+from hyperstat.solver.tolerances.task_summary import TaskAccumulator, TaskSummary, value_columns
 from hyperstat.solver.tolerances.worst_case import TASK_COEFFICIENTS, TaskCoefficients, search_extremes
 from hyperstat.solver.threads import limited_blas
 
-__all__ = ["assign_values", "task_maps", "monte_carlo_at_values", "ASSEMBLY_SAMPLE", "TASK_COEFFICIENTS"]
+__all__ = ["assign_values", "task_maps", "task_summary", "monte_carlo_at_values", "ASSEMBLY_SAMPLE", "TASK_COEFFICIENTS"]
 
 #: configurations of the stationarity sample on which the assemblability programme runs (report, accuracy)
 ASSEMBLY_SAMPLE = 8
@@ -70,24 +71,44 @@ def task_maps(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
     return out[:, :n_rot], out[:, n_rot:]
 
 
-def _sigma_max(block: np.ndarray) -> np.ndarray:
-    if block.shape[1] == 0 or block.shape[2] == 0:
-        return np.zeros(block.shape[0])
-    return np.linalg.svd(block, compute_uv=False)[:, 0]
+def task_summary(mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray, task: tuple,
+                 directions: np.ndarray, is_length: np.ndarray, column_sets: list) -> TaskSummary:
+    """What the values need of the task rows at ``configurations`` (:class:`TaskSummary`), block by block.
+
+    The rows of :func:`task_maps`, in blocks of :data:`TASK_BLOCK` configurations on threads, reduced as
+    they are computed: memory bounded by the blocks and the per-configuration coefficients.
+    """
+    q = np.atleast_2d(np.asarray(configurations, dtype=float))
+    n_rot = n_rotation_rows(task)
+    rows = task_rows(task, np.eye(4)[None]).shape[1]
+    acc = TaskAccumulator(len(q), n_rot, rows - n_rot, is_length, column_sets)
+    parts = {}
+
+    def block(start: int) -> None:
+        st = kin.evaluate(q[start:start + TASK_BLOCK], None, jacobians=True)
+        k_xi, _ = output_twist_maps(kin, st)
+        parts[start] = acc.add(start, task_rows(task, st.output_pose) @ k_xi @ directions)
+
+    in_chunks(block, len(q), TASK_BLOCK)
+    return acc.finish(parts)
 
 
-def _coefficients(rot: np.ndarray, pos: np.ndarray, is_len: np.ndarray, names: list, q: np.ndarray) -> AccuracyMaps:
+def _summary_of_rows(rot: np.ndarray, pos: np.ndarray, is_length: np.ndarray, column_sets: list) -> TaskSummary:
+    """The :class:`TaskSummary` of whole task rows (the ``(rot, pos)`` form of ``task_maps_at``)."""
+    acc = TaskAccumulator(rot.shape[0], rot.shape[1], pos.shape[1], is_length, column_sets)
+    return acc.finish({0: acc.add(0, np.concatenate([rot, pos], axis=1))})
+
+
+def _coefficients(summary: TaskSummary, cols: np.ndarray, names: list, q: np.ndarray) -> AccuracyMaps:
     """Task-restricted coefficients (eq. 18 on the task rows) at the sampled configurations, as AccuracyMaps."""
-    coeffs = {}
-    for kind, cols in (("P", is_len), ("R", ~is_len)):
-        coeffs[f"delta_g{kind}"] = _sigma_max(rot[:, :, cols])
-        coeffs[f"epsilon_g{kind}"] = _sigma_max(pos[:, :, cols])
+    coeffs = dict(summary.of(cols))
+    is_len = summary.is_length[cols]
     for kind in ("fP", "fR"):
-        coeffs[f"delta_{kind}"] = np.zeros(rot.shape[0])
-        coeffs[f"epsilon_{kind}"] = np.zeros(rot.shape[0])
+        coeffs[f"delta_{kind}"] = np.zeros(summary.configurations)
+        coeffs[f"epsilon_{kind}"] = np.zeros(summary.configurations)
     groups = {"fP": [], "fR": [], "gP": [n for n, b in zip(names, is_len) if b],
               "gR": [n for n, b in zip(names, is_len) if not b]}
-    return AccuracyMaps(coeffs, {}, groups, np.atleast_2d(q), np.zeros((rot.shape[0], 3)))
+    return AccuracyMaps(coeffs, {}, groups, np.atleast_2d(q), np.zeros((0, 3)))
 
 
 def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | None,
@@ -139,10 +160,12 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         maxima (loose: a sampled maximum is low).
     workspace : Workspace, optional
         Bounds of the refinement (default: the mechanism's declared workspace).
-    task_maps_at : tuple of ndarray, optional
+    task_maps_at : tuple of ndarray or TaskSummary, optional
         :func:`task_maps` at ``configurations`` for the accuracy-critical and compensable
-        tolerances in the order of ``cl.items``, when already computed from the same Jacobians
-        (``accuracy_maps(task=..., task_directions=...)``, as ``hyperstat accuracy`` does).
+        tolerances in the order of ``cl.items``, or their reductions (:func:`task_summary`), when
+        already computed from the same Jacobians (``accuracy_maps(task=..., task_directions=...,
+        task_columns=...)``, as ``hyperstat accuracy`` does).  Without it the rows are computed
+        and reduced block by block (:func:`task_summary`).
     calibrate : bool
         Also the compensable tolerances' values with calibration
         (:func:`hyperstat.solver.tolerances.calibrated.calibrated_values`, simulated), and the share of the
@@ -171,13 +194,23 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
                           "the values loose)")}
     if influential:
         dirs = np.stack([t.direction for t in influential], axis=1)
-        rot, pos = task_maps(mechanism, kin, q, decl.task, dirs) if task_maps_at is None else task_maps_at
-        if rot.shape[0] != len(q) or rot.shape[2] != len(influential):
-            raise ValueError(f"task_maps_at: {rot.shape[2]} directions at {rot.shape[0]} configurations, expected "
-                             f"{len(influential)} at {len(q)}.")
-        is_len = np.array([t.unit == "mm" for t in influential])
+        is_len, column_sets = value_columns(influential)
+        if task_maps_at is None:
+            summary = task_summary(mechanism, kin, q, decl.task, dirs, is_len, column_sets)
+        elif isinstance(task_maps_at, TaskSummary):
+            summary = task_maps_at
+        else:
+            rot, pos = task_maps_at
+            if rot.shape[0] != len(q) or rot.shape[2] != len(influential):
+                raise ValueError(f"task_maps_at: {rot.shape[2]} directions at {rot.shape[0]} configurations, "
+                                 f"expected {len(influential)} at {len(q)}.")
+            summary = _summary_of_rows(rot, pos, is_len, column_sets)
+        if summary.configurations != len(q) or summary.directions != len(influential) or \
+                not np.array_equal(summary.is_length, is_len):
+            raise ValueError(f"task_maps_at: {summary.directions} directions at {summary.configurations} "
+                             f"configurations, expected {len(influential)} at {len(q)}.")
         names = [t.parameters[0] for t in influential]
-        has_r, has_p = rot.shape[1] > 0, pos.shape[1] > 0
+        has_r, has_p = summary.n_rot > 0, summary.n_pos > 0
         cal = cl.calibration
         left_p = None if spec_p is None else spec_p - cal.get("position_mm", 0.0)
         left_o = None if spec_o is None else spec_o - cal.get("orientation_rad", 0.0)
@@ -189,11 +222,12 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         # shares the budget equally with the accuracy-critical classes (paper 2, eq. 30: one share per class)
         reserve = {}
         if calibrate and comp.any():
-            for key, left, rows_of in (("position_mm", left_p, pos), ("orientation_rad", left_o, rot)):
-                if left is None or left <= 0 or not rows_of.shape[1]:
+            for key, left, n_rows, moves in (("position_mm", left_p, summary.n_pos, summary.moves_position),
+                                             ("orientation_rad", left_o, summary.n_rot, summary.moves_rotation)):
+                if left is None or left <= 0 or not n_rows:
                     continue
                 classes = sum(1 for kind in (True, False) if np.any(crit & (is_len == kind)) and
-                              np.any(np.abs(rows_of[:, :, crit & (is_len == kind)]) > 0))
+                              np.any(moves[crit & (is_len == kind)]))
                 reserve[key] = left / (classes + 1)
             if crit.any():
                 left_p = None if left_p is None else left_p - reserve.get("position_mm", 0.0)
@@ -201,7 +235,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
             info["second_order_share"] = dict(reserve)
 
         def allocation(cols: np.ndarray, p_budget, o_budget) -> dict:
-            maps = _coefficients(rot[:, :, cols], pos[:, :, cols], is_len[cols], [n for n, c in zip(names, cols) if c], q)
+            maps = _coefficients(summary, cols, [n for n, c in zip(names, cols) if c], q)
             ext = {}
             if refine:
                 objective = TaskCoefficients(kin, decl.task, dirs[:, cols], is_len[cols])
@@ -263,13 +297,12 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
                 cl.warnings.append("at the accuracy worst cases the verdict changes for " + ", ".join(changed) +
                                    ": the class shown holds at the sampled configurations only.")
         # contributions: first-order variance at the values (uniform: t^2 / 3)
-        rows = pos if pos.shape[1] else rot
         vals = np.array([t.value or 0.0 for t in influential])
-        var = np.mean(np.sum(rows**2, axis=1), axis=0) * vals**2 / 3.0
+        var = summary.mean_squares() * vals**2 / 3.0
         total = float(var.sum())
         for t, v in zip(influential, var):
             t.contribution = 100.0 * float(v) / total if total > 0 else 0.0
-        info["contribution_of"] = "position" if pos.shape[1] else "orientation"
+        info["contribution_of"] = "position" if summary.n_pos else "orientation"
     for t in cl.items:
         if t.cls == "non-influent":
             t.value = None

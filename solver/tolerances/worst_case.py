@@ -517,7 +517,7 @@ def _candidates_key(kin: Kinematics, workspace: Workspace, sample: np.ndarray, o
     digest = hashlib.sha256()
     for a in [sample] + bounds + flags:
         digest.update(str(a.shape).encode())
-        digest.update(a.tobytes())
+        digest.update(memoryview(a.reshape(-1)).cast("B"))  # the bytes where they lie (no copy of the sample)
     return (id(kin), workspace.passive_declared is None, workspace.revolute is None, digest.hexdigest(), options)
 
 
@@ -627,26 +627,32 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
     sample = np.atleast_2d(np.asarray(sample, dtype=float))
     values = {n: np.asarray(v) for n, v in (sampled or objective.values(sample)).items() if n in names} \
         if len(sample) else {n: np.zeros(0) for n in names}
-    pool_q, pool_label = sample, ["sample"] * len(sample)
+    pool_q, extra = _Pool(sample, np.zeros((0, kin.n_q)), []), {}
     if candidates and len(sample):
         cq, cl = workspace_candidates(kin, ws, sample, varied=space.free[m.actuated])
         if len(cq):
             cv = objective.values(cq)
-            pool_q = np.vstack([sample, cq])
-            pool_label = pool_label + list(cl)
-            values = {n: np.r_[values[n], cv[n]] for n in names}
+            pool_q = _Pool(sample, cq, cl)
+            extra = {n: cv[n] for n in names}
+    pool_label = pool_q.label
+
+    def pooled(name: str) -> np.ndarray | None:
+        """The function's values over the pool (the sample's, then the candidates'), joined when needed: one
+        function at a time (a copy of every function's values over a large sample at once is 8 bytes each)."""
+        v = values.get(name)
+        return v if v is None or name not in extra else np.r_[v, extra[name]]
+
     out: dict = {}
     paths, owner, sense, origin = [], [], [], []
-    z_act = pool_q[:, m.actuated] / space.scale[m.actuated] if len(pool_q) else np.zeros((0, len(m.actuated)))
+    z_act = pool_q.columns(m.actuated, space.scale[m.actuated])
     spread_box = np.ptp(z_act, axis=0) if len(z_act) else np.zeros(len(m.actuated))
     spread_box = np.where(spread_box > 0, spread_box, 1.0)
     # the kind of every configuration of the pool (a label starts with its kind), as masks over the pool
-    distinct = {lb: i for i, lb in enumerate(dict.fromkeys(pool_label))}
-    label_kind = np.array([distinct[lb] for lb in pool_label], dtype=int)
+    distinct, label_kind = pool_q.kinds()
     in_category = {c: np.array([lb.startswith(c) for lb in distinct], dtype=bool)[label_kind]
                    for c in ("sample", "corner", "edge", "face", "dead centre")}
     for name in names:
-        v = values.get(name)
+        v = pooled(name)
         if v is None or len(v) == 0:
             continue
         finite = np.isfinite(v)
@@ -662,7 +668,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
             if spread <= 1e-9 * max(1.0, abs(float(v[best]))):
                 out[(name, kind)] = _describe(space, name, kind, float(v[best]), float(v[best]), pool_q[best], 0.0, 0, 0,
                                               0, f"varies by {spread:.2g} over {int(finite.sum())} configurations",
-                                              pool_label[best], location="constant")
+                                              pool_label(best), location="constant")
                 continue
             chosen: list = []
             order = np.argsort(-sv)
@@ -679,7 +685,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
                 paths.append(pool_q[i].copy())
                 owner.append(name)
                 sense.append(sign)
-                origin.append(pool_label[i])
+                origin.append(pool_label(i))
     if not paths:
         return out
     floor_at = CONDITIONING_FLOOR * float(np.median(branch_conditioning(kin, _spread(sample, POOL)))) \
@@ -692,13 +698,51 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
             ks = [k for k, (n, s) in enumerate(zip(owner, sense)) if n == name and s == sign]
             if not ks:
                 continue
-            v = values[name]
+            v = pooled(name)
             sv = np.where(np.isfinite(v), sign * v, -np.inf)
             best_s = int(np.argmax(sv))
             out[(name, kind)] = _conclude(space, objective, name, kind, sign, float(v[best_s]), pool_q[best_s],
-                                          pool_label[best_s], result, ks, [origin[k] for k in ks], iterations,
+                                          pool_label(best_s), result, ks, [origin[k] for k in ks], iterations,
                                           sample)
     return out
+
+
+class _Pool:
+    """The sample followed by the structured candidates and their labels, read row by row without copying the
+    sample (issue 39: a stacked copy of a 683,000-configuration sample is 82 MiB per search, and its list of labels
+    and their kinds 24 MiB more)."""
+
+    def __init__(self, sample: np.ndarray, extra: np.ndarray, extra_labels: list) -> None:
+        self.sample, self.extra, self.extra_labels = sample, extra, list(extra_labels)
+
+    def label(self, i) -> str:
+        """``sample`` for a row of the sample, else the candidate's label (``corner``, ``edge`` ...)."""
+        i = int(i)
+        return "sample" if i < len(self.sample) else self.extra_labels[i - len(self.sample)]
+
+    def kinds(self) -> tuple[dict, np.ndarray]:
+        """The distinct labels in order of first appearance (label -> number) and every row's number."""
+        labels = (["sample"] if len(self.sample) else []) + self.extra_labels
+        distinct = {lb: i for i, lb in enumerate(dict.fromkeys(labels))}
+        kind = np.empty(len(self), dtype=int)
+        kind[:len(self.sample)] = distinct.get("sample", 0)
+        kind[len(self.sample):] = [distinct[lb] for lb in self.extra_labels]
+        return distinct, kind
+
+    def __len__(self) -> int:
+        return len(self.sample) + len(self.extra)
+
+    def __getitem__(self, i) -> np.ndarray:
+        i = int(i)
+        return (self.sample[i] if i < len(self.sample) else self.extra[i - len(self.sample)]).copy()
+
+    def columns(self, cols, scale: np.ndarray) -> np.ndarray:
+        """The columns ``cols`` of every row divided by ``scale``, (len, len(cols)), filled in place."""
+        out = np.empty((len(self), len(cols)))
+        out[:len(self.sample)] = self.sample[:, cols]
+        out[len(self.sample):] = self.extra[:, cols]
+        out /= scale
+        return out
 
 
 @dataclass

@@ -1,0 +1,133 @@
+"""The accuracy maps and the values' task rows reduced block by block (issue 39): the same answers, bounded memory.
+
+Units: mm and rad; memory in bytes (tracemalloc: Python and numpy allocations).  Expected values come from the
+per-configuration arrays of the same maps (``per_configuration=True``, the task rows kept whole) reduced in one
+go with numpy, a second computation of the same quantities; no timing is asserted.
+"""
+
+from __future__ import annotations
+
+import tracemalloc
+import warnings
+
+import numpy as np
+import pytest
+
+from hyperstat.solver.tolerances import accuracy
+from hyperstat.solver.tolerances.accuracy import accuracy_maps, sample_workspace
+from hyperstat.solver.tolerances.classification import classify
+from hyperstat.solver.tolerances.task_summary import TaskSummary, task_coefficients, value_columns
+from hyperstat.solver.tolerances.values import assign_values, task_maps
+
+from tests.solver.tolerances.test_values import _setup
+
+
+@pytest.fixture(scope="module")
+def triflex():
+    mech, kin, result, q = _setup("triflex_ii.py", 300)
+    cl = classify(mech, result, kin)
+    influential = [t for t in cl.items if t.cls in ("accuracy-critical", "compensable")]
+    dirs = np.stack([t.direction for t in influential], axis=1)
+    return mech, kin, result, q, cl, dirs, value_columns(influential)
+
+
+def _maps(triflex, q, streamed: bool, chunk: int = 2048, workers=None):
+    mech, kin, _, _, cl, dirs, columns = triflex
+    return accuracy_maps(mech, q, kinematics=kin, task=cl.declaration.task, task_directions=dirs, chunk=chunk,
+                         workers=workers, per_configuration=not streamed, task_columns=columns if streamed else None)
+
+
+def test_streamed_and_whole_maps_agree(triflex):
+    mech, kin, _, q, cl, dirs, (is_len, sets) = triflex
+    whole = _maps(triflex, q, streamed=False)
+    streamed = _maps(triflex, q, streamed=True, chunk=37)  # many uneven blocks, on threads
+    for name, values in whole.coefficients.items():
+        np.testing.assert_array_equal(streamed.coefficients[name], values)
+    assert streamed.per_parameter == {} and streamed.position.shape == (0, 3)
+    reduced, direct = streamed.per_parameter_summary(), whole.per_parameter_summary()
+    assert reduced.keys() == direct.keys()
+    for name in direct:
+        for kind in ("rotation", "position"):
+            norms = whole.per_parameter[name][kind]
+            assert reduced[name][kind]["max"] == float(norms.max())
+            assert reduced[name][kind]["mean"] == pytest.approx(float(np.mean(norms)), rel=1e-12, abs=1e-300)
+    # the task summary against the whole rows (task_maps: its own evaluation of the Jacobians)
+    rot, pos = task_maps(mech, kin, q, cl.declaration.task, dirs)
+    summary = streamed.task_rows
+    assert isinstance(summary, TaskSummary) and summary.configurations == len(q)
+    assert (summary.n_rot, summary.n_pos) == (rot.shape[1], pos.shape[1])
+    for cols in [c for c in sets if c.any()]:
+        expected = task_coefficients(rot[:, :, cols], pos[:, :, cols], is_len[cols])
+        for name, values in summary.of(cols).items():
+            np.testing.assert_allclose(values, expected[name], rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(summary.moves_rotation, np.any(rot != 0, axis=(0, 1)))
+    np.testing.assert_array_equal(summary.moves_position, np.any(pos != 0, axis=(0, 1)))
+    rows = pos if pos.shape[1] else rot
+    np.testing.assert_allclose(summary.mean_squares(), np.mean(np.sum(rows**2, axis=1), axis=0), rtol=1e-12)
+
+
+def test_values_from_the_summary_are_those_from_the_whole_rows(triflex):
+    mech, kin, result, q, cl, dirs, _ = triflex
+    streamed = _maps(triflex, q, streamed=True)
+    whole = _maps(triflex, q, streamed=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = assign_values(classify(mech, result, kin), mech, kin, q, assembly=False, refine=False, calibrate=False,
+                          task_maps_at=streamed.task_rows)
+        b = assign_values(classify(mech, result, kin), mech, kin, q, assembly=False, refine=False, calibrate=False,
+                          task_maps_at=whole.task_rows)
+    assert any(t.value for t in a.items)
+    assert [t.value for t in a.items] == [t.value for t in b.items]
+    assert [t.contribution for t in a.items] == pytest.approx([t.contribution for t in b.items], rel=1e-12)
+    with pytest.raises(ValueError, match="task_maps_at"):
+        assign_values(classify(mech, result, kin), mech, kin, q[:10], assembly=False, refine=False,
+                      calibrate=False, task_maps_at=streamed.task_rows)
+
+
+def _peak(fn) -> int:
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_what_the_streamed_maps_keep_grows_only_by_the_coefficients(triflex):
+    q = triflex[3]
+    small, large = (q[np.arange(k) % len(q)] for k in (128, 1024))  # allocated before tracing
+    kept = {}
+    for label, streamed in (("streamed", True), ("whole", False)):
+        peaks = [_peak(lambda x=x: _maps(triflex, x, streamed, chunk=64, workers=1)) for x in (small, large)]
+        kept[label] = (peaks[1] - peaks[0]) / (len(large) - len(small))  # bytes per configuration
+    # streamed: the 8 coefficients and the 2 x 4 task coefficients of the two allocations, 8 bytes each (128 B);
+    # the blocks' arrays do not depend on the count
+    assert kept["streamed"] <= 160, kept
+    # the whole maps keep the parameters' column norms, O_p and the task rows: the measure sees them
+    assert kept["whole"] > 3 * kept["streamed"], kept
+    # and the reductions themselves have the same size for both counts
+    a, b = (_maps(triflex, x, True, chunk=64) for x in (small, large))
+    assert a.per_parameter_summary().keys() == b.per_parameter_summary().keys()
+    for field in ("moves_rotation", "moves_position", "square_sums"):
+        assert getattr(a.task_rows, field).shape == getattr(b.task_rows, field).shape
+
+
+def test_the_closed_form_sampler_in_blocks_gives_the_same_sample(triflex, monkeypatch):
+    from hyperstat.solver.tolerances.workspace import workspace_of
+
+    mech, kin = triflex[0], triflex[1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        one = sample_workspace(mech, 700, seed=5, kinematics=kin, closed_form=True)
+        monkeypatch.setattr(accuracy, "CLOSED_FORM_BLOCK", 96)
+        blocks = sample_workspace(mech, 700, seed=5, kinematics=kin, closed_form=True)
+        monkeypatch.setattr(accuracy, "SAMPLING_CHUNK", 250)
+        chunks = sample_workspace(mech, 700, seed=5, kinematics=kin, closed_form=True)
+    assert len(one) > 400
+    np.testing.assert_array_equal(blocks, one)  # each draw is assembled alone: the same bits
+    # drawn a chunk at a time: the same draws as one (700, 3) draw, in draw order (a seeded generator, drawn here)
+    lo, hi = workspace_of(mech).actuated_box(mech)
+    draws = lo + (hi - lo) * np.random.default_rng(5).random((700, len(lo)))
+    act = chunks[:, mech.actuated]
+    at = [int(np.nonzero(np.all(draws == a, axis=1))[0][0]) for a in act]
+    assert at == sorted(at) and len(set(at)) == len(at) and len(at) > 400
