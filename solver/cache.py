@@ -42,11 +42,13 @@ True
 from __future__ import annotations
 
 import base64
+import contextlib
 import hashlib
 import json
 import math
 import os
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +62,8 @@ CACHE_ENV = "HYPERSTAT_CACHE"
 #: format of an entry; an entry of another format is ignored
 FORMAT = "hyperstat-cache-1"
 _OFF = {"off", "0", "none", "no", "false"}
+#: longest wait (s) for another process computing the same entry (:meth:`Cache.computing`); then computed anyway
+LOCK_WAIT_S = 1800.0
 
 
 def default_directory() -> Path | None:
@@ -233,6 +237,44 @@ class Cache:
             return None
         self.hits.append(stage)
         return value
+
+    @contextlib.contextmanager
+    def computing(self, stage: str, k: str):
+        """Held while this process computes the entry ``k`` of ``stage``: another process that computes the same
+        entry at the same time waits here, then finds it stored (:meth:`load` again inside), instead of computing
+        it a second time (two commands on one model at once: FreeCAD's Analyse and a report, a test session's
+        workers).  An exclusive ``flock`` on ``KEY.lock`` beside the entry, released when the block ends or the
+        process dies; no lock (and no wait) when the folder cannot be written or the platform has no ``flock``.
+        After :data:`LOCK_WAIT_S` the caller computes anyway: a lock only ever saves time, never changes a result.
+        """
+        fd = None
+        try:
+            import fcntl
+
+            if self.directory is not None:
+                path = self._path(stage, k).with_suffix(".lock")
+                path.parent.mkdir(parents=True, exist_ok=True)
+                fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+                deadline = time.monotonic() + LOCK_WAIT_S
+                while True:
+                    try:
+                        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                        break
+                    except BlockingIOError:
+                        if time.monotonic() > deadline:
+                            os.close(fd)
+                            fd = None
+                            break
+                        time.sleep(0.2)
+        except (ImportError, OSError):
+            if fd is not None:
+                os.close(fd)
+            fd = None
+        try:
+            yield
+        finally:
+            if fd is not None:
+                os.close(fd)  # releases the flock
 
     def store(self, stage: str, k: str, value: Any) -> bool:
         """Store ``value`` under ``k`` (atomically); False when it cannot be encoded or written."""

@@ -179,20 +179,32 @@ def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: 
             _digest([_keyed(b) for b in before_items]),
             _digest(np.asarray(configurations)),
             None if cl.analysis is None else _digest(np.asarray(cl.analysis.configurations)), opts)
-    stored = cache.load("values", k)
-    if isinstance(stored, dict) and stored.get("ids") == ids and len(stored.get("items", [])) == len(ids):
-        for name, value in stored["classification"].items():
-            setattr(cl, name, value)
-        for t, changes in zip(cl.items, stored["items"]):
-            for name, value in changes.items():
-                setattr(t, name, value)
+    if _restore_values(cache.load("values", k), cl, ids):
         return cl
-    result = assign(cl, mechanism, kin, configurations, **options)
-    changed_cl = _changes(before_cl, _signature(cl, _INPUTS), cl)
-    changed_items = [_changes(b, _signature(t), t) for b, t in zip(before_items, cl.items)]
-    if changed_cl is not None and all(c is not None for c in changed_items) and [t.id for t in cl.items] == ids:
-        cache.store("values", k, {"ids": ids, "classification": changed_cl, "items": changed_items})
+    with cache.computing("values", k):  # another process computing the same values: wait for them, then read
+        again = Cache(cache.directory)
+        if _restore_values(again.load("values", k), cl, ids):
+            cache.misses.pop()
+            cache.hits.append("values")
+            return cl
+        result = assign(cl, mechanism, kin, configurations, **options)
+        changed_cl = _changes(before_cl, _signature(cl, _INPUTS), cl)
+        changed_items = [_changes(b, _signature(t), t) for b, t in zip(before_items, cl.items)]
+        if changed_cl is not None and all(c is not None for c in changed_items) and [t.id for t in cl.items] == ids:
+            cache.store("values", k, {"ids": ids, "classification": changed_cl, "items": changed_items})
     return result
+
+
+def _restore_values(stored: Any, cl, ids: list) -> bool:
+    """Apply a stored entry of :func:`cached_values` to ``cl``; False (nothing changed) when it is not ``cl``'s."""
+    if not (isinstance(stored, dict) and stored.get("ids") == ids and len(stored.get("items", [])) == len(ids)):
+        return False
+    for name, value in stored["classification"].items():
+        setattr(cl, name, value)
+    for t, changes in zip(cl.items, stored["items"]):
+        for name, value in changes.items():
+            setattr(t, name, value)
+    return True
 
 
 # ---------------------------------------------------------------------------------------------- whole documents

@@ -112,3 +112,32 @@ def test_the_folder_comes_from_the_environment(monkeypatch, tmp_path):
     monkeypatch.delenv("HYPERSTAT_CACHE")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert default_directory() == tmp_path / "xdg" / "hyperstat"
+
+
+def test_a_process_computing_an_entry_makes_another_wait_then_read_it(tmp_path):
+    """Two processes on one entry at once: the second waits for the first's lock, then reads what it stored (the
+    same key computed once, e.g. FreeCAD's Analyse and a report of one model, or two test workers)."""
+    import subprocess
+    import sys
+    import time
+
+    store, k = Cache(tmp_path), key("values", {"model": "lock"})
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time\n"
+        "from hyperstat.solver.cache import Cache\n"
+        f"c = Cache({str(tmp_path)!r})\n"
+        f"with c.computing('values', {k!r}):\n"
+        "    print('locked', flush=True)\n"
+        "    time.sleep(1.0)\n"
+        f"    c.store('values', {k!r}, {{'x': 1}})\n")], stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "locked"
+    t = time.monotonic()
+    with store.computing("values", k):
+        waited = time.monotonic() - t
+        got = store.load("values", k)
+    assert holder.wait(timeout=60) == 0
+    assert got == {"x": 1} and waited > 0.3, (got, waited)
+    with store.computing("values", k):  # a free lock is taken at once; the lock file is not an entry
+        assert store.load("values", k) == {"x": 1}
+    with Cache(None).computing("values", k):  # no folder, no lock
+        pass

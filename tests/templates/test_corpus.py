@@ -30,8 +30,8 @@ import pytest
 from hyperstat.cad_plugin.templates import CORPUS_DIR, build_template
 
 from tests.templates.conftest import corpus_job, wait_shared_corpus
-from tests.templates.corpus_runner import LEFT_OUT, MEMBERS, OUTPUTS, ROBOTS, TEMPLATES, commands, member_dir, run, \
-    theory_of
+from tests.templates.corpus_runner import LEFT_OUT, MEMBERS, OUTPUTS, ROBOTS, TEMPLATES, commands, member_dir, parts, \
+    run, theory_of
 from tests.templates.screw_theory import screw_model
 
 PRINTED = ["bennett", "tsai_3upu"]
@@ -76,6 +76,16 @@ def test_the_corpus_has_at_least_fifteen_members_each_with_its_theory():
     assert len(MEMBERS) >= 15
     for member in MEMBERS:
         theory_of(member)
+
+
+def test_the_background_processes_run_every_member_once():
+    """The background run's processes (``corpus_runner.parts``): every member in exactly one, in its order, the
+    revolute Delta alone; one process: all members."""
+    for processes in (1, 2, 3):
+        split = parts(MEMBERS, processes)
+        assert len(split) <= processes and sorted(m for group in split for m in group) == sorted(MEMBERS)
+        assert all(group == [m for m in MEMBERS if m in group] for group in split)
+    assert parts(MEMBERS, 1) == [MEMBERS] and ["delta_r"] in parts(MEMBERS, 2)
 
 
 @pytest.mark.parametrize("member", TEMPLATES)

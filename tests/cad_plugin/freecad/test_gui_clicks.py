@@ -68,10 +68,12 @@ def clicks(tmp_path_factory) -> dict:
         run = subprocess.Popen([tools["xvfb-run"], "-a", "-s", "-screen 0 1700x1000x24", tools["freecad"], str(SCRIPT)],
                                stdout=log, stderr=subprocess.STDOUT, env=env, cwd=out, start_new_session=True)
         try:
-            # meanwhile, each template's report by the command line here, from the template (no FreeCAD, no STEP)
+            # meanwhile, each template's report by the command line here, from the template (no FreeCAD, no STEP);
+            # report.json only (--json-only: the same bytes as the full report's, tests/cad_plugin/test_report.py),
+            # the only file these tests read
             for name in TEMPLATE_NAMES:
                 rep = subprocess.run([cli, "report", str(TEMPLATES / f"{name}.py"), "--out", str(root / "reports" / name),
-                                      "--quiet"], capture_output=True, text=True, timeout=600)
+                                      "--json-only", "--quiet"], capture_output=True, text=True, timeout=600)
                 assert rep.returncode == 0, rep.stderr
                 reports[name] = json.loads((root / "reports" / name / "report.json").read_text())
             run.wait(timeout=TIMEOUT_S)

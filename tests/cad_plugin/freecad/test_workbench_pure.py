@@ -55,7 +55,7 @@ def test_the_panel_table_is_the_report_table(tmp_path):
     from tests.cad_plugin.contract import with_contract_fields
     from tests.conftest import TEMPLATES
 
-    assert main(["report", str(TEMPLATES / "slider_crank.py"), "--out", str(tmp_path), "--quiet"]) == 0
+    assert main(["report", str(TEMPLATES / "slider_crank.py"), "--out", str(tmp_path), "--json-only", "--quiet"]) == 0
     doc = with_contract_fields(json.loads((tmp_path / "report.json").read_text()))
     rows = tolerance_rows(doc["tolerances"])
     assert tolerance_counts(doc["tolerances"]) == doc["summary"]["tolerance_classes"]
