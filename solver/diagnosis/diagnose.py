@@ -304,7 +304,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     names = _candidate_names(data, candidates)
     run = _Run(mechanism, analysis, data, validation, kinematics or Kinematics(mechanism), n_blocks, seed)
     step("rigid fit")
-    run.rigid = identify(mechanism, analysis, data, validation, kinematics=run.kin)
+    run.rigid = identify(mechanism, analysis, data, validation, kinematics=run.kin, outlier_probe=False)
     run.test = gap_test(run.rigid, data, validation)
     run.significant = run.test.pop("significant")
     run.cannot_size = _cannot_size(mechanism, names)
@@ -648,14 +648,14 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
     while selected:
         chosen = tuple(effects[n] for n in selected)
         with plugin_guard(next((n for n in selected if not is_library_effect(n)), selected[0]), "fit"):
-            final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin)
+            final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, outlier_probe=False)
             if not final.converged:  # again from the rigid solution (the effects at zero)
                 model = MeasurementModel(mechanism, analysis, kin, chosen, targets=list(data.target_names),
                                          orientation=rigid.model.orientation)
                 theta0 = model.initial(data.tracker, data.target_priors if data.n_targets > 1 else data.target)
                 theta0[: rigid.model.n] = rigid.theta
                 warm = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, theta0=theta0,
-                                model=model)
+                                model=model, outlier_probe=False)
                 if warm.converged:
                     final = warm
         dropped = None
