@@ -30,7 +30,8 @@ import numpy as np
 from hyperstat.solver.diagnosis.effects import harmonic_name, harmonic_order
 from hyperstat.solver.diagnosis.where import SPECTRUM_ORDERS, ResidualField
 
-__all__ = ["spectral_candidates", "screw_period", "screw_order", "periodic_gate", "refined_order", "simplest_order", "EQUIVALENT_CHI2"]
+__all__ = ["spectral_candidates", "screw_period", "screw_order", "periodic_gate", "refined_order", "simplest_order",
+           "EQUIVALENT_CHI2"]
 
 EQUIVALENT_CHI2 = 10.0  #: chi-square difference below which the data cannot tell two fits apart (Kass-Raftery 'strong')
 
@@ -127,7 +128,8 @@ def screw_period(structure: dict, data, act_jac: np.ndarray, lead: float) -> flo
     >>> col = np.tile(np.eye(3)[None, :, :1], (80, 1, 1))  # the screw moves the point along x
     >>> resid = 0.01 * np.sin(2 * np.pi * q[:, 0] / 5.0 + 0.3)[:, None] * np.eye(3)[0] + rng.normal(0, 1e-3, (80, 3))
     >>> field = ResidualField(resid, np.full(80, 1e3), np.zeros((240, 0)))
-    >>> st = {"field": field, "threshold": 1e-4, "spectra": [{"joint": "32", "peak_period_mm": 5.1, "peak_p_value": 1e-9}]}
+    >>> peak = {"joint": "32", "peak_period_mm": 5.1, "peak_p_value": 1e-9}
+    >>> st = {"field": field, "threshold": 1e-4, "spectra": [peak]}
     >>> screw_period(st, SimpleNamespace(joints=["32"], q=q), col, 10.0)  # 2 cycles per turn of a 10 mm lead
     5.0
     """

@@ -46,7 +46,7 @@ def test_the_diagnosis_does_not_refit_the_rigid_model_to_name_outliers():
     assert d.rigid.sigma == full.sigma and d.rigid.rank == full.rank
 
 
-# ---------------------------------------------------------------- a ball screw's error at another order than once per turn
+# ------------------------------------------------------------ a ball screw's error at another order than once per turn
 def _pkm_diagnose(arm: str, seed: int, lead: float | None, n_id: int = 60, n_val: int = 20):
     from tests.solver.diagnosis import pkm_generator as pkm
 
