@@ -88,3 +88,15 @@ def test_a_screw_error_once_per_turn_is_still_named_at_the_lead():
     assert d.verdict["screw_order"]["cycles_per_turn"] == 1.0
     assert [p["name"] for p in d.effect_parameters] == [f"periodic_{truth['joints'][0]}_sin",
                                                         f"periodic_{truth['joints'][0]}_cos"]
+
+
+def test_where_states_a_screw_period_in_turns_of_the_screw():
+    """An unexplained periodic error of a screw is stated in turns of the screw too (lead / period): 5 mm on a 10 mm
+    lead is 2 cycles per turn (the hexapod's leg 32 at 0.0087 mm over 107 poses, below the selection's guard)."""
+    from hyperstat.solver.diagnosis.where import describe_where
+
+    test = {"family": "joint error", "joint": "32", "variable": "q32", "kind": "periodic", "period_mm": 5.0,
+            "lead_mm": 10.0, "share": 0.05, "F": 14.0, "p_value": 1e-6, "direction": [0.73, -0.66, -0.18]}
+    words = describe_where(test)
+    assert "period of 5.0 mm along its travel (2 cycles per turn of a screw of 10 mm lead)" in words
+    assert "cycles per turn" not in describe_where({**test, "lead_mm": None})
