@@ -9,6 +9,7 @@ reads is not done, and that the answer is the same without it; the times are in 
 
 from __future__ import annotations
 
+import functools
 import warnings
 
 import numpy as np
@@ -47,14 +48,23 @@ def test_the_diagnosis_does_not_refit_the_rigid_model_to_name_outliers():
 
 
 # ------------------------------------------------------------ a ball screw's error at another order than once per turn
-def _pkm_diagnose(arm: str, seed: int, lead: float | None, n_id: int = 60, n_val: int = 20):
+@functools.lru_cache(maxsize=None)
+def _pkm_model(arm: str):
+    """The machine, its stationarity analysis and kinematics, once per module (the analysis is the slow part)."""
     from tests.solver.diagnosis import pkm_generator as pkm
 
     mech = load_model(pkm.MODELS[arm])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        analysis = analyze(mech, n_configurations=24, seed=0)
-        kin = Kinematics(mech)
+        return mech, analyze(mech, n_configurations=24, seed=0), Kinematics(mech)
+
+
+def _pkm_diagnose(arm: str, seed: int, lead: float | None, n_id: int = 60, n_val: int = 20):
+    from tests.solver.diagnosis import pkm_generator as pkm
+
+    mech, analysis, kin = _pkm_model(arm)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
         id_text, val_text, truth = pkm.campaign(pkm.MODELS[arm], "screw-periodic", seed, n_id=n_id, n_val=n_val,
                                                 lead=lead)
         data = parse_measurements(id_text, mech, "id.csv")
