@@ -871,6 +871,7 @@ def identify(
     folds: int = 5,
     exclude_outliers: bool = False,
     _excluded: list | None = None,
+    outlier_probe: bool = True,
 ) -> IdentificationResult:
     """Identify the base parameters from ``data`` (paper 1, eq. 10, Levenberg-Marquardt).
 
@@ -915,6 +916,10 @@ def identify(
         Refit without the observations the outlier test flags (identification and held-out),
         again until none is flagged; the excluded ones are listed in ``excluded`` (never removed
         otherwise: a flagged outlier stops an export).
+    outlier_probe : bool
+        When an observation is flagged and ``exclude_outliers`` is off, refit without the worst ones to say which
+        are outliers (``without_outliers``, the ``outlier`` flags of the tables): a second identification.  A caller
+        that reads neither (the diagnosis) turns it off; the fit itself is the same.
 
     Returns
     -------
@@ -1173,7 +1178,7 @@ def identify(
                "coinciding": coinciding_targets(offsets, offset_cov) if len(offsets) > 1 else [],
                "unassembled": 0 if vp is None else int((~vp.converged).sum()), "limit": limit,
                "excluded": list(_excluded or [])}
-    if not exclude_outliers and any(r["outlier"] for r in table + val_table):
+    if outlier_probe and not exclude_outliers and any(r["outlier"] for r in table + val_table):
         # A gross error pulls a weakly conditioned fit far from the linear regime, and observations near it then look
         # out of line too (swamping).  Which ones are outliers is decided the way --exclude-outliers takes them out:
         # the worst first, the fit redone without it (nonlinear), the others judged again; only those taken out are

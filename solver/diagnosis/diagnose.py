@@ -42,7 +42,8 @@ from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MA
 from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_WORDS, bending_alternatives,
                                                     equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
-from hyperstat.solver.diagnosis.periodic import periodic_gate, refined_order, screw_period, spectral_candidates
+from hyperstat.solver.diagnosis.periodic import (periodic_gate, refined_order, screw_order, screw_period,
+                                                 spectral_candidates)
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
                                                   black_box_ceiling, cv_rms, folds, plugin_guard, region_blocks,
                                                   score_entry, screen_candidates, split_key)
@@ -304,7 +305,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     names = _candidate_names(data, candidates)
     run = _Run(mechanism, analysis, data, validation, kinematics or Kinematics(mechanism), n_blocks, seed)
     step("rigid fit")
-    run.rigid = identify(mechanism, analysis, data, validation, kinematics=run.kin)
+    run.rigid = identify(mechanism, analysis, data, validation, kinematics=run.kin, outlier_probe=False)
     run.test = gap_test(run.rigid, data, validation)
     run.significant = run.test.pop("significant")
     run.cannot_size = _cannot_size(mechanism, names)
@@ -625,6 +626,13 @@ def _answer(run: _Run) -> Diagnosis:
         words["targets_differ"] = targets_words(left["targets"])
         if outcome in ("explained", "partly explained"):
             words["evidence"] += f"; confidence low: what remains is in {words['targets_differ']}"
+    screw = run.effects.get("screw-periodic") if "screw-periodic" in selected else None
+    if screw is not None and outcome in ("explained", "partly explained") and "evidence" in words:
+        lead = float(run.mechanism.metadata.get("screw_lead", 10.0))  # the order in turns of the screw, stated
+        order = screw_order(screw.lead, lead)
+        words["screw_order"] = {"cycles_per_turn": order, "period_mm": screw.lead, "lead_mm": lead}
+        words["evidence"] += (f"; screw-periodic at {order:g} cycle{'' if order == 1 else 's'} per turn of the screw "
+                              f"(period {screw.lead:g} mm, lead {lead:g} mm)")
     moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
     if moved and outcome in ("explained", "partly explained"):
         words["stand_motion"] = moved
@@ -648,14 +656,14 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
     while selected:
         chosen = tuple(effects[n] for n in selected)
         with plugin_guard(next((n for n in selected if not is_library_effect(n)), selected[0]), "fit"):
-            final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin)
+            final = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, outlier_probe=False)
             if not final.converged:  # again from the rigid solution (the effects at zero)
                 model = MeasurementModel(mechanism, analysis, kin, chosen, targets=list(data.target_names),
                                          orientation=rigid.model.orientation)
                 theta0 = model.initial(data.tracker, data.target_priors if data.n_targets > 1 else data.target)
                 theta0[: rigid.model.n] = rigid.theta
                 warm = identify(mechanism, analysis, data, validation, effects=chosen, kinematics=kin, theta0=theta0,
-                                model=model)
+                                model=model, outlier_probe=False)
                 if warm.converged:
                     final = warm
         dropped = None

@@ -30,7 +30,8 @@ import numpy as np
 from hyperstat.solver.diagnosis.effects import harmonic_name, harmonic_order
 from hyperstat.solver.diagnosis.where import SPECTRUM_ORDERS, ResidualField
 
-__all__ = ["spectral_candidates", "screw_period", "periodic_gate", "refined_order", "simplest_order", "EQUIVALENT_CHI2"]
+__all__ = ["spectral_candidates", "screw_period", "screw_order", "periodic_gate", "refined_order", "simplest_order",
+           "EQUIVALENT_CHI2"]
 
 EQUIVALENT_CHI2 = 10.0  #: chi-square difference below which the data cannot tell two fits apart (Kass-Raftery 'strong')
 
@@ -113,29 +114,86 @@ def _spectrum_of(spec: dict, field: ResidualField | None, col: np.ndarray, qv: n
 def screw_period(structure: dict, data, act_jac: np.ndarray, lead: float) -> float | None:
     """The period (mm) of the screws' periodic error when their spectra show another than the declared ``lead``.
 
-    For the strongest significant peak of the screw spectra, the period is refined (steps of 1 %
-    within a grid step) and returned when it explains clearly more (:data:`EQUIVALENT_CHI2`) than a
-    periodic error at the declared lead on that screw; None otherwise (the lead stands).
+    For the strongest significant peak of the screw spectra, the error's order in cycles per turn of
+    the screw (``lead / period``) is refined (steps of 0.01 within 10 %) and named as a joint
+    harmonic's is: the simplest order within :data:`EQUIVALENT_CHI2` of the best (an integer, else a
+    half, a quarter, a tenth: a ball screw's error at twice per turn of its nut is order 2, period
+    ``lead / 2``; :func:`simplest_order`).  The period ``lead / order`` is returned when it explains
+    clearly more (:data:`EQUIVALENT_CHI2`) than a periodic error at the declared lead on that screw;
+    None otherwise (the lead stands).
+
+    >>> from types import SimpleNamespace
+    >>> rng = np.random.default_rng(0)
+    >>> q = rng.uniform(0.0, 60.0, (80, 1))
+    >>> col = np.tile(np.eye(3)[None, :, :1], (80, 1, 1))  # the screw moves the point along x
+    >>> resid = 0.01 * np.sin(2 * np.pi * q[:, 0] / 5.0 + 0.3)[:, None] * np.eye(3)[0] + rng.normal(0, 1e-3, (80, 3))
+    >>> field = ResidualField(resid, np.full(80, 1e3), np.zeros((240, 0)))
+    >>> peak = {"joint": "32", "peak_period_mm": 5.1, "peak_p_value": 1e-9}
+    >>> st = {"field": field, "threshold": 1e-4, "spectra": [peak]}
+    >>> screw_period(st, SimpleNamespace(joints=["32"], q=q), col, 10.0)  # 2 cycles per turn of a 10 mm lead
+    5.0
     """
     field: ResidualField = structure["field"]
-    peaks = [sp for sp in structure["spectra"] if sp["peak_p_value"] < structure["threshold"]]
+    peaks = [(sp["peak_p_value"], sp["joint"], sp["peak_period_mm"]) for sp in structure["spectra"]
+             if sp["peak_p_value"] < structure["threshold"]]
+    peaks += _fine_screw_peaks(field, structure["spectra"], data, act_jac)
     if not peaks:
         return None
-    sp = min(peaks, key=lambda x: x["peak_p_value"])
-    a = data.joints.index(sp["joint"])
+    _, joint, p0 = min(peaks)
+    a = data.joints.index(joint)
     col, qv = act_jac[:, :, a], data.q[:, a]
 
     def explained(period: float) -> float:
         g = np.column_stack([np.sin(2 * np.pi * qv / period), np.cos(2 * np.pi * qv / period)])
         return field.fit(col[:, :, None] * g[:, None, :])[4]
 
-    p0 = sp["peak_period_mm"]
-    grid = p0 * np.linspace(0.9, 1.1, 21)
-    e = np.array([explained(p) for p in grid])
-    best = float(grid[int(np.argmax(e))])
-    if (e.max() - explained(lead)) / field.scale() <= EQUIVALENT_CHI2:
+    k0 = lead / p0  # cycles per turn of the screw at the spectrum's peak
+    orders = np.round(np.arange(np.floor(90.0 * k0), np.ceil(110.0 * k0) + 1.0) / 100.0, 2)
+    orders = orders[orders > 0]
+    e = np.array([explained(lead / k) for k in orders])
+    order = simplest_order(orders, e, field.scale())
+    period = lead / order
+    if (explained(period) - explained(lead)) / field.scale() <= EQUIVALENT_CHI2:
         return None
-    return float(f"{best:.3g}")
+    return float(f"{period:.4g}")
+
+
+def _fine_screw_peaks(field: ResidualField, spectra: list, data, act_jac: np.ndarray) -> list:
+    """Peaks of each screw's spectrum on a grid fine enough for its travel: ``(p-value, joint, period)`` of those
+    significant at ``1e-3 / (number of frequencies scanned)`` (Bonferroni over this scan).
+
+    The structure tests' screw spectrum has 40 periods from 2 mm to a third of the travel, evenly
+    spaced in period: over a long travel its frequencies are farther apart than the travel resolves
+    (``1 / travel`` cycles per mm), and an error at a short period (half a 10 mm lead over 240 mm of a
+    Tripteor leg: 48 cycles) falls between two of them and is not seen.  Here the frequencies are
+    evenly spaced at a quarter of ``1 / travel``, over the same periods.
+    """
+    out, scans = [], []
+    for sp in spectra:
+        a = data.joints.index(sp["joint"])
+        qv = data.q[:, a]
+        travel = float(np.ptp(qv))
+        if travel <= 0:
+            continue
+        f = np.arange(1.0 / max(4.0, travel / 3.0), 0.5 + 1e-12, 0.25 / travel)  # cycles per mm
+        col = act_jac[:, :, a]
+        best = (1.0, 0.0)
+        for fr in f:
+            g = np.column_stack([np.sin(2 * np.pi * qv * fr), np.cos(2 * np.pi * qv * fr)])
+            p = field.fit(col[:, :, None] * g[:, None, :])[2]
+            best = min(best, (p, fr))
+        scans.append((best[0], sp["joint"], 1.0 / best[1] if best[1] > 0 else np.inf, len(f)))
+    n = max(sum(s[3] for s in scans), 1)
+    return [(p, joint, period) for p, joint, period, _ in scans if p < 1e-3 / n]
+
+
+def screw_order(period: float, lead: float) -> float:
+    """Cycles per turn of the screw of a periodic error of ``period`` mm on a screw of ``lead`` mm.
+
+    >>> screw_order(5.0, 10.0), screw_order(10.0, 10.0), screw_order(20.0, 10.0)
+    (2.0, 1.0, 0.5)
+    """
+    return float(round(lead / period, 2))
 
 
 def periodic_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: np.ndarray,

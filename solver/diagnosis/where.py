@@ -210,6 +210,7 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
                 entry["cycles_per_revolution"] = float(fr)
             else:
                 entry["period_mm"] = float(1.0 / fr)
+                entry["lead_mm"] = float(mech.metadata.get("screw_lead", 10.0))  # the order in turns of the screw
             tests.append(entry)
             shares.append(share)
             ps.append(p)
@@ -342,6 +343,9 @@ def describe_where(test: dict | None, spectra: list | None = None) -> str:
                          f"alias)")
         elif test["kind"] == "periodic":
             what = f"an error of joint {test['joint']} with a period of {test['period_mm']:.1f} mm along its travel"
+            if test.get("lead_mm"):
+                turns = test["lead_mm"] / test["period_mm"]
+                what += f" ({turns:.2g} cycles per turn of a screw of {test['lead_mm']:g} mm lead)"
         else:
             what = f"an error of joint {test['joint']} that follows {follows}"
     else:
