@@ -278,8 +278,9 @@ def tool_gravity_columns(mech: Mechanism, r_trk: np.ndarray, target_jac: np.ndar
     tracker frame into the base frame.
 
     >>> axes = np.tile(np.eye(3), (2, 1, 1))  # two poses, the output frame along the tracker's (= base) axes
-    >>> tool_gravity_columns(type("M", (), {"metadata": {}})(), np.eye(3), axes, 2)[0, :, 8]  # C_zz: along z, g_z
-    array([ 0.,  0., -1.])
+    >>> cols = tool_gravity_columns(type("M", (), {"metadata": {}})(), np.eye(3), axes, 2)
+    >>> cols.shape, (cols[0, :, 8] + 0.0).tolist()  # C_zz: along the tool's z, times gravity's z in the tool frame
+    ((2, 3, 9), [0.0, 0.0, -1.0])
     """
     g = np.asarray(getattr(mech, "metadata", {}).get("gravity", (0.0, 0.0, -1.0)), dtype=float)
     g_trk = r_trk.T @ (g / np.linalg.norm(g))
