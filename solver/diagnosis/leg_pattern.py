@@ -110,7 +110,8 @@ def leg_thermal_pattern(screen, whole: np.ndarray, others: list, legs: list,
     dof_rows = max(len(y) - qb.shape[1] - len(legs), 1)
     scale = max(1.0, float(np.sum((y + x @ kappa) ** 2)) / dof_rows)  # an understated noise widens the intervals
     std = np.sqrt(np.clip(np.diag(cov) * scale, 0.0, None))
-    a = x / np.sqrt(scale)
+    lam, vec = np.linalg.eigh(x.T @ x / scale)  # C^-1 = a^T a with a (legs x legs): the costs below in legs rows
+    a = (vec * np.sqrt(np.clip(lam, 0.0, None))) @ vec.T
     target = a @ kappa
 
     def cost(k: float) -> float:
@@ -127,7 +128,7 @@ def leg_thermal_pattern(screen, whole: np.ndarray, others: list, legs: list,
     fine = np.linspace(max(grid[best] - step, grid[0]), min(grid[best] + step, grid[-1]), 21)
     costs_fine = [cost(k) for k in fine]
     chi2 = float(min(costs_fine))
-    inv = x.T @ x / scale  # C^-1
+    inv = a.T @ a  # C^-1
     ones = np.ones(len(legs))
     common = float(ones @ inv @ kappa / max(float(ones @ inv @ ones), 1e-300))  # the weighted mean of the legs
     dof = max(len(legs) - 1, 1)
