@@ -62,7 +62,8 @@ def gap_test(result: IdentificationResult, data: MeasurementSet, validation: Mea
     return test
 
 
-def row_type_tests(result: IdentificationResult, data: MeasurementSet, validation: MeasurementSet | None) -> dict | None:
+def row_type_tests(result: IdentificationResult, data: MeasurementSet,
+                   validation: MeasurementSet | None) -> dict | None:
     """For 6-D data, the gap test on the position rows and on the orientation rows apart (None otherwise).
 
     The pooled test of :func:`gap_test` adds the chi-squares of both kinds of rows: an effect that moves the
@@ -107,7 +108,8 @@ def row_type_tests(result: IdentificationResult, data: MeasurementSet, validatio
             chi_v = float(np.sum(zv[:kv] if kind == "positions" else zv[kv:]))
             scale = 1.0 + h / (3.0 * k)
             entry["validation"] = {"chi2": chi_v, "dof": 3 * kv, "p_value": float(chdtrc(3 * kv, chi_v / scale)),
-                                   "variance_inflation": scale, "noise_factor": float(np.sqrt(chi_v / scale / (3 * kv)))}
+                                   "variance_inflation": scale,
+                                   "noise_factor": float(np.sqrt(chi_v / scale / (3 * kv)))}
         out[kind] = entry
     ps = [t["p_value"] for kind in out.values() for t in kind.values()]
     out["threshold"] = P_THRESHOLD / len(ps)

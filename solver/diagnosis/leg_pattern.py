@@ -1,4 +1,4 @@
-"""Step 4 of the diagnosis, for a parallel machine's legs: does a named ``leg-thermal`` look like legs growing with heat?
+"""Step 4 of the diagnosis, on a parallel machine: does a named ``leg-thermal`` look like legs growing with heat?
 
 Units: expansion coefficients in 1/degC, leg offsets in mm/degC, chi-squares in units of the noise variance.
 

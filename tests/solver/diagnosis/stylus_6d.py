@@ -1,4 +1,4 @@
-"""A 6-D probe on a serial arm, with a stylus that sags under gravity (issue 40): campaigns of position and orientation rows.
+"""A 6-D probe on a serial arm whose stylus sags under gravity (issue 40): campaigns of position and orientation rows.
 
 Units: lengths in mm, angles in rad in the code; the files it writes state deg (joints) and mm.
 
@@ -72,7 +72,8 @@ def campaign(case: str, seed: int, n_id: int = 30, n_val: int = 15, sag: float =
     def write(rows, prefix: str) -> str:
         lines = ["# hyperstat measurements, version 1", "# mechanism: fanuc_like",
                  f"# noise: {c.noise[0]} mm + {c.noise[1]} mm/m", f"# orientation noise: {SIGMA_RAD} rad",
-                 "pose," + ",".join(f"J{i}[deg]" for i in range(1, 7)) + ",x[mm],y[mm],z[mm],quat_w,quat_x,quat_y,quat_z"]
+                 "pose," + ",".join(f"J{i}[deg]" for i in range(1, 7))
+                 + ",x[mm],y[mm],z[mm],quat_w,quat_x,quat_y,quat_z"]
         for i in rows:
             p, quat = c.measure_probe(q[i])
             lines.append(",".join([f"{prefix}{i + 1}"] + [repr(float(v)) for v in c.controller(q[i])]

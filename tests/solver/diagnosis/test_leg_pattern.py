@@ -1,4 +1,4 @@
-"""A leg-length change with the temperature on a parallel machine: named honestly (issue 40, the sixth blind run's miss).
+"""A leg-length change with the temperature on a parallel machine, named honestly (issue 40, a sixth blind run miss).
 
 Units: lengths in mm, temperatures in degC, expansion coefficients in 1/degC.  The campaigns come from
 ``pkm_generator.py`` (its own model-file parser, loop solver and effects; it imports nothing from hyperstat) on the
