@@ -42,6 +42,7 @@ from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MA
 from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_WORDS, bending_alternatives,
                                                     equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
+from hyperstat.solver.diagnosis.leg_pattern import LEG_OFFSET, leg_offset_family, leg_thermal_pattern, prismatic_legs
 from hyperstat.solver.diagnosis.periodic import (periodic_gate, refined_order, screw_order, screw_period,
                                                  spectral_candidates)
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
@@ -116,10 +117,11 @@ class Diagnosis:
     def confidence(self) -> str:
         """``"low"`` when the targets tell different stories, the named effects could not be compared with the
         gravity-driven effects (no masses), or a named effect cannot be told from the stand (the machine's base)
-        moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them);
-        ``"high"`` otherwise."""
+        moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them), or a
+        named effect's parameters lie outside its physical prior in their pattern (``verdict.outside_prior``: a
+        ``leg-thermal`` with the change on some legs only, :mod:`.leg_pattern`); ``"high"`` otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
-                or self.verdict.get("targets_differ"):
+                or self.verdict.get("targets_differ") or self.verdict.get("outside_prior"):
             return "low"
         return "high"
 
@@ -614,8 +616,9 @@ def _answer(run: _Run) -> Diagnosis:
         bending = bending_alternatives(run.mechanism, run.kin, run.data, run.act_jac, pairs) if "compliance" in selected else []
         stand = stand_motion_family(run.data, run.at_rigid["world"], run.r_trk, len(screen.w))
         declared = gravity_source(run.mechanism) is not None  # link masses or a parallel machine's moving mass
+        legs = leg_offset_family(run.mechanism, run.data, run.act_jac)
         sets = equivalence_sets(screen, selected, columns, members, family, run.data, spectrum_peaks(run.plain),
-                                run.effects, declared, bending, stand)
+                                run.effects, declared, bending, stand, legs)
     overfit = overfitting(run.test, run.rigid, 3 * len(screen.w),
                           run.structure["structured"] or not run.structure["targets_homogeneous"])
     outcome, words = verdict(run.data, run.validation, run.significant, run.test, final, selected, run.structure,
@@ -633,6 +636,8 @@ def _answer(run: _Run) -> Diagnosis:
         words["screw_order"] = {"cycles_per_turn": order, "period_mm": screw.lead, "lead_mm": lead}
         words["evidence"] += (f"; screw-periodic at {order:g} cycle{'' if order == 1 else 's'} per turn of the screw "
                               f"(period {screw.lead:g} mm, lead {lead:g} mm)")
+    if "leg-thermal" in selected and outcome in ("explained", "partly explained") and "leg-thermal" in run.columns:
+        _leg_thermal_words(run, words, sets, [columns[n][0] for n in selected if n != "leg-thermal"])
     moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
     if moved and outcome in ("explained", "partly explained"):
         words["stand_motion"] = moved
@@ -645,6 +650,44 @@ def _answer(run: _Run) -> Diagnosis:
                      spectrum_peaks(run.plain), effect_joints={n: j for n, j in run.effect_joints.items()
                                                                if n in selected},
                      selection_steps=run.selection_steps, pruned=run.pruned)
+
+
+def _leg_thermal_words(run: _Run, words: dict, sets: list, others: list) -> None:
+    """A named ``leg-thermal`` outside its physical prior (:mod:`.leg_pattern`): on some legs only, or with
+    coefficients that legs growing alike cannot have.  The answer says it is a change of those legs' lengths with the
+    temperature, what else reproduces it and what would separate them, and its confidence is low
+    (``verdict.outside_prior``)."""
+    legs = [name for _, name in prismatic_legs(run.mechanism)]
+    effect = run.effects.get("leg-thermal")
+    domain = (float(effect.lower[0]), float(effect.upper[0])) if effect is not None else (-2e-6, 3e-5)
+    pattern = leg_thermal_pattern(run.screen, run.columns["leg-thermal"][0], others, legs, domain)
+    words["leg_thermal_pattern"] = pattern
+    named = run.effect_joints.get("leg-thermal") or legs
+    unchanged = [leg for leg in legs if leg not in named]
+    if pattern["consistent"] and not unchanged:
+        return
+    s = "s" if len(named) > 1 else ""
+    if unchanged:
+        reason = (f"the whole change is on leg{s} {', '.join(named)} (leg{'s' if len(unchanged) > 1 else ''} "
+                  f"{', '.join(unchanged)} unchanged), where leg-thermal predicts every leg growing with the "
+                  f"temperature in proportion to its length; " + pattern["words"]
+                  + ("" if not pattern["consistent"] else
+                     f"; these data do not refuse legs growing alike either (p = {pattern['p_value']:.2g})"))
+    else:
+        reason = pattern["words"]
+    alike = next((st["members"][1:] for st in sets if st["effect"] == "leg-thermal"), [])
+    words["outside_prior"] = [{"effect": "leg-thermal", "reason": reason}]
+    words["evidence"] += (f"; confidence low: what these data show is a change of the length of leg{s} "
+                          f"{', '.join(named)} with the temperature, which leg-thermal reproduces, but outside its "
+                          f"physical prior ({reason}); a seat, a joint or a mounting that moves with the temperature "
+                          f"changes a leg's length the same way"
+                          + (f" (the family {LEG_OFFSET} in its set)" if LEG_OFFSET in alike else
+                             f"; {LEG_OFFSET_WORDS_SHORT}"))
+
+
+#: what an answer says would separate a leg growing with the heat from a leg whose seat moves with the temperature
+LEG_OFFSET_WORDS_SHORT = ("a dial gauge on each leg's seat through a warm-up, and the same poses at two temperatures "
+                          "with each leg over its whole stroke, would tell them apart")
 
 
 def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, effects: dict, before: dict | None,

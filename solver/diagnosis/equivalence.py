@@ -27,6 +27,7 @@ import numpy as np
 
 from hyperstat.solver.diagnosis.effects import (MASS_FIELD, gravity_loads, gravity_regressor, harmonic_order,
                                                 is_jointwise)
+from hyperstat.solver.diagnosis.leg_pattern import LEG_OFFSET, LEG_OFFSET_WORDS
 from hyperstat.solver.diagnosis.periodic import EQUIVALENT_CHI2
 from hyperstat.solver.diagnosis.screening import Screen
 
@@ -213,6 +214,8 @@ def separating_measurement(x: str, y: str, data, spectra: dict, effects: dict, m
     if {x, y} == {"joint-clearance", "backlash-gravity"}:
         return ("measuring the play of each leg's joints and of its screw's nut directly (a dial gauge across the "
                 "joint under a reversed load): both follow the sign of the leg's force")
+    if LEG_OFFSET in (x, y):
+        return LEG_OFFSET_WORDS
     if STAND_MOTION in (x, y):
         other = y if x == STAND_MOTION else x
         if other in ("thermal", "leg-thermal"):
@@ -253,7 +256,7 @@ def separating_measurement(x: str, y: str, data, spectra: dict, effects: dict, m
 
 def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: list, family: np.ndarray | None,
                      data, spectra: dict, effects: dict, masses_known: bool, bending: list = (),
-                     stand: np.ndarray | None = None) -> list:
+                     stand: np.ndarray | None = None, legs: np.ndarray | None = None) -> list:
     """One equivalence set per named effect (see the module docstring).
 
     Parameters
@@ -272,6 +275,11 @@ def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: 
         Link bending in place of joint compliance (:func:`bending_alternatives`): a named
         ``compliance`` whose fit one of them matches within the threshold (by the signature or
         by the chi-square of the data) shares its set with ``gravity-deformation``.
+    stand : ndarray or None
+        Columns of the family ``stand-motion`` (:func:`stand_motion_family`).
+    legs : ndarray or None
+        Columns of the family ``leg-temperature-offset`` (:func:`.leg_pattern.leg_offset_family`): each leg of a
+        parallel machine longer by an offset that follows the temperature.
 
     Returns
     -------
@@ -339,14 +347,16 @@ def equivalence_sets(screen: Screen, selected: list, columns: dict, members_of: 
                 unseen |= min(swap["misses_chi2"], swap["fits_worse_chi2"]) < EQUIVALENT_CHI2
             if (x in DEFORMATIONS and (gravity_members or unseen)) or (x not in DEFORMATIONS and miss < EQUIVALENT_CHI2):
                 members.append(GRAVITY_FAMILY)
-        if stand is not None and stand.shape[2]:
-            w = screen.weighted(stand)
+        for family_name, family_cols in ((STAND_MOTION, stand), (LEG_OFFSET, legs)):
+            if family_cols is None or not family_cols.shape[2]:
+                continue
+            w = screen.weighted(family_cols)
             k_s = _orth(w - qb @ (qb.T @ w)).shape[1]
-            swap = {"effect": STAND_MOTION, "misses_chi2": misses(w),
+            swap = {"effect": family_name, "misses_chi2": misses(w),
                     "fits_worse_bic": fits_worse(w) + (k_s - k_x) * np.log(n_rows)}
             evidence.append(swap)
             if swap["misses_chi2"] < EQUIVALENT_CHI2 or swap["fits_worse_bic"] < EQUIVALENT_CHI2:
-                members.append(STAND_MOTION)
+                members.append(family_name)
         ways = list(dict.fromkeys(separating_measurement(x, m, data, spectra, effects, masses_known)
                                   for m in members[1:]))
         out.append({"effect": x, "members": members, "separating_measurement": "; ".join(ways),

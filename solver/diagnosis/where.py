@@ -235,6 +235,10 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
             share, f, p, d = ftest(cols)
             tests.append({"family": f"{family} trend", "variable": name, "kind": "trend", "share": share, "F": f,
                           "p_value": p, "direction": d})
+    if target_jac is not None:
+        share, f, p, d = ftest(tool_gravity_columns(mech, r_trk, target_jac, npos))
+        tests.append({"family": "tool under gravity", "variable": "tool orientation", "kind": "gravity",
+                      "share": share, "F": f, "p_value": p, "direction": d})
     for name, cols in (candidates or {}).items():
         share, f, p, d = ftest(cols)
         tests.append({"family": "candidate signature", "variable": name, "kind": "effect", "share": share, "F": f,
@@ -260,6 +264,31 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
             "isotropy": iso, "isotropic": bool(iso["p_value"] >= P_THRESHOLD),
             "targets": targets, "targets_homogeneous": targets is None or targets["p_value"] >= P_THRESHOLD,
             "spectra": spectra, "revolute_spectra": rspectra, "field": field}
+
+
+def tool_gravity_columns(mech: Mechanism, r_trk: np.ndarray, target_jac: np.ndarray, positions: int) -> np.ndarray:
+    """Columns (R, 3, 9) of a tool that deflects under its own weight: a displacement ``R C R^T g``, linear in ``C``.
+
+    A tool, a probe's stylus or a spindle carried by the output frame bends elastically under gravity: its tip
+    moves by ``C g_tool`` in the output frame (``C`` a 3x3 compliance times weight, mm; ``g_tool = R^T g`` the
+    unit gravity vector, ``metadata['gravity']`` of the base frame, default -z, seen from the output frame), i.e.
+    by ``R C R^T g`` in the base frame: a displacement that follows the tool's orientation relative to gravity, which
+    no joint error and no trend of one variable reproduces (a stylus sag: ``c (g - (g . a) a)``, ``a`` the stylus
+    axis).  ``target_jac`` holds the output frame's axes in the tracker frame on the position rows (zeros on the
+    orientation rows of 6-D data: a probe body's orientation does not see its stylus bend); ``r_trk`` turns the
+    tracker frame into the base frame.
+
+    >>> axes = np.tile(np.eye(3), (2, 1, 1))  # two poses, the output frame along the tracker's (= base) axes
+    >>> cols = tool_gravity_columns(type("M", (), {"metadata": {}})(), np.eye(3), axes, 2)
+    >>> cols.shape, (cols[0, :, 8] + 0.0).tolist()  # C_zz: along the tool's z, times gravity's z in the tool frame
+    ((2, 3, 9), [0.0, 0.0, -1.0])
+    """
+    g = np.asarray(getattr(mech, "metadata", {}).get("gravity", (0.0, 0.0, -1.0)), dtype=float)
+    g_trk = r_trk.T @ (g / np.linalg.norm(g))
+    g_tool = np.einsum("kic,i->kc", target_jac[:positions], g_trk)  # gravity in the output frame, per position row
+    g_rows = np.concatenate([g_tool, np.zeros((len(target_jac) - positions, 3))])
+    return np.concatenate([target_jac[:, :, c, None] * g_rows[:, None, d, None] for c in range(3) for d in range(3)],
+                          axis=2)
 
 
 def target_homogeneity(data: MeasurementSet, z: np.ndarray) -> dict | None:
@@ -331,6 +360,10 @@ def describe_where(test: dict | None, spectra: list | None = None) -> str:
     follows = f"joint {var[1:]}" if var.startswith("q") else f"the metadata column '{var}'"
     if test["family"] == "candidate signature":
         what = f"the signature of the candidate '{var}' (its columns, fitted in sample)"
+    elif test["family"] == "tool under gravity":
+        what = ("a displacement of the measured point that follows the tool's orientation relative to gravity (a "
+                "tool, a probe's stylus or a spindle bending under its weight: R C R^T g, no joint error or trend of "
+                "one variable)")
     elif test["family"] == "joint error":
         if test["kind"] == "periodic" and "cycles_per_revolution" in test:
             c = test["cycles_per_revolution"]

@@ -28,7 +28,9 @@ out of the library
     stand tilts slowly with time about a horizontal axis through the base origin: a rigid motion of
     the machine relative to the tracker, as a drifting tracker gives), ``loose-nest`` (the reflector
     ``T2`` sits loosely in its nest: it settles by ``sag`` towards gravity across the nest's axis,
-    with a seating scatter of a third of that from pose to pose; the other target is right);
+    with a seating scatter of a third of that from pose to pose; the other target is right), ``seat-sink`` (the seat
+    of one leg, its base joint's mounting, sinks along the leg as the machine warms: that leg alone is longer by
+    ``r (T - 18 degC)``, ``r`` in mm/degC, an offset that follows the temperature and not the leg's length);
 noise cases
     ``none``, ``understated-noise`` (the tracker 1.6 times noisier than the header says).
 
@@ -53,7 +55,7 @@ MODELS = {"tripteor_x7": HERE / "data" / "tripteor_x7.skel.json", "hexapod": HER
 
 IN_LIBRARY = ("leg-thermal", "screw-periodic", "guide-straightness", "joint-clearance", "base-deformation",
               "compliance", "backlash", "tracker-drift")
-OUT_OF_LIBRARY = ("tool-thermal", "wrist-coupling", "stand-creep", "loose-nest")
+OUT_OF_LIBRARY = ("tool-thermal", "wrist-coupling", "stand-creep", "loose-nest", "seat-sink")
 NOISE_CASES = ("none", "understated-noise")
 STATED_NOISE = (0.005, 0.005)  # mm, mm/m
 G = np.array([0.0, 0.0, -9.81])
@@ -291,15 +293,18 @@ def _bow(machine: Machine, joint: str, q: np.ndarray, c: np.ndarray) -> np.ndarr
 
 
 def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30, size: float = 1.0,
-             lead: float | None = None, wrist_compliance: float = 0.0, pivot: float = 0.0) -> tuple[str, str, dict]:
+             lead: float | None = None, wrist_compliance: float = 0.0, pivot: float = 0.0,
+             temperature: str = "ramp") -> tuple[str, str, dict]:
     """Identification and validation files (CSV text, two targets) of one campaign, and its truth.
 
     ``size`` scales the effect (1: the magnitudes below, drawn in [0.7, 1] with a random sign where the
     physics allows one); ``lead``: the screw lead of a ``screw-periodic`` case (mm; default the model's
     ``metadata.screw_lead``, else 10 mm); ``wrist_compliance``: in a ``compliance`` case, the compliance of
     the actuated revolutes too (rad/(N mm); 0: the legs only); ``pivot``: in a ``base-deformation`` case, how far
-    below the base origin the frame tilts (mm: a table standing on feet below the base joints; 0: about the origin).  Magnitudes: leg expansion 1.2e-5 /degC, periodic screw error
-    0.01 mm, leg stiffness 10 N/um, clearance 0.05 mm, backlash 0.03 mm, guide bow 0.02 mm, frame tilt
+    below the base origin the frame tilts (mm: a table standing on feet below the base joints; 0: about the origin);
+    ``temperature``: ``"ramp"`` (18 to 26 degC, rising with the time) or ``"cycle"`` (18 to 26 and back to 18 degC: the
+    temperature does not follow the time).  Magnitudes: leg expansion 1.2e-5 /degC, periodic screw error 0.01 mm, a
+    seat sinking 4 um/degC, leg stiffness 10 N/um, clearance 0.05 mm, backlash 0.03 mm, guide bow 0.02 mm, frame tilt
     stiffness 1.25e6 N m/rad (the structural effects near the upper end of their plausible range, so that
     the campaigns show them).
     """
@@ -313,7 +318,10 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
     qa = mid + 0.8 * half * (2 * rng.random((n, len(act))) - 1)
     names = [mach.joints[i].name for i in act]
     t = np.arange(n) * 60.0
-    temp = 18.0 + 8.0 * t / t[-1] + rng.normal(0, 0.3, n)
+    if temperature == "cycle":  # the workshop warms up and cools down again: the temperature does not follow the time
+        temp = 18.0 + 8.0 * np.sin(np.pi * t / t[-1]) + rng.normal(0, 0.3, n)
+    else:  # "ramp": a steady warm-up over the campaign
+        temp = 18.0 + 8.0 * t / t[-1] + rng.normal(0, 0.3, n)
     payload = rng.choice([0.0, 10.0, 25.0], n)
     dirs = rng.choice([-1.0, 1.0], (n, len(act)))
     session = np.where(np.arange(n) < n // 2, 1.0, 2.0)
@@ -369,6 +377,11 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         creep = 7e-5 * amount  # rad at the end of the campaign
         azimuth = rng.uniform(0, 2 * np.pi)
         truth.update(value=creep, axis=[float(np.cos(azimuth)), float(np.sin(azimuth)), 0.0])
+    elif case == "seat-sink":  # one leg's seat moves along the leg with the temperature (not with the leg's length)
+        a = int(legs[0])
+        rate = 4e-3 * amount * rng.choice([-1.0, 1.0])  # mm/degC: 32 um over the campaign's 8 degC
+        q_true[:, a] = qa[:, a] + rate * (temp - 18.0)
+        truth.update(value=rate, joints=[names[a]])
     elif case == "loose-nest":
         sag = 0.06 * amount  # mm
         truth.update(value=sag, target="T2")
