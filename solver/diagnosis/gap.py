@@ -147,7 +147,29 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured
       residual is a missing effect seen in sample, whose extrapolation also degrades the
       held-out poses);
     * or the calibrated model predicts the held-out poses :data:`NOMINAL_MARGIN` times worse
-      than the nominal one (only the tracker frame and targets fitted).
+      than the nominal one (only the tracker frame and targets fitted) beyond what estimating
+      ``rank`` parameters from ``n_rows`` equations adds by itself, and the residual has no
+      structure. A least-squares fit adds ``f^2 rank / n_rows`` to the squared held-out noise
+      factor, ``f^2 = f_id^2 / (1 - rank / n_rows)`` being the noise the identification
+      residual shows; so a nominal model that is already right (a simulation without defects)
+      predicts slightly better than any calibration, which is no over-fitting. A structured
+      residual is a missing effect: the calibration absorbs part of it in sample and
+      extrapolates it badly, so the held-out loss is that effect's, not the parameters'.
+
+    Examples
+    --------
+    A fit that predicts held-out poses exactly as least squares expects (true noise factor 2,
+    a quarter of the equations spent on parameters, the nominal model right) is no over-fitting,
+    although the nominal model predicts 1.12 x better:
+
+    >>> from types import SimpleNamespace
+    >>> load, f = 0.25, 2.0
+    >>> fi, fv = f * (1 - load) ** 0.5, (f**2 * (1 + load)) ** 0.5
+    >>> test = {"identification": {"noise_factor": fi, "dof": 75}, "validation": {"noise_factor": fv, "dof": 60}}
+    >>> rigid = SimpleNamespace(rank=25, nominal={"validation": {"rms": 0.02}},
+    ...                         validation={"rms": 0.02 * fv / f})
+    >>> overfitting(test, rigid, 100) is None
+    True
     """
     if "validation" not in test:
         return None
@@ -155,9 +177,12 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured
     f = (fv / max(fi, 1e-300)) ** 2
     p = float(fdtrc(test["validation"]["dof"], test["identification"]["dof"], f))
     nominal = (rigid.nominal or {}).get("validation")
-    worse = nominal is not None and rigid.validation is not None and \
-        rigid.validation["rms"] > NOMINAL_MARGIN * nominal["rms"]
     load = rigid.rank / max(n_rows, 1)
+    worse = False
+    if nominal is not None and rigid.validation is not None and not structured:
+        f_nominal = fv * nominal["rms"] / max(rigid.validation["rms"], 1e-300)  # the nominal model's held-out factor
+        estimation = fi**2 * load / max(1.0 - load, 1e-3)  # what fitting rank parameters adds to the squared factor
+        worse = fv**2 > NOMINAL_MARGIN**2 * (f_nominal**2 + estimation)
     few = load > 1.0 / FEW_EQUATIONS
     ratio = fv >= OVERFIT_RATIO * fi and (p < P_THRESHOLD or load > 0.25) and not structured
     if not (few or ratio or worse):
