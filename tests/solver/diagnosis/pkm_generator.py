@@ -59,6 +59,7 @@ OUT_OF_LIBRARY = ("tool-thermal", "wrist-coupling", "stand-creep", "loose-nest",
 NOISE_CASES = ("none", "understated-noise")
 STATED_NOISE = (0.005, 0.005)  # mm, mm/m
 G = np.array([0.0, 0.0, -9.81])
+SIGMA_RAD = 5e-5  # rad, the orientation noise a 6-D campaign's header states (1 sigma per axis)
 TARGETS = (np.array([10.0, -6.0, -20.0]), np.array([-8.0, 12.0, 80.0]))  # on the tool, output frame (mm)
 
 
@@ -70,6 +71,23 @@ def _rot(axis, angle: float) -> np.ndarray:
     k = axis / n
     kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + np.sin(angle) * kx + (1 - np.cos(angle)) * kx @ kx
+
+
+def _quaternion(r: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method, w >= 0)."""
+    tr = np.trace(r)
+    i = int(np.argmax([tr, r[0, 0], r[1, 1], r[2, 2]]))
+    if i == 0:
+        w = 0.5 * np.sqrt(1.0 + tr)
+        q = np.array([w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w), (r[1, 0] - r[0, 1]) / (4 * w)])
+    else:
+        a, b, c = i - 1, i % 3, (i + 1) % 3
+        v = np.zeros(3)
+        v[a] = 0.5 * np.sqrt(1.0 + r[a, a] - r[b, b] - r[c, c])
+        v[b] = (r[b, a] + r[a, b]) / (4 * v[a])
+        v[c] = (r[c, a] + r[a, c]) / (4 * v[a])
+        q = np.r_[(r[c, b] - r[b, c]) / (4 * v[a]), v]
+    return q if q[0] >= 0 else -q
 
 
 def _placement(p: dict) -> np.ndarray:
@@ -294,8 +312,13 @@ def _bow(machine: Machine, joint: str, q: np.ndarray, c: np.ndarray) -> np.ndarr
 
 def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30, size: float = 1.0,
              lead: float | None = None, wrist_compliance: float = 0.0, pivot: float = 0.0,
-             temperature: str = "ramp") -> tuple[str, str, dict]:
+             temperature: str = "ramp", six_d: bool = False, noise_factor: float = 1.6) -> tuple[str, str, dict]:
     """Identification and validation files (CSV text, two targets) of one campaign, and its truth.
+
+    ``six_d``: one 6-D target ``T`` instead (the first target's place, with an orientation of its own: the tracker
+    reads its position and its orientation, a quaternion, with the noise ``# orientation noise`` states,
+    ``SIGMA_RAD``); ``noise_factor``: how much noisier than stated the tracker is in an ``understated-noise`` case
+    (positions and orientations).
 
     ``size`` scales the effect (1: the magnitudes below, drawn in [0.7, 1] with a random sign where the
     physics allows one); ``lead``: the screw lead of a ``screw-periodic`` case (mm; default the model's
@@ -369,7 +392,7 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         tool_growth = 6e-3 * amount * (temp - 18.0)
         truth.update(value=6e-3 * amount)
     elif case == "understated-noise":
-        truth["noise_factor"] = 1.6
+        truth["noise_factor"] = noise_factor
     elif case == "tracker-drift":
         shift = 0.05 * amount * rng.choice([-1.0, 1.0], 3) * rng.uniform(0.5, 1.0, 3)  # mm, the tracker's move
         truth.update(value=shift.tolist())
@@ -434,8 +457,19 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
     reach = float(np.max(np.linalg.norm(tool[:, :3, 3], axis=1)))
     trk_rot = _rot([0.1, 0.2, 1.0], rng.uniform(0, 2 * np.pi))
     trk_org = 2.0 * reach * np.array([0.83, -0.5, -0.1]) + rng.uniform(-50, 50, 3)
-    pos = {}
-    for ti, target in enumerate(TARGETS):
+    pos, quat = {}, None
+    if six_d:  # one 6-D target: its orientation is the tool's turned by a fixed mounting rotation
+        mount = _rot([1.0, -2.0, 0.5], 0.4)
+        r_local = np.einsum("ji,kjl->kil", trk_rot, tool[:, :3, :3] @ mount)  # trk_rot^T R_tool mount
+        if tilt is not None:
+            r_local = np.stack([trk_rot.T @ _rot(tk, np.linalg.norm(tk)) @ tool[k, :3, :3] @ mount
+                                for k, tk in enumerate(tilt)])
+        if case == "stand-creep":
+            r_local = np.stack([trk_rot.T @ _rot(truth["axis"], truth["value"] * tk / t[-1]) @ tool[k, :3, :3] @ mount
+                                for k, tk in enumerate(t)])
+        noise = rng.normal(0, SIGMA_RAD * truth["noise_factor"], (n, 3))
+        quat = np.stack([_quaternion(_rot(w, np.linalg.norm(w)) @ r) for w, r in zip(noise, r_local)])
+    for ti, target in enumerate(TARGETS[:1] if six_d else TARGETS):
         tgt = np.tile(target, (n, 1))
         tgt[:, 2] += tool_growth
         world = tool[:, :3, 3] + np.einsum("kij,kj->ki", tool[:, :3, :3], tgt)
@@ -452,18 +486,21 @@ def campaign(model: Path, case: str, seed: int, n_id: int = 107, n_val: int = 30
         if case == "tracker-drift":
             local = local - (session == 2.0)[:, None] * np.asarray(truth["value"])[None, :]
         sigma = (STATED_NOISE[0] + STATED_NOISE[1] * np.linalg.norm(local, axis=1) / 1000.0) * truth["noise_factor"]
-        pos[f"T{ti + 1}"] = local + rng.normal(0, 1, (n, 3)) * sigma[:, None]
+        pos["T" if six_d else f"T{ti + 1}"] = local + rng.normal(0, 1, (n, 3)) * sigma[:, None]
 
     def write(rows: range, prefix: str) -> str:
         head = ["# hyperstat measurements, version 1", f"# mechanism: {mach.name}",
                 f"# noise: {STATED_NOISE[0]} mm + {STATED_NOISE[1]} mm/m"]
+        head += [f"# orientation noise: {SIGMA_RAD} rad"] if six_d else []
         cols = ["pose"] + [f"q{nm}[{'rad' if mach.joints[i].type == 'R' else 'mm'}]" for nm, i in zip(names, act)]
         cols += [f"{a}_{tname}[mm]" for tname in pos for a in "xyz"]
+        cols += [f"{a}_T" for a in ("quat_w", "quat_x", "quat_y", "quat_z")] if six_d else []
         cols += ["temperature[degC]", "payload[kg]", "time[s]", "session"] + [f"dir{nm}" for nm in names]
         lines = head + [",".join(cols)]
         for k in rows:
             vals = [f"{prefix}{k + 1}"] + [repr(float(v)) for v in qa[k]]
             vals += [repr(float(v)) for tname in pos for v in pos[tname][k]]
+            vals += [repr(float(v)) for v in quat[k]] if six_d else []
             vals += [f"{temp[k]:.3f}", f"{payload[k]:g}", f"{t[k]:g}", f"{session[k]:g}"]
             vals += [f"{d:g}" for d in dirs[k]]
             lines.append(",".join(vals))
