@@ -660,9 +660,9 @@ def _answer(run: _Run) -> Diagnosis:
         words["order_not_established"] = [{k: u[k] for k in ("effect", "joint", "orders", "range_rad")}
                                           for u in unsettled]
         words["evidence"] += "".join(
-            f"; confidence low: joint {u['joint']}'s error is periodic, but over the {u['range_rad']:.2g} rad it moved "
-            f"{_cycles_words(u['orders'])} per revolution fit it alike; moving joint {u['joint']} over more than "
-            f"{2.0 * np.pi / abs(u['orders'][1] - u['orders'][0]):.2g} rad (a full turn) would tell them apart"
+            f"; confidence low: a periodic error of joint {u['joint']} fits, but over the {u['range_rad']:.2g} rad it "
+            f"moved {_cycles_words(u['orders'])} per revolution fit alike; moving joint {u['joint']} over more than "
+            f"{2.0 * np.pi / abs(u['orders'][1] - u['orders'][0]):.2g} rad would tell them apart"
             for u in unsettled)
     moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
     if moved and outcome in ("explained", "partly explained"):
@@ -695,11 +695,13 @@ def _order_sets(run: _Run, selected: list, sets: list) -> None:
             s = {"effect": name, "members": [name], "separating_measurement": "", "evidence": []}
             sets.append(s)
         k = harmonic_order(name)
-        others = [harmonic_name(o) for o in info["orders"] if o != k]
-        s["members"] += [o for o in others if o not in s["members"]]
+        others = [harmonic_name(o) for o in info["orders"] if o != k and harmonic_name(o) not in s["members"]]
+        if not others:  # the equivalence check already has it, with its separating measurement
+            continue
+        s["members"] += others
         span = 2.0 * np.pi / abs(info["orders"][1] - info["orders"][0])
-        way = (f"poses over more than {span:.2g} rad of joint {info['joint']}, a full turn of it at best "
-               f"({' and '.join(others + [name])} alias over the {info['range_rad']:.2g} rad it moved)")
+        way = (f"poses over more than {span:.2g} rad of joint {info['joint']} ({' and '.join([name] + others)} "
+               f"alias over the {info['range_rad']:.2g} rad it moved)")
         s["separating_measurement"] = "; ".join(w for w in (s["separating_measurement"], way) if w)
 
 
