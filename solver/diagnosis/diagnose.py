@@ -43,8 +43,8 @@ from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_W
                                                     equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
 from hyperstat.solver.diagnosis.leg_pattern import LEG_OFFSET, leg_offset_family, leg_thermal_pattern, prismatic_legs
-from hyperstat.solver.diagnosis.periodic import (periodic_gate, refined_order, screw_order, screw_period,
-                                                 spectral_candidates)
+from hyperstat.solver.diagnosis.periodic import (aliased_orders, periodic_gate, refined_order, screw_order,
+                                                 screw_period, spectral_candidates)
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
                                                   black_box_ceiling, cv_rms, folds, plugin_guard, region_blocks,
                                                   score_entry, screen_candidates, split_key)
@@ -119,9 +119,12 @@ class Diagnosis:
         gravity-driven effects (no masses), or a named effect cannot be told from the stand (the machine's base)
         moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them), or a
         named effect's parameters lie outside its physical prior in their pattern (``verdict.outside_prior``: a
-        ``leg-thermal`` with the change on some legs only, :mod:`.leg_pattern`); ``"high"`` otherwise."""
+        ``leg-thermal`` with the change on some legs only, :mod:`.leg_pattern`), or a named periodic error's order
+        is one of two that the joint's range cannot tell apart (``verdict.order_not_established``); ``"high"``
+        otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
-                or self.verdict.get("targets_differ") or self.verdict.get("outside_prior"):
+                or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
+                or self.verdict.get("order_not_established"):
             return "low"
         return "high"
 
@@ -452,12 +455,23 @@ def _select(run: _Run, max_effects: int) -> None:
         basis, _ = np.linalg.qr(both / np.linalg.norm(both, axis=0).clip(min=1e-300))
         return ResidualField(run.screen.resid, run.screen.w, basis)
 
+    run.aliased = {}
+
     def refuse(key: str, chosen: list = ()) -> dict | None:
         name, _ = split_key(key)
         if not gated(name):
             return None
-        why = periodic_gate(name, pool[key]["effect"], pool[key]["entry"], run.plain, run.rows, run.act_jac,
-                            field_after([k for k in chosen if k != key]))
+        field = field_after([k for k in chosen if k != key])
+        why = periodic_gate(name, pool[key]["effect"], pool[key]["entry"], run.plain, run.rows, run.act_jac, field)
+        run.aliased.pop(key, None)
+        if why is not None and why.get("alias") and why.get("joint"):
+            # the joint's error is periodic and its order one of two the range cannot tell apart: the candidate is
+            # taken, and the answer names both orders as a set, with low confidence and the separating range
+            a = run.data.joints.index(why["joint"])
+            orders = aliased_orders(why, field or run.plain["field"], run.act_jac[:, :, a], run.rows.q[:, a])
+            if orders is not None:
+                run.aliased[key] = {**why, "orders": orders}
+                return None
         if why is not None:
             why = {**why, "effect": name, "candidate": key}
         return why
@@ -510,6 +524,8 @@ def _select(run: _Run, max_effects: int) -> None:
             sel["columns"][name] = (np.concatenate([c for c, _ in per], axis=2), np.concatenate([p for _, p in per]))
     run.selected, run.ties = sel["selected"], sel["ties"]
     run.rejected += sel["refused"]
+    run.order_sets = {split_key(k)[0]: run.aliased[k] for k in sel["keys"] if k in run.aliased
+                      and split_key(k)[0] in run.selected}
     run.selection_steps, run.pruned = sel["steps"], sel["pruned"]
     run.effect_joints = {n: list(j) for n, j in sel["joints"].items() if j and n in run.selected}
     run.selected_columns = {n: sel["columns"][n] for n in run.selected}
@@ -619,6 +635,7 @@ def _answer(run: _Run) -> Diagnosis:
         legs = leg_offset_family(run.mechanism, run.data, run.act_jac)
         sets = equivalence_sets(screen, selected, columns, members, family, run.data, spectrum_peaks(run.plain),
                                 run.effects, declared, bending, stand, legs)
+        _order_sets(run, selected, sets)
     overfit = overfitting(run.test, run.rigid, 3 * len(screen.w),
                           run.structure["structured"] or not run.structure["targets_homogeneous"])
     outcome, words = verdict(run.data, run.validation, run.significant, run.test, final, selected, run.structure,
@@ -638,6 +655,15 @@ def _answer(run: _Run) -> Diagnosis:
                               f"(period {screw.lead:g} mm, lead {lead:g} mm)")
     if "leg-thermal" in selected and outcome in ("explained", "partly explained") and "leg-thermal" in run.columns:
         _leg_thermal_words(run, words, sets, [columns[n][0] for n in selected if n != "leg-thermal"])
+    unsettled = [run.order_sets[n] for n in selected if n in getattr(run, "order_sets", {})]
+    if unsettled and outcome in ("explained", "partly explained") and "evidence" in words:
+        words["order_not_established"] = [{k: u[k] for k in ("effect", "joint", "orders", "range_rad")}
+                                          for u in unsettled]
+        words["evidence"] += "".join(
+            f"; confidence low: a periodic error of joint {u['joint']} fits, but over the {u['range_rad']:.2g} rad it "
+            f"moved {_cycles_words(u['orders'])} per revolution fit alike; moving joint {u['joint']} over more than "
+            f"{2.0 * np.pi / abs(u['orders'][1] - u['orders'][0]):.2g} rad would tell them apart"
+            for u in unsettled)
     moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
     if moved and outcome in ("explained", "partly explained"):
         words["stand_motion"] = moved
@@ -650,6 +676,33 @@ def _answer(run: _Run) -> Diagnosis:
                      spectrum_peaks(run.plain), effect_joints={n: j for n, j in run.effect_joints.items()
                                                                if n in selected},
                      selection_steps=run.selection_steps, pruned=run.pruned)
+
+
+def _cycles_words(orders: list) -> str:
+    """``1 and 2 cycles``."""
+    return " and ".join(f"{o:g}" for o in orders) + " cycles"
+
+
+def _order_sets(run: _Run, selected: list, sets: list) -> None:
+    """A named periodic error whose order the joint's range does not establish (:func:`.periodic.aliased_orders`):
+    the other order joins its equivalence set, with the range of the joint that would separate them."""
+    for name in selected:
+        info = getattr(run, "order_sets", {}).get(name)
+        if info is None:
+            continue
+        s = next((st for st in sets if st["effect"] == name), None)
+        if s is None:
+            s = {"effect": name, "members": [name], "separating_measurement": "", "evidence": []}
+            sets.append(s)
+        k = harmonic_order(name)
+        others = [harmonic_name(o) for o in info["orders"] if o != k and harmonic_name(o) not in s["members"]]
+        if not others:  # the equivalence check already has it, with its separating measurement
+            continue
+        s["members"] += others
+        span = 2.0 * np.pi / abs(info["orders"][1] - info["orders"][0])
+        way = (f"poses over more than {span:.2g} rad of joint {info['joint']} ({' and '.join([name] + others)} "
+               f"alias over the {info['range_rad']:.2g} rad it moved)")
+        s["separating_measurement"] = "; ".join(w for w in (s["separating_measurement"], way) if w)
 
 
 def _leg_thermal_words(run: _Run, words: dict, sets: list, others: list) -> None:

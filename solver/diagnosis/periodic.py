@@ -31,8 +31,10 @@ from hyperstat.solver.diagnosis.effects import harmonic_name, harmonic_order
 from hyperstat.solver.diagnosis.where import SPECTRUM_ORDERS, ResidualField
 
 __all__ = ["spectral_candidates", "screw_period", "screw_order", "periodic_gate", "refined_order", "simplest_order",
+           "aliased_orders", "BOUNDED_RESOLUTION",
            "EQUIVALENT_CHI2"]
 
+BOUNDED_RESOLUTION = 3.0  #: cycles per revolution: below it a joint's range bounds an order to its neighbours
 EQUIVALENT_CHI2 = 10.0  #: chi-square difference below which the data cannot tell two fits apart (Kass-Raftery 'strong')
 
 
@@ -312,3 +314,51 @@ def _scale_gate(name: str, effect, entry: dict, structure: dict, data, act_jac: 
             "reason": (f"the error of joint {joint} is periodic-like: its spectrum peaks at {_cycles(order)} per "
                        f"revolution ({100 * shares[best]:.0f} % of the residual variance), which explains {gain:.0f} "
                        f"more (chi-square) than a scale error of that joint")}
+
+
+def aliased_orders(why: dict, field: ResidualField, col: np.ndarray, qv: np.ndarray) -> list | None:
+    """The orders a periodic candidate refused only because its order is not established is one of, or None.
+
+    ``why`` is :func:`periodic_gate`'s refusal with ``alias`` a rival order (not ``0.0``, a smooth trend);
+    ``field`` the residual it was judged on, ``col`` and ``qv`` its joint's column and values.  The
+    joint's error is periodic (the candidate's order explains :data:`EQUIVALENT_CHI2` more than a
+    linear and quadratic trend of the joint) but the range the joint moved cannot tell its order from
+    a neighbour's: the candidate's order and the neighbours (``k - 1``, ``k + 1``; for a gear stage's
+    order also the integers around it) within :data:`EQUIVALENT_CHI2` of it are returned, when they are
+    two, the spectrum's peak lies between them (within half a cycle per revolution), and the range
+    bounds the order to its neighbours (resolution ``2 pi / range`` below :data:`BOUNDED_RESOLUTION`:
+    orders three apart are resolved; over a shorter range the data's narrow exclusions are not an
+    order's bounds).  Three or
+    more orders that fit alike, a peak elsewhere, or (for an order other than the library's 1 and 2,
+    which the gate also spares that check) a trend that fits as well: None (the order is not even
+    bounded; the answer stays "unexplained" with the peak).
+
+    >>> rng = np.random.default_rng(1)
+    >>> q = rng.uniform(-1.4, 1.4, 200)  # 2.8 rad of the joint: orders closer than 2.2 per revolution alias
+    >>> col = np.tile(np.eye(3)[None, :, 0], (200, 1))  # the joint moves the point along x
+    >>> resid = 0.01 * np.sin(2.0 * q + 0.4)[:, None] * np.eye(3)[0] + rng.normal(0, 2e-3, (200, 3))
+    >>> field = ResidualField(resid, np.full(200, 500.0), np.zeros((600, 0)))
+    >>> why = {"order": 2.0, "alias": 1.0, "peak_cycles_per_revolution": 2.0, "resolution_cycles_per_revolution": 2.2}
+    >>> aliased_orders({**why, "alias": 0.0}, field, col, q) is None  # a smooth trend fits as well: another case
+    True
+    >>> aliased_orders({**why, "resolution_cycles_per_revolution": 4.0}, field, col, q) is None  # range too short
+    True
+    >>> aliased_orders(why, field, col, q) is None  # a strong 2/rev: 1 explains far less, the order is established
+    True
+    """
+    k, k2 = why.get("order"), why.get("alias")
+    if k is None or not k2 or not why.get("resolution_cycles_per_revolution", np.inf) < BOUNDED_RESOLUTION:
+        return None
+    scale = field.scale()
+    e_k = field.harmonic(col, qv, k)
+    x = (qv - qv.mean()) / max(float(np.std(qv)), 1e-300)
+    e_t = field.fit(col[:, :, None] * np.column_stack([x, x**2])[:, None, :])[4]
+    if (e_k - e_t) / scale < EQUIVALENT_CHI2 and k not in (1.0, 2.0):
+        return None  # the library's orders 1 and 2 are tried on every revolute without that check (as in the gate)
+    rivals = {k - 1.0, k + 1.0} | ({float(np.floor(k)), float(np.ceil(k))} if abs(k - round(k)) > 1e-9 else set())
+    fits = sorted({k} | {o for o in rivals if o >= 0.5 and o != k
+                         and (e_k - field.harmonic(col, qv, o)) / scale < EQUIVALENT_CHI2})
+    peak = why.get("peak_cycles_per_revolution")
+    if len(fits) != 2 or peak is None or not fits[0] - 0.5 <= peak <= fits[1] + 0.5:
+        return None
+    return [float(o) for o in fits]

@@ -165,3 +165,39 @@ def test_the_check_per_target_compares_orders():
                   "effect_joints": {"angle-harmonic-1": ["4"]}, "refused": []}]
     ok, words = targets_agree(whole, elsewhere)
     assert not ok and "on joint(s) 4" in words
+
+
+@pytest.fixture(scope="module")
+def kuka_wide_shoulder(tmp_path_factory):
+    """The KUKA-like arm with joint 2 allowed over -180..15 deg (the generator then moves it over about 2.9 rad)."""
+    path = tmp_path_factory.mktemp("kuka_wide") / "kuka_like.dh.yaml"
+    path.write_text(kl.MDH_YAML.replace("min: -140.0, max: -5.0", "min: -180.0, max: 15.0"))
+    mech = import_robot(path)
+    mech.metadata["masses"] = kl.KukaLike(0).declared_masses(mech.home[mech.actuated])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return mech, analyze(mech, n_configurations=24, seed=0)
+
+
+@pytest.mark.parametrize("seed", [3, 8])
+def test_a_periodic_error_whose_order_the_range_cannot_establish_is_named_as_a_set(kuka_wide_shoulder, seed):
+    """A weak 2/rev error of joint 2 (1.5e-5 rad) with joint 2 over about 2.9 rad: orders closer than 2 pi / 2.9 = 2.2
+    cycles per revolution alias, and on these seeds a neighbouring order fits the error as well as 2 (the seventh blind
+    run's miss).  The answer names a periodic error of joint 2 as a set holding the truth, with the measurement that
+    separates its members (joint 2 over a longer range) and a low confidence.  Before: "unexplained" with high
+    confidence, both orders refused as "not established"."""
+    d, truth = _diagnose(kuka_wide_shoulder, "harmonic", seed, joint=1, order=2.0, amplitude=1.5e-5,
+                         narrow={1: (-180.0, 15.0)})
+    peak = d.spectrum_peaks[truth["joint"]]
+    assert peak["resolution_cycles_per_rev"] == pytest.approx(2 * np.pi / peak["range_rad"]) and \
+        peak["resolution_cycles_per_rev"] > 2.0  # over this range orders 1 apart alias (the Rayleigh limit)
+    assert d.outcome in ("explained", "partly explained") and len(d.named_effects) == 1
+    named = d.named_effects[0]
+    assert named.startswith("angle-harmonic-") and d.effect_joints == {named: [truth["joint"]]}
+    members = next(s["members"] for s in d.equivalence_sets if s["effect"] == named)
+    assert "angle-harmonic-2" in members and len(members) >= 2  # the truth, among the orders that alias
+    sep = next(s["separating_measurement"] for s in d.equivalence_sets if s["effect"] == named)
+    span = float(sep.split("poses over more than ")[1].split(" rad")[0])
+    assert f"of joint {truth['joint']}" in sep and span > peak["range_rad"]
+    assert d.confidence == "low" and d.to_dict()["confidence"] == "low" and d.ambiguous
+    assert "confidence low" in d.verdict["evidence"] and d.verdict["order_not_established"][0]["joint"] == "2"
