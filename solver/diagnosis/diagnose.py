@@ -38,7 +38,8 @@ from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
 from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MASS_FIELD, MASS_FIELD_SHORT, applicable_effects,
                                                 available_effects, gravity_source, harmonic_name, harmonic_order,
-                                                is_jointwise, is_known_effect, is_library_effect, make_effect)
+                                                is_jointwise, is_known_effect, is_library_effect, make_effect,
+                                                screw_lead)
 from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_WORDS, bending_alternatives,
                                                     equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
@@ -329,7 +330,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
             names.append(name)
             options[name] = {"joints": spec["joints"]}
     if "screw-periodic" in names and run.plain["spectra"]:  # a screw's period from its spectrum, not the lead
-        period = screw_period(run.plain, run.rows, run.act_jac, float(mechanism.metadata.get("screw_lead", 10.0)))
+        period = screw_period(run.plain, run.rows, run.act_jac, screw_lead(mechanism)[0])
         if period is not None:
             options["screw-periodic"] = {"lead": period}
     step("candidates")
@@ -648,11 +649,13 @@ def _answer(run: _Run) -> Diagnosis:
             words["evidence"] += f"; confidence low: what remains is in {words['targets_differ']}"
     screw = run.effects.get("screw-periodic") if "screw-periodic" in selected else None
     if screw is not None and outcome in ("explained", "partly explained") and "evidence" in words:
-        lead = float(run.mechanism.metadata.get("screw_lead", 10.0))  # the order in turns of the screw, stated
+        lead, declared = screw_lead(run.mechanism)  # the order in turns of the screw, stated
         order = screw_order(screw.lead, lead)
-        words["screw_order"] = {"cycles_per_turn": order, "period_mm": screw.lead, "lead_mm": lead}
+        words["screw_order"] = {"cycles_per_turn": order, "period_mm": screw.lead, "lead_mm": lead,
+                                "lead_declared": declared}
         words["evidence"] += (f"; screw-periodic at {order:g} cycle{'' if order == 1 else 's'} per turn of the screw "
-                              f"(period {screw.lead:g} mm, lead {lead:g} mm)")
+                              f"(period {screw.lead:g} mm, lead {lead:g} mm"
+                              + ("" if declared else ", assumed: the model declares no metadata.screw_lead") + ")")
     if "leg-thermal" in selected and outcome in ("explained", "partly explained") and "leg-thermal" in run.columns:
         _leg_thermal_words(run, words, sets, [columns[n][0] for n in selected if n != "leg-thermal"])
     unsettled = [run.order_sets[n] for n in selected if n in getattr(run, "order_sets", {})]

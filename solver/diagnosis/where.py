@@ -18,6 +18,7 @@ from scipy.special import chdtrc, fdtrc  # survival functions; scipy.stats costs
 
 from hyperstat.solver.calibration.identify import IdentificationResult
 from hyperstat.solver.calibration.measurements import MeasurementSet
+from hyperstat.solver.diagnosis.effects.actuator import screw_lead
 from hyperstat.solver.kinematics.model import Mechanism
 
 __all__ = ["ResidualField", "structure_tests", "describe_where", "where_summary", "spectrum_resolution",
@@ -210,7 +211,7 @@ def structure_tests(mech: Mechanism, data: MeasurementSet, resid: np.ndarray, w:
                 entry["cycles_per_revolution"] = float(fr)
             else:
                 entry["period_mm"] = float(1.0 / fr)
-                entry["lead_mm"] = float(mech.metadata.get("screw_lead", 10.0))  # the order in turns of the screw
+                entry["lead_mm"], entry["lead_declared"] = screw_lead(mech)  # the order in turns of the screw
             tests.append(entry)
             shares.append(share)
             ps.append(p)
@@ -378,7 +379,8 @@ def describe_where(test: dict | None, spectra: list | None = None) -> str:
             what = f"an error of joint {test['joint']} with a period of {test['period_mm']:.1f} mm along its travel"
             if test.get("lead_mm"):
                 turns = test["lead_mm"] / test["period_mm"]
-                what += f" ({turns:.2g} cycles per turn of a screw of {test['lead_mm']:g} mm lead)"
+                what += (f" ({turns:.2g} cycles per turn of a screw of {test['lead_mm']:g} mm lead"
+                         + ("" if test.get("lead_declared", True) else ", assumed: the model declares none") + ")")
         else:
             what = f"an error of joint {test['joint']} that follows {follows}"
     else:

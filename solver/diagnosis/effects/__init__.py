@@ -19,7 +19,7 @@ from hyperstat.solver.errors import DataError
 from hyperstat.solver.diagnosis.effects.actuator import (JOINTWISE, MASS_FIELD, MASS_FIELD_SHORT, AngleHarmonic, AngleScale,
                                                          Backlash, Compliance, GravityBacklash, LegThermal, LinkBending,
                                                          ScrewPeriodic, ScrewPitch, gravity_loads, gravity_moment,
-                                                         gravity_regressor, gravity_source, harmonic_name)
+                                                         gravity_regressor, gravity_source, harmonic_name, screw_lead)
 from hyperstat.solver.diagnosis.effects.base import Effect
 from hyperstat.solver.diagnosis.effects.other import Thermal, TrackerDrift, TrackerScale, ViolatedConstraint
 from hyperstat.solver.diagnosis.effects.structure import BaseDeformation, GuideStraightness, JointClearance
@@ -30,7 +30,7 @@ __all__ = ["Effect", "AngleHarmonic", "AngleScale", "Backlash", "Compliance", "G
            "is_jointwise",
            "EFFECT_NAMES", "GRAVITY_EFFECTS", "ENTRY_POINT_GROUP", "MASS_FIELD", "MASS_FIELD_SHORT", "available_effects", "make_effect",
            "applicable_effects", "plugin_effects", "gravity_loads", "gravity_regressor", "gravity_source",
-           "harmonic_name", "harmonic_order", "is_known_effect", "is_library_effect"]
+           "harmonic_name", "harmonic_order", "is_known_effect", "is_library_effect", "screw_lead"]
 
 EFFECT_NAMES = ("compliance", "link-bending", "violated-constraint", "thermal", "screw-pitch", "screw-periodic",
                 "angle-scale", "angle-harmonic-1", "angle-harmonic-2", "backlash", "backlash-gravity",

@@ -19,7 +19,7 @@ from hyperstat.solver.diagnosis.effects.priors import PRIORS, compliance_bounds
 __all__ = ["ScrewPitch", "ScrewPeriodic", "AngleScale", "AngleHarmonic", "Backlash", "GravityBacklash", "Compliance",
            "LegThermal", "JOINTWISE", "gravity_moment",
            "LinkBending", "LinkBendingAlternative", "gravity_loads", "gravity_source", "gravity_regressor",
-           "harmonic_name", "MASS_FIELD", "MASS_FIELD_SHORT"]
+           "harmonic_name", "MASS_FIELD", "MASS_FIELD_SHORT", "screw_lead", "DEFAULT_SCREW_LEAD"]
 
 #: where link masses come from (named in every "cannot size" answer)
 MASS_FIELD = ("metadata.masses of the model file (per joint: the body it moves, 'mass' kg and 'com' mm), the URDF "
@@ -28,6 +28,25 @@ MASS_FIELD = ("metadata.masses of the model file (per joint: the body it moves, 
 MASS_FIELD_SHORT = "metadata.masses, the URDF links' <inertial> or the template's sk.material(...)"
 
 GRAVITY = 9.81  # m/s^2
+
+#: the screw lead assumed when the model declares none (``metadata.screw_lead``), mm
+DEFAULT_SCREW_LEAD = 10.0
+
+
+def screw_lead(mechanism) -> tuple[float, bool]:
+    """The lead of the actuated screws (mm) and whether the model declares it (``metadata.screw_lead``).
+
+    Where it is not declared, :data:`DEFAULT_SCREW_LEAD` is assumed, and an answer that states a
+    screw order in turns says so.
+
+    >>> from types import SimpleNamespace
+    >>> screw_lead(SimpleNamespace(metadata={"screw_lead": 5}))
+    (5.0, True)
+    >>> screw_lead(SimpleNamespace(metadata={}))
+    (10.0, False)
+    """
+    declared = mechanism.metadata.get("screw_lead")
+    return (float(declared), True) if declared is not None else (DEFAULT_SCREW_LEAD, False)
 
 
 #: effects with their own parameters per actuated joint: the diagnosis tries them joint by joint and groups the
@@ -86,7 +105,7 @@ class ScrewPeriodic(Effect):
     name = "screw-periodic"
 
     def __init__(self, mechanism, lead: float | None = None, magnitude: float = 0.01, joints: list | None = None) -> None:
-        declared = float(mechanism.metadata.get("screw_lead", 10.0))
+        declared = screw_lead(mechanism)[0]
         self.lead = float(lead or declared)
         if not (np.isfinite(self.lead) and self.lead > 0):
             raise DataError(f"screw-periodic: the screw lead must be a positive length in mm, got {lead!r}.")

@@ -83,8 +83,11 @@ def test_a_screw_error_at_twice_per_turn_is_named_at_its_order():
     d, truth = _pkm_diagnose("tripteor_x7", 1, 5.0)
     assert d.outcome == "explained" and d.named_effects == ["screw-periodic"]
     assert d.effect_joints["screw-periodic"] == truth["joints"] == ["42"]
-    assert d.verdict["screw_order"] == {"cycles_per_turn": 2.0, "period_mm": 5.0, "lead_mm": 10.0}
+    declared = "screw_lead" in _pkm_model("tripteor_x7")[0].metadata  # the template declares none: 10 mm assumed
+    assert d.verdict["screw_order"] == {"cycles_per_turn": 2.0, "period_mm": 5.0, "lead_mm": 10.0,
+                                        "lead_declared": declared}
     assert "2 cycles per turn of the screw" in d.verdict["evidence"]
+    assert ("assumed: the model declares no metadata.screw_lead" in d.verdict["evidence"]) is not declared
     amp = np.hypot(*[p["estimate"] for p in d.effect_parameters])
     assert abs(amp - truth["value"]) < 0.3 * truth["value"]  # mm
 
@@ -110,3 +113,5 @@ def test_where_states_a_screw_period_in_turns_of_the_screw():
     words = describe_where(test)
     assert "period of 5.0 mm along its travel (2 cycles per turn of a screw of 10 mm lead)" in words
     assert "cycles per turn" not in describe_where({**test, "lead_mm": None})
+    assumed = describe_where({**test, "lead_declared": False})  # a lead the model does not declare is said assumed
+    assert "(2 cycles per turn of a screw of 10 mm lead, assumed: the model declares none)" in assumed
