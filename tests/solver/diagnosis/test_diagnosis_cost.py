@@ -9,12 +9,12 @@ reads is not done, and that the answer is the same without it; the times are in 
 
 from __future__ import annotations
 
-import functools
 import warnings
 
 import numpy as np
 
 from hyperstat.solver.analysis.stationarity import analyze
+from tests.solver.diagnosis.pkm_models import pkm_model
 from hyperstat.solver.calibration.identify import identify
 from hyperstat.solver.calibration.measurements import parse_measurements
 from hyperstat.solver.diagnosis.diagnose import diagnose
@@ -48,15 +48,7 @@ def test_the_diagnosis_does_not_refit_the_rigid_model_to_name_outliers():
 
 
 # ------------------------------------------------------------ a ball screw's error at another order than once per turn
-@functools.lru_cache(maxsize=None)
-def _pkm_model(arm: str):
-    """The machine, its stationarity analysis and kinematics, once per module (the analysis is the slow part)."""
-    from tests.solver.diagnosis import pkm_generator as pkm
-
-    mech = load_model(pkm.MODELS[arm])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return mech, analyze(mech, n_configurations=24, seed=0), Kinematics(mech)
+_pkm_model = pkm_model  # the machine, its analysis and kinematics, once per test process
 
 
 def _pkm_diagnose(arm: str, seed: int, lead: float | None, n_id: int = 60, n_val: int = 20):

@@ -19,22 +19,17 @@ import warnings
 
 import pytest
 
-from hyperstat.solver.analysis.stationarity import analyze
 from hyperstat.solver.calibration.measurements import parse_measurements
 from hyperstat.solver.diagnosis.diagnose import diagnose
 from hyperstat.solver.diagnosis.leg_pattern import LEG_OFFSET
-from hyperstat.solver.kinematics.closure import Kinematics
-from hyperstat.solver.kinematics.modelfile import load_model
 
 from tests.solver.diagnosis import pkm_generator as gen
+from tests.solver.diagnosis.pkm_models import pkm_model
 
 
 @pytest.fixture(scope="module")
 def tripteor():
-    mech = load_model(gen.MODELS["tripteor_x7"])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return mech, analyze(mech, n_configurations=24, seed=0), Kinematics(mech)
+    return pkm_model("tripteor_x7")
 
 
 def _diagnose(model, case: str, seed: int):

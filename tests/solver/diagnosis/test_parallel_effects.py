@@ -23,14 +23,12 @@ from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.modelfile import load_model
 
 from tests.solver.diagnosis import pkm_generator as gen
+from tests.solver.diagnosis.pkm_models import pkm_model
 
 
 @pytest.fixture(scope="module")
 def tripteor_model():
-    mech = load_model(gen.MODELS["tripteor_x7"])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return mech, analyze(mech, n_configurations=24, seed=0), Kinematics(mech)
+    return pkm_model("tripteor_x7")
 
 
 def _diagnose(model, case: str, seed: int, **options):
