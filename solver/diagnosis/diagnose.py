@@ -43,7 +43,8 @@ from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MA
 from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_WORDS, bending_alternatives,
                                                     equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
-from hyperstat.solver.diagnosis.leg_pattern import LEG_OFFSET, leg_offset_family, leg_thermal_pattern, prismatic_legs
+from hyperstat.solver.diagnosis.leg_pattern import (LEG_OFFSET, LEG_OFFSET_WORDS, leg_offset_family,
+                                                    leg_thermal_pattern, prismatic_legs)
 from hyperstat.solver.diagnosis.periodic import (aliased_orders, periodic_gate, refined_order, screw_order,
                                                  screw_period, spectral_candidates)
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
@@ -714,9 +715,9 @@ def _leg_thermal_words(run: _Run, words: dict, sets: list, others: list) -> None
     temperature, what else reproduces it and what would separate them, and its confidence is low
     (``verdict.outside_prior``)."""
     legs = [name for _, name in prismatic_legs(run.mechanism)]
-    effect = run.effects.get("leg-thermal")
-    domain = (float(effect.lower[0]), float(effect.upper[0])) if effect is not None else (-2e-6, 3e-5)
-    pattern = leg_thermal_pattern(run.screen, run.columns["leg-thermal"][0], others, legs, domain)
+    effect = run.effects.get("leg-thermal")  # its bounds are leg-thermal's physical domain (the default without it)
+    domain = {} if effect is None else {"domain": (float(effect.lower[0]), float(effect.upper[0]))}
+    pattern = leg_thermal_pattern(run.screen, run.columns["leg-thermal"][0], others, legs, **domain)
     words["leg_thermal_pattern"] = pattern
     named = run.effect_joints.get("leg-thermal") or legs
     unchanged = [leg for leg in legs if leg not in named]
@@ -738,12 +739,7 @@ def _leg_thermal_words(run: _Run, words: dict, sets: list, others: list) -> None
                           f"physical prior ({reason}); a seat, a joint or a mounting that moves with the temperature "
                           f"changes a leg's length the same way"
                           + (f" (the family {LEG_OFFSET} in its set)" if LEG_OFFSET in alike else
-                             f"; {LEG_OFFSET_WORDS_SHORT}"))
-
-
-#: what an answer says would separate a leg growing with the heat from a leg whose seat moves with the temperature
-LEG_OFFSET_WORDS_SHORT = ("a dial gauge on each leg's seat through a warm-up, and the same poses at two temperatures "
-                          "with each leg over its whole stroke, would tell them apart")
+                             f"; {LEG_OFFSET_WORDS} would tell them apart"))
 
 
 def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, effects: dict, before: dict | None,
