@@ -442,14 +442,8 @@ def _closed_form_chunk(kin: Kinematics, form, qa: np.ndarray, ws: Workspace, poo
     from hyperstat.solver.kinematics.closed_form import assemble_closed_form
     from hyperstat.solver.kinematics.continuation import BranchCertificate, continue_nearest
 
-    done: dict = {}  # each draw is assembled alone: the blocks run on threads (numpy releases the GIL), same result
-
-    def block(start: int) -> None:
-        done[start] = assemble_closed_form(kin, form, qa[start:start + CLOSED_FORM_BLOCK], ws.inside)
-
-    in_chunks(block, len(qa), CLOSED_FORM_BLOCK)
-    blocks = [done[s] for s in sorted(done)]
-    del done
+    blocks = [assemble_closed_form(kin, form, qa[b:b + CLOSED_FORM_BLOCK], ws.inside)
+              for b in range(0, len(qa), CLOSED_FORM_BLOCK)]
     if len(blocks) == 1:
         q, cert, generic = blocks[0]
     else:
