@@ -86,8 +86,13 @@ def _walk_circles(blk: np.ndarray) -> np.ndarray:
     copies, columns below the round-off) take ``s_i`` times the sign of their projection on ``a_i``.
     Simultaneous crossings (coplanar columns) are taken one at a time: the patterns in between are
     sign patterns too, so the maximum is never above the true one.
+
+    The walk is summed one component at a time along the contiguous last axis, and the maximum is
+    taken of the squared lengths before one square root (``sqrt`` is monotonic and correctly
+    rounded): the same additions in the same order as the stacked ``(B, n_i, 2 n, 3)`` form of the
+    versions before, bit for bit (tested), in half the time (issue 39: the hexapod's 24 tolerances).
     """
-    n = blk.shape[2]
+    b_, _, n = blk.shape
     cols = np.swapaxes(blk, 1, 2)  # (B, n, 3)
     norm = np.linalg.norm(cols, axis=2)
     scale = np.maximum(norm.max(axis=1), 1e-300)
@@ -103,15 +108,26 @@ def _walk_circles(blk: np.ndarray) -> np.ndarray:
     down = np.mod(phi + np.pi / 2, 2 * np.pi)  # and negative
     free = ~tied
     base = np.where(free, np.where(up < down, -1.0, 1.0), 0.0)  # the sign before the first crossing in [0, 2 pi)
-    angles = np.concatenate([up, down], axis=2)  # (B, n_i, 2 n)
+    order = np.argsort(np.concatenate([up, down], axis=2), axis=2)  # (B, n_i, 2 n)
     steps = np.concatenate([np.where(free, 2.0, 0.0), np.where(free, -2.0, 0.0)], axis=2)
-    order = np.argsort(angles, axis=2)
     steps = np.take_along_axis(steps, order, axis=2)
-    which = np.concatenate([np.arange(n), np.arange(n)])[order]
-    delta = steps[..., None] * np.take_along_axis(cols[:, None, :, :], which[..., None], axis=2)
-    w = (base @ cols)[:, :, None, :] + np.cumsum(delta, axis=2)  # (B, n_i, 2 n, 3): the pattern of every arc
-    return np.maximum(np.linalg.norm(w + group[:, :, None, :], axis=3).max(axis=(1, 2)),
-                      np.linalg.norm(w - group[:, :, None, :], axis=3).max(axis=(1, 2)))
+    # the column crossed at each step, as a row of the (B n, 3) columns: one plain gather per component
+    which = np.concatenate([np.arange(n), np.arange(n)])[order] + (n * np.arange(b_))[:, None, None]
+    comp = np.ascontiguousarray(cols.reshape(b_ * n, 3).T)  # (3, B n)
+    start = base @ cols  # (B, n_i, 3): the pattern before the first crossing
+    plus = minus = None  # squared lengths of w + group and w - group, (B, n_i, 2 n)
+    for x in range(3):
+        w = np.cumsum(steps * comp[x][which], axis=2)  # the pattern of every arc, component x
+        w += start[:, :, x, None]
+        p, m = w + group[:, :, x, None], w - group[:, :, x, None]
+        p *= p
+        m *= m
+        if plus is None:
+            plus, minus = p, m
+        else:
+            plus += p
+            minus += m
+    return np.maximum(np.sqrt(plus.max(axis=(1, 2))), np.sqrt(minus.max(axis=(1, 2))))
 
 
 class LinearWorstCase(Objective):

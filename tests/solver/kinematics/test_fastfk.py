@@ -151,3 +151,26 @@ def test_few_configurations_are_walked_many_planned_with_the_same_answer(tripteo
     for field in ("residual", "closure_xi", "closure_q", "output_pose", "output_xi", "output_q", "defect_twists"):
         assert np.allclose(getattr(few, field), getattr(many, field)[:3], rtol=0, atol=tol), field
         assert np.array_equal(getattr(few, field), getattr(again, field)), field
+
+
+@pytest.mark.parametrize("fixture", ["slider_crank", "tripteor"])
+def test_rows_on_each_loops_members_are_the_dense_rows_bit_for_bit(fixture, request, monkeypatch):
+    """The closure and output rows computed on each loop's member columns only (issue 39: the hexapod's sparse
+    memberships) are the dense rows, bit for bit, on both paths (one geometry, and per-configuration defects)."""
+    import hyperstat.solver.kinematics.closure as closure
+
+    mech = request.getfixturevalue(fixture)
+    kin = Kinematics(mech)
+    rng = np.random.default_rng(11)
+    q = mech.home + rng.normal(0.0, 0.2, (40, kin.n_q))
+    xi = rng.normal(0.0, 1e-3, (40, kin.n_xi))
+    fields = ("closure_xi", "closure_q", "output_xi", "output_q")
+    states = []
+    for share in (1.0, -1.0):  # every membership as runs, then none
+        monkeypatch.setattr(closure, "SPARSE_MEMBERS", share)
+        monkeypatch.setattr(closure, "_RUNS", {})
+        states.append([getattr(kin.evaluate(q, x, jacobians=True), f) for x in (None, xi) for f in fields])
+        if share > 0:
+            assert any(runs is not None for runs in closure._RUNS.values())  # the member runs were taken
+    for sparse, dense in zip(*states):
+        assert np.array_equal(sparse, dense)
