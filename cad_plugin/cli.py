@@ -144,12 +144,12 @@ def _cmd_report(args) -> int:
     from hyperstat.solver.tolerances.classification import classify
     from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values, monte_carlo_at_values
     from hyperstat.solver.tolerances.workspace import workspace_of
-    from hyperstat.solver.cli.cached import cached_sample, cached_values, store_selection
+    from hyperstat.solver.cli.cached import cached_sample, cached_values, command_cache, store_selection
 
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
     from hyperstat.cad_plugin.plots import diagnosis_figures
-    from hyperstat.cad_plugin.report import skeleton_views, write_report
+    from hyperstat.cad_plugin.report import part_pages_worker, skeleton_views, write_report
 
     date = _report_date(args.date)  # a bad date is refused before any work
     if args.workspace_loss is not None:  # and a bad budget
@@ -176,6 +176,12 @@ def _cmd_report(args) -> int:
         with_workspace_loss(tolerances, args.workspace_loss)
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
         views = None if args.json_only else Background(skeleton_views, mech, early)
+        pages = None
+
+        def start_pages() -> None:  # values to compute: a child imports CadQuery meanwhile, then draws the part pages
+            nonlocal pages
+            if not (args.json_only or args.step_drawings or all(t.cls == "non-influent" for t in tolerances.items)):
+                pages = part_pages_worker(command_cache(args))
         data = read_measurements(args.data, mech) if args.data else None
         validation = read_measurements(args.validation, mech) if args.validation else None
         hypotheses = None
@@ -210,7 +216,7 @@ def _cmd_report(args) -> int:
                                       lambda: sample_workspace(mech, 200, seed=0, kinematics=kin))
             if len(workspace) == 0:
                 workspace = result.configurations
-            cached_values(args, tolerances, mech, kin, workspace, assign_values,
+            cached_values(args, tolerances, mech, kin, workspace, assign_values, on_miss=start_pages,
                           position_accuracy=args.position_accuracy, orientation_accuracy=args.orientation_accuracy,
                           assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
             accuracy = report_section(mech, result, kin)
@@ -221,6 +227,12 @@ def _cmd_report(args) -> int:
                               accuracy, montecarlo)
         _title_block(doc, args.revision, date)
         progress.next("layout and pictures")
+        if pages is not None:
+            pages.send(solver_cli.jsonable({"drawings": doc.get("drawings") or [], "joints": doc["joints"]}))
+            if doc.get("drawings"):
+                images["parts"] = pages
+            else:
+                pages.result()  # nothing to draw: the child ends
         if figures is not None:
             images.update(figures.result())
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
@@ -233,7 +245,7 @@ def _cmd_report(args) -> int:
             if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
                 images["rendered"] = drawn
             written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
-                                   step_drawings=args.step_drawings, pdf=args.pdf)
+                                   step_drawings=args.step_drawings, pdf=args.pdf, cache=command_cache(args))
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
