@@ -85,11 +85,11 @@ class Background:
     {'views.png': b'PNG'}
     """
 
-    def __init__(self, fn: Callable, *args: Any) -> None:
+    def __init__(self, fn: Callable, *args: Any, fork: bool = True) -> None:
         self._fn, self._args = fn, args
         self._proc = None
         self._path = self._dir = None
-        if os.environ.get("HYPERSTAT_NO_FORK") or not sys.platform.startswith("linux"):
+        if not fork or os.environ.get("HYPERSTAT_NO_FORK") or not sys.platform.startswith("linux"):
             return  # fork without exec is not safe with macOS' system libraries; Windows has none
         import multiprocessing
 
@@ -154,8 +154,8 @@ class Deferred:
 
     The child runs ``prepare()`` at once (imports, fonts: what does not depend on the input), then waits for
     the input, so that the preparation overlaps the parent's work.  The input and the result travel as JSON
-    (bytes as base64: :class:`Background`'s encoding, never a pickle); without a child (off Linux,
-    ``HYPERSTAT_NO_FORK``, a failed or hung child) :meth:`result` computes ``fn(value)`` in-process.
+    (bytes as base64: :class:`Background`'s encoding, never a pickle); without a child (``fork=False``, off
+    Linux, ``HYPERSTAT_NO_FORK``, a failed or hung child) :meth:`result` computes ``fn(value)`` in-process.
 
     Examples
     --------
@@ -163,12 +163,12 @@ class Deferred:
     42
     """
 
-    def __init__(self, fn: Callable, prepare: Callable | None = None) -> None:
+    def __init__(self, fn: Callable, prepare: Callable | None = None, fork: bool = True) -> None:
         self._fn = fn
         self._write = None
         self._sent = False
         read, write = os.pipe()
-        self._background = Background(_deferred_child, fn, prepare, read)
+        self._background = Background(_deferred_child, fn, prepare, read, fork=fork)
         os.close(read)  # the child has its copy
         if self._background._proc is None:
             os.close(write)

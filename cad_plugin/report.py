@@ -75,12 +75,17 @@ def part_pages_worker(cache=None):
     """The part pages drawn by a forked child started now (:class:`hyperstat.cad_plugin.background.Deferred`): it
     imports CadQuery while the report computes the values, then draws the pages of the ``{"drawings", "joints"}``
     given to its ``result`` (:func:`hyperstat.cad_plugin.report_parts.part_pages`, without the solids; read from
-    and stored in ``cache``).  The same pages as drawing them in-process; drawn here if the child fails."""
+    and stored in ``cache``).  The same pages as drawing them in-process; drawn here if the child fails, and
+    without a child once OCCT is loaded in this process."""
+    import sys
     from functools import partial
 
     from hyperstat.cad_plugin.background import Deferred
 
-    return Deferred(partial(_pages_of, cache), _prepare_pages)
+    # OCCT's parallel meshing leaves its thread pool's locks in a forked child (measured: the child hangs at its
+    # first mesh): once OCCT is loaded in this process (a template built with CadQuery, an earlier report in the
+    # same process), the pages are drawn here
+    return Deferred(partial(_pages_of, cache), _prepare_pages, fork="OCP" not in sys.modules)
 
 
 def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: dict | None = None,
