@@ -149,7 +149,12 @@ def _cmd_report(args) -> int:
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
     from hyperstat.cad_plugin.plots import diagnosis_figures
-    from hyperstat.cad_plugin.report import part_pages_worker, skeleton_views, write_report
+    from types import SimpleNamespace
+
+    from hyperstat.solver.export.report_content import _diagnosis_summary, _report_identification
+
+    from hyperstat.cad_plugin.report import (cached_diagnosis, part_pages_worker, skeleton_views, store_diagnosis,
+                                             write_report)
 
     date = _report_date(args.date)  # a bad date is refused before any work
     if args.workspace_loss is not None:  # and a bad budget
@@ -195,18 +200,30 @@ def _cmd_report(args) -> int:
             progress.next("verification")
             checks = verify(mech, result, kinematics=kin)
             progress.next("calibration and diagnosis")
-            diagnosis = identification = None
+            diagnosis = identification = to_store = None
             images = {}
             figures = None
+            data_files = [args.data, args.validation]
             if data is not None:
                 from hyperstat.solver.diagnosis.diagnose import diagnose
 
-                if data.noise is not None:
+                stored = None if data.noise is None else cached_diagnosis(args, mech, result, data_files,
+                                                                          not args.json_only)
+                if stored is not None:  # this model's diagnosis of these data files, as a report wrote it
+                    identification, diagnosis = stored["identification"], stored["diagnosis"]
+                    if not args.json_only:
+                        images.update(stored["figures"])
+                    store_selection(args, mech, result, data_files, SimpleNamespace(
+                        selected=stored["selected"], violated_defect=stored["violated_defect"]))
+                elif data.noise is not None:
                     diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
-                    store_selection(args, mech, result, [args.data, args.validation], diagnosis)  # export-controller
+                    store_selection(args, mech, result, data_files, diagnosis)  # export-controller
                     identification = diagnosis.final or diagnosis.rigid
                     if not args.json_only:  # matplotlib, beside the tolerances
                         figures = Background(diagnosis_figures, diagnosis, data, "svg")
+                    to_store = {"identification": _report_identification(identification),
+                                "diagnosis": _diagnosis_summary(diagnosis), "selected": list(diagnosis.selected),
+                                "violated_defect": diagnosis.violated_defect, "figures": None}
                 else:
                     from hyperstat.solver.calibration.identify import identify
 
@@ -234,7 +251,10 @@ def _cmd_report(args) -> int:
             else:
                 pages.result()  # nothing to draw: the child ends
         if figures is not None:
-            images.update(figures.result())
+            to_store["figures"] = figures.result()
+            images.update(to_store["figures"])
+        if to_store is not None:
+            store_diagnosis(args, mech, result, data_files, to_store)
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
         if args.json_only:  # the values without the pictures (the FreeCAD workbench's Analyse)
             from hyperstat.solver.atomic import dumps_json, write_text

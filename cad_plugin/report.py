@@ -23,7 +23,7 @@ from hyperstat.cad_plugin.report_html import SECTIONS, render_html
 from hyperstat.cad_plugin.report_markdown import render_markdown
 
 __all__ = ["write_report", "skeleton_views", "skeleton_drawing", "render_html", "render_markdown", "SECTIONS",
-           "step_name", "part_pages_worker"]
+           "step_name", "part_pages_worker", "cached_diagnosis", "store_diagnosis"]
 
 
 def step_name(part: str) -> str:
@@ -86,6 +86,47 @@ def part_pages_worker(cache=None):
     # first mesh): once OCCT is loaded in this process (a template built with CadQuery, an earlier report in the
     # same process), the pages are drawn here
     return Deferred(partial(_pages_of, cache), _prepare_pages, fork="OCP" not in sys.modules)
+
+
+def _diagnosis_key(args, mechanism, result, data_paths: list) -> str | None:
+    from hyperstat.solver.cache import file_digest, key
+    from hyperstat.solver.cli.cached import _digest, command_cache, model_identity
+
+    from hyperstat.cad_plugin.report_parts import drawing_code_version
+
+    if not command_cache(args).enabled:
+        return None
+    import numpy as np
+
+    return key("report-diagnosis", drawing_code_version(), model_identity(args, mechanism),
+               _digest(np.asarray(result.configurations)), [file_digest(p) if p else None for p in data_paths])
+
+
+def cached_diagnosis(args, mechanism, result, data_paths: list, figures: bool) -> dict | None:
+    """A report's diagnosis as :func:`store_diagnosis` kept it for this model, analysis and data files (their bytes),
+    or None: ``identification`` and ``diagnosis`` (the report's JSON of them), ``selected`` and ``violated_defect``
+    (what ``export-controller --diagnose`` takes), ``figures`` (the diagnosis plots, SVG; None if none were drawn:
+    then not an answer when ``figures`` are wanted).  The key holds the code's version, the solver's and the drawing
+    code's (:func:`hyperstat.cad_plugin.report_parts.drawing_code_version`)."""
+    from hyperstat.solver.cli.cached import command_cache
+
+    k = _diagnosis_key(args, mechanism, result, data_paths)
+    stored = command_cache(args).load("report-diagnosis", k) if k else None
+    if not (isinstance(stored, dict) and isinstance(stored.get("diagnosis"), dict)
+            and isinstance(stored.get("identification"), dict) and isinstance(stored.get("selected"), list)):
+        return None
+    if figures and not isinstance(stored.get("figures"), dict):
+        return None
+    return stored
+
+
+def store_diagnosis(args, mechanism, result, data_paths: list, entry: dict) -> None:
+    """Keep a report's diagnosis (:func:`cached_diagnosis`)."""
+    from hyperstat.solver.cli.cached import command_cache
+
+    k = _diagnosis_key(args, mechanism, result, data_paths)
+    if k:
+        command_cache(args).store("report-diagnosis", k, entry)
 
 
 def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: dict | None = None,

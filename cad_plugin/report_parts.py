@@ -26,7 +26,7 @@ import numpy as np
 from hyperstat.cad_plugin.drawing import FONT_PT, WIDTH_MM, figure_svg
 from hyperstat.cad_plugin.gdt import draw_symbol
 
-__all__ = ["part_pages", "page_key", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
+__all__ = ["part_pages", "page_key", "drawing_code_version", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
            "PARTS_CSS"]
 
 #: drawing scales of ISO 5455 (paper mm per part mm), largest first
@@ -585,9 +585,15 @@ def page_key(drawing: dict, types: dict) -> str:
     >>> page_key(d, {}) == page_key(dict(d), {}) != page_key({**d, "part": "arm"}, {})
     True
     """
-    global _PAGES_VERSION
     from hyperstat.solver.cache import key
 
+    return key("part-page", drawing_code_version(), drawing, dict(sorted(types.items())))
+
+
+def drawing_code_version() -> str:
+    """SHA-256 of the ``cad_plugin`` package's sources and the versions of CadQuery, OCP and matplotlib (memoised):
+    with :func:`hyperstat.solver.cache.code_version` (the solver's), the version of what the report draws."""
+    global _PAGES_VERSION
     if _PAGES_VERSION is None:
         import hashlib
         from importlib.metadata import PackageNotFoundError, version
@@ -603,7 +609,7 @@ def page_key(drawing: dict, types: dict) -> str:
             except PackageNotFoundError:  # pragma: no cover - a library installed without metadata
                 h.update(f"{name}=?\0".encode())
         _PAGES_VERSION = h.hexdigest()
-    return key("part-page", _PAGES_VERSION, drawing, dict(sorted(types.items())))
+    return _PAGES_VERSION
 
 
 def _e(text) -> str:
