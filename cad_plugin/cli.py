@@ -148,13 +148,10 @@ def _cmd_report(args) -> int:
 
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
-    from hyperstat.cad_plugin.plots import diagnosis_figures
     from types import SimpleNamespace
 
-    from hyperstat.solver.export.report_content import _diagnosis_summary, _report_identification
-
-    from hyperstat.cad_plugin.report import (cached_diagnosis, part_pages_worker, skeleton_views, store_diagnosis,
-                                             write_report)
+    from hyperstat.cad_plugin.report import (cached_diagnosis, decode_entry, diagnosis_entry, part_pages_worker,
+                                             skeleton_views, store_diagnosis, write_report)
 
     date = _report_date(args.date)  # a bad date is refused before any work
     if args.workspace_loss is not None:  # and a bad budget
@@ -200,13 +197,10 @@ def _cmd_report(args) -> int:
             progress.next("verification")
             checks = verify(mech, result, kinematics=kin)
             progress.next("calibration and diagnosis")
-            diagnosis = identification = to_store = None
+            diagnosis = identification = diagnosing = None
             images = {}
-            figures = None
             data_files = [args.data, args.validation]
             if data is not None:
-                from hyperstat.solver.diagnosis.diagnose import diagnose
-
                 stored = None if data.noise is None else cached_diagnosis(args, mech, result, data_files,
                                                                           not args.json_only)
                 if stored is not None:  # this model's diagnosis of these data files, as a report wrote it
@@ -215,15 +209,8 @@ def _cmd_report(args) -> int:
                         images.update(stored["figures"])
                     store_selection(args, mech, result, data_files, SimpleNamespace(
                         selected=stored["selected"], violated_defect=stored["violated_defect"]))
-                elif data.noise is not None:
-                    diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
-                    store_selection(args, mech, result, data_files, diagnosis)  # export-controller
-                    identification = diagnosis.final or diagnosis.rigid
-                    if not args.json_only:  # matplotlib, beside the tolerances
-                        figures = Background(diagnosis_figures, diagnosis, data, "svg")
-                    to_store = {"identification": _report_identification(identification),
-                                "diagnosis": _diagnosis_summary(diagnosis), "selected": list(diagnosis.selected),
-                                "violated_defect": diagnosis.violated_defect, "figures": None}
+                elif data.noise is not None:  # diagnosed and plotted by a forked child while this computes the values
+                    diagnosing = Background(diagnosis_entry, mech, result, data, validation, kin, not args.json_only)
                 else:
                     from hyperstat.solver.calibration.identify import identify
 
@@ -237,6 +224,13 @@ def _cmd_report(args) -> int:
                           position_accuracy=args.position_accuracy, orientation_accuracy=args.orientation_accuracy,
                           assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
             accuracy = report_section(mech, result, kin)
+            if diagnosing is not None:
+                stored = decode_entry(diagnosing.result(timeout=600.0))
+                identification, diagnosis = stored["identification"], stored["diagnosis"]
+                images.update(stored["figures"] or {})
+                store_selection(args, mech, result, data_files, SimpleNamespace(  # export-controller's
+                    selected=stored["selected"], violated_defect=stored["violated_defect"]))
+                store_diagnosis(args, mech, result, data_files, stored)
             montecarlo = monte_carlo_at_values(tolerances, mech, kin, workspace, samples=1000, seed=0,
                                                position_accuracy=args.position_accuracy,
                                                orientation_accuracy=args.orientation_accuracy) or None
@@ -250,11 +244,6 @@ def _cmd_report(args) -> int:
                 images["parts"] = pages
             else:
                 pages.result()  # nothing to draw: the child ends
-        if figures is not None:
-            to_store["figures"] = figures.result()
-            images.update(to_store["figures"])
-        if to_store is not None:
-            store_diagnosis(args, mech, result, data_files, to_store)
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
         if args.json_only:  # the values without the pictures (the FreeCAD workbench's Analyse)
             from hyperstat.solver.atomic import dumps_json, write_text

@@ -23,7 +23,8 @@ from hyperstat.cad_plugin.report_html import SECTIONS, render_html
 from hyperstat.cad_plugin.report_markdown import render_markdown
 
 __all__ = ["write_report", "skeleton_views", "skeleton_drawing", "render_html", "render_markdown", "SECTIONS",
-           "step_name", "part_pages_worker", "cached_diagnosis", "store_diagnosis"]
+           "step_name", "part_pages_worker", "cached_diagnosis", "store_diagnosis",
+           "diagnosis_entry", "decode_entry"]
 
 
 def step_name(part: str) -> str:
@@ -118,6 +119,35 @@ def cached_diagnosis(args, mechanism, result, data_paths: list, figures: bool) -
     if figures and not isinstance(stored.get("figures"), dict):
         return None
     return stored
+
+
+def diagnosis_entry(mechanism, result, data, validation, kin, figures: bool) -> str:
+    """The report's diagnosis of ``data`` (:func:`hyperstat.solver.diagnosis.diagnose.diagnose`) as the JSON text
+    of the entry :func:`cached_diagnosis` reads (arrays and floats bit for bit: :func:`hyperstat.solver.cache.encode`),
+    with its plots (SVG) when ``figures``: what a forked child hands back (:func:`decode_entry`)."""
+    import json
+
+    from hyperstat.solver.cache import encode
+    from hyperstat.solver.diagnosis.diagnose import diagnose
+    from hyperstat.solver.export.report_content import _diagnosis_summary, _report_identification
+
+    diag = diagnose(mechanism, result, data, validation, kinematics=kin)
+    entry = {"identification": _report_identification(diag.final or diag.rigid), "diagnosis": _diagnosis_summary(diag),
+             "selected": list(diag.selected), "violated_defect": diag.violated_defect, "figures": None}
+    if figures:
+        from hyperstat.cad_plugin.plots import diagnosis_figures
+
+        entry["figures"] = diagnosis_figures(diag, data, "svg")
+    return json.dumps(encode(entry), separators=(",", ":"))
+
+
+def decode_entry(text: str):
+    """The value :func:`diagnosis_entry` encoded."""
+    import json
+
+    from hyperstat.solver.cache import decode
+
+    return decode(json.loads(text))
 
 
 def store_diagnosis(args, mechanism, result, data_paths: list, entry: dict) -> None:
