@@ -17,6 +17,10 @@ What is cached, and what its key holds besides the version of the code (:func:`h
   the bytes of the data files.  ``report --data`` stores it when it diagnoses;
 * ``accuracy`` and ``montecarlo``: the command's whole JSON document; the model and every option.
 
+``report`` also keeps ``report-diagnosis`` (the report's JSON of the diagnosis, and its plots) and ``part-page``
+(one part drawing's page) entries, keyed with the drawing code's version too (:mod:`hyperstat.cad_plugin.report`,
+:func:`hyperstat.cad_plugin.report_parts.page_key`).
+
 ``--no-cache`` (or ``HYPERSTAT_CACHE=off``) computes everything and stores nothing.
 """
 
