@@ -85,8 +85,8 @@ def part_pages_worker(cache=None):
 
     # OCCT's parallel meshing leaves its thread pool's locks in a forked child (measured: the child hangs at its
     # first mesh): once OCCT is loaded in this process (a template built with CadQuery, an earlier report in the
-    # same process), the pages are drawn here
-    return Deferred(partial(_pages_of, cache), _prepare_pages, fork="OCP" not in sys.modules)
+    # same process; FreeCAD's own OCCT), the pages are drawn here
+    return Deferred(partial(_pages_of, cache), _prepare_pages, fork=not {"OCP", "FreeCAD"} & set(sys.modules))
 
 
 def _diagnosis_key(args, mechanism, result, data_paths: list) -> str | None:
