@@ -136,6 +136,7 @@ def _analysis_file(path: str | None, mech: Mechanism) -> dict | None:
 
 def _cmd_report(args) -> int:
     import warnings
+    from types import SimpleNamespace
 
     from hyperstat.solver.calibration.measurements import read_measurements
     from hyperstat.solver.export.report_content import report_document
@@ -148,8 +149,6 @@ def _cmd_report(args) -> int:
 
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
-    from types import SimpleNamespace
-
     from hyperstat.cad_plugin.report import (cached_diagnosis, decode_entry, diagnosis_entry, part_pages_worker,
                                              skeleton_views, store_diagnosis, write_report)
 
