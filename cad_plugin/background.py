@@ -24,7 +24,7 @@ import sys
 import tempfile
 from typing import Any, Callable
 
-__all__ = ["Background"]
+__all__ = ["Background", "Deferred"]
 
 
 def _encode(value: Any) -> Any:
@@ -85,11 +85,11 @@ class Background:
     {'views.png': b'PNG'}
     """
 
-    def __init__(self, fn: Callable, *args: Any) -> None:
+    def __init__(self, fn: Callable, *args: Any, fork: bool = True) -> None:
         self._fn, self._args = fn, args
         self._proc = None
         self._path = self._dir = None
-        if os.environ.get("HYPERSTAT_NO_FORK") or not sys.platform.startswith("linux"):
+        if not fork or os.environ.get("HYPERSTAT_NO_FORK") or not sys.platform.startswith("linux"):
             return  # fork without exec is not safe with macOS' system libraries; Windows has none
         import multiprocessing
 
@@ -128,3 +128,74 @@ class Background:
             finally:
                 shutil.rmtree(self._dir, ignore_errors=True)
         return self._fn(*self._args)
+
+
+def _deferred_child(fn: Callable, prepare: Callable | None, fd: int) -> Any:
+    """Body of a :class:`Deferred` child: ``prepare()``, then ``fn`` of the input the parent sends on ``fd``."""
+    if prepare is not None:
+        prepare()
+    head = _read_exactly(fd, 8)
+    return fn(_decode(json.loads(_read_exactly(fd, int.from_bytes(head, "little")))))
+
+
+def _read_exactly(fd: int, n: int) -> bytes:
+    chunks, left = [], n
+    while left:
+        chunk = os.read(fd, min(left, 1 << 20))
+        if not chunk:
+            raise EOFError("the parent sent no input")
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
+
+
+class Deferred:
+    """``fn(value)`` in a forked child started now, whose input ``value`` is given later (:meth:`result`).
+
+    The child runs ``prepare()`` at once (imports, fonts: what does not depend on the input), then waits for
+    the input, so that the preparation overlaps the parent's work.  The input and the result travel as JSON
+    (bytes as base64: :class:`Background`'s encoding, never a pickle); without a child (``fork=False``, off
+    Linux, ``HYPERSTAT_NO_FORK``, a failed or hung child) :meth:`result` computes ``fn(value)`` in-process.
+
+    Examples
+    --------
+    >>> Deferred(lambda v: v["a"] * 2).result({"a": 21})
+    42
+    """
+
+    def __init__(self, fn: Callable, prepare: Callable | None = None, fork: bool = True) -> None:
+        self._fn = fn
+        self._write = None
+        self._sent = False
+        read, write = os.pipe()
+        self._background = Background(_deferred_child, fn, prepare, read, fork=fork)
+        os.close(read)  # the child has its copy
+        if self._background._proc is None:
+            os.close(write)
+        else:
+            self._write = write
+
+    def send(self, value: Any) -> None:
+        """Give the child its input (once); it computes while the caller goes on."""
+        self._sent = True
+        if self._write is not None:
+            try:
+                data = json.dumps(_encode(value)).encode()
+                payload = len(data).to_bytes(8, "little") + data
+                while payload:  # the child reads as we write: a large input does not fill the pipe
+                    payload = payload[os.write(self._write, payload):]
+            except (OSError, TypeError):  # a dead child (broken pipe) or an input JSON cannot carry
+                if self._background._proc is not None:
+                    self._background._proc.kill()
+            finally:
+                os.close(self._write)
+                self._write = None
+        self._background._fn, self._background._args = self._fn, (value,)  # the in-process fallback
+
+    def result(self, *value: Any, timeout: float = 180.0) -> Any:
+        """``fn(value)``: the child's result, or computed here; ``value`` is sent first when given."""
+        if value:
+            self.send(*value)
+        if not self._sent:
+            raise ValueError("Deferred.result: no input was sent")
+        return self._background.result(timeout)

@@ -136,6 +136,7 @@ def _analysis_file(path: str | None, mech: Mechanism) -> dict | None:
 
 def _cmd_report(args) -> int:
     import warnings
+    from types import SimpleNamespace
 
     from hyperstat.solver.calibration.measurements import read_measurements
     from hyperstat.solver.export.report_content import report_document
@@ -144,12 +145,12 @@ def _cmd_report(args) -> int:
     from hyperstat.solver.tolerances.classification import classify
     from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values, monte_carlo_at_values
     from hyperstat.solver.tolerances.workspace import workspace_of
-    from hyperstat.solver.cli.cached import cached_sample, cached_values, store_selection
+    from hyperstat.solver.cli.cached import cached_sample, cached_values, command_cache, store_selection
 
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
-    from hyperstat.cad_plugin.plots import diagnosis_figures
-    from hyperstat.cad_plugin.report import skeleton_views, write_report
+    from hyperstat.cad_plugin.report import (cached_diagnosis, decode_entry, diagnosis_entry, part_pages_worker,
+                                             skeleton_views, store_diagnosis, write_report)
 
     date = _report_date(args.date)  # a bad date is refused before any work
     if args.workspace_loss is not None:  # and a bad budget
@@ -176,6 +177,12 @@ def _cmd_report(args) -> int:
         with_workspace_loss(tolerances, args.workspace_loss)
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
         views = None if args.json_only else Background(skeleton_views, mech, early)
+        pages = None
+
+        def start_pages() -> None:  # values to compute: a child imports CadQuery meanwhile, then draws the part pages
+            nonlocal pages
+            if not (args.json_only or args.step_drawings or all(t.cls == "non-influent" for t in tolerances.items)):
+                pages = part_pages_worker(command_cache(args))
         data = read_measurements(args.data, mech) if args.data else None
         validation = read_measurements(args.validation, mech) if args.validation else None
         hypotheses = None
@@ -189,18 +196,20 @@ def _cmd_report(args) -> int:
             progress.next("verification")
             checks = verify(mech, result, kinematics=kin)
             progress.next("calibration and diagnosis")
-            diagnosis = identification = None
+            diagnosis = identification = diagnosing = None
             images = {}
-            figures = None
+            data_files = [args.data, args.validation]
             if data is not None:
-                from hyperstat.solver.diagnosis.diagnose import diagnose
-
-                if data.noise is not None:
-                    diagnosis = diagnose(mech, result, data, validation, kinematics=kin)
-                    store_selection(args, mech, result, [args.data, args.validation], diagnosis)  # export-controller
-                    identification = diagnosis.final or diagnosis.rigid
-                    if not args.json_only:  # matplotlib, beside the tolerances
-                        figures = Background(diagnosis_figures, diagnosis, data, "svg")
+                stored = None if data.noise is None else cached_diagnosis(args, mech, result, data_files,
+                                                                          not args.json_only)
+                if stored is not None:  # this model's diagnosis of these data files, as a report wrote it
+                    identification, diagnosis = stored["identification"], stored["diagnosis"]
+                    if not args.json_only:
+                        images.update(stored["figures"])
+                    store_selection(args, mech, result, data_files, SimpleNamespace(
+                        selected=stored["selected"], violated_defect=stored["violated_defect"]))
+                elif data.noise is not None:  # diagnosed and plotted by a forked child while this computes the values
+                    diagnosing = Background(diagnosis_entry, mech, result, data, validation, kin, not args.json_only)
                 else:
                     from hyperstat.solver.calibration.identify import identify
 
@@ -210,10 +219,17 @@ def _cmd_report(args) -> int:
                                       lambda: sample_workspace(mech, 200, seed=0, kinematics=kin))
             if len(workspace) == 0:
                 workspace = result.configurations
-            cached_values(args, tolerances, mech, kin, workspace, assign_values,
+            cached_values(args, tolerances, mech, kin, workspace, assign_values, on_miss=start_pages,
                           position_accuracy=args.position_accuracy, orientation_accuracy=args.orientation_accuracy,
                           assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
             accuracy = report_section(mech, result, kin)
+            if diagnosing is not None:
+                stored = decode_entry(diagnosing.result(timeout=600.0))
+                identification, diagnosis = stored["identification"], stored["diagnosis"]
+                images.update(stored["figures"] or {})
+                store_selection(args, mech, result, data_files, SimpleNamespace(  # export-controller's
+                    selected=stored["selected"], violated_defect=stored["violated_defect"]))
+                store_diagnosis(args, mech, result, data_files, stored)
             montecarlo = monte_carlo_at_values(tolerances, mech, kin, workspace, samples=1000, seed=0,
                                                position_accuracy=args.position_accuracy,
                                                orientation_accuracy=args.orientation_accuracy) or None
@@ -221,8 +237,12 @@ def _cmd_report(args) -> int:
                               accuracy, montecarlo)
         _title_block(doc, args.revision, date)
         progress.next("layout and pictures")
-        if figures is not None:
-            images.update(figures.result())
+        if pages is not None:
+            pages.send(solver_cli.jsonable({"drawings": doc.get("drawings") or [], "joints": doc["joints"]}))
+            if doc.get("drawings"):
+                images["parts"] = pages
+            else:
+                pages.result()  # nothing to draw: the child ends
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
         if args.json_only:  # the values without the pictures (the FreeCAD workbench's Analyse)
             from hyperstat.solver.atomic import dumps_json, write_text
@@ -233,7 +253,7 @@ def _cmd_report(args) -> int:
             if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
                 images["rendered"] = drawn
             written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
-                                   step_drawings=args.step_drawings, pdf=args.pdf)
+                                   step_drawings=args.step_drawings, pdf=args.pdf, cache=command_cache(args))
     if not args.quiet:
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))

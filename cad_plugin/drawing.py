@@ -216,7 +216,7 @@ def skeleton_figure(rendered: dict, items: list | None = None, title: str = "", 
     known = set(views[0]["anchors"])
     frames, datums = frames_by_element(items or [], rendered.get("elements_of", {}), known)
     blocks = {}
-    for element in known:
+    for element in views[0]["anchors"]:  # the renderer's order: a set's order changes with the process' string hashing
         text = callout_text(element, ids.get(element, []))
         if datums.get(element):
             text += ", datum " + " ".join(datums[element])

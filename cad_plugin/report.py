@@ -23,7 +23,8 @@ from hyperstat.cad_plugin.report_html import SECTIONS, render_html
 from hyperstat.cad_plugin.report_markdown import render_markdown
 
 __all__ = ["write_report", "skeleton_views", "skeleton_drawing", "render_html", "render_markdown", "SECTIONS",
-           "step_name"]
+           "step_name", "part_pages_worker", "cached_diagnosis", "store_diagnosis",
+           "diagnosis_entry", "decode_entry"]
 
 
 def step_name(part: str) -> str:
@@ -53,8 +54,114 @@ def skeleton_drawing(rendered: dict, items: list, title: str) -> tuple[str, byte
     return figure_svg(fig), figure_png(fig, 1800), words
 
 
+def _prepare_pages() -> None:
+    """What every part page needs whatever the drawing: CadQuery and OCCT's hidden-line removal, matplotlib's SVG
+    writer and the font (imported by the part pages' child while the report computes the values)."""
+    import cadquery  # noqa: F401 - about 2 s of imports
+    from matplotlib.backends import backend_svg  # noqa: F401
+    from OCP.HLRBRep import HLRBRep_PolyAlgo  # noqa: F401
+
+    from hyperstat.cad_plugin import part_solids, report_parts  # noqa: F401
+
+    report_parts.text_width_pt("M")
+
+
+def _pages_of(cache, doc: dict) -> list:
+    from hyperstat.cad_plugin.report_parts import part_pages
+
+    return part_pages(doc, cache=cache)
+
+
+def part_pages_worker(cache=None):
+    """The part pages drawn by a forked child started now (:class:`hyperstat.cad_plugin.background.Deferred`): it
+    imports CadQuery while the report computes the values, then draws the pages of the ``{"drawings", "joints"}``
+    given to its ``result`` (:func:`hyperstat.cad_plugin.report_parts.part_pages`, without the solids; read from
+    and stored in ``cache``).  The same pages as drawing them in-process; drawn here if the child fails, and
+    without a child once OCCT is loaded in this process."""
+    import sys
+    from functools import partial
+
+    from hyperstat.cad_plugin.background import Deferred
+
+    # OCCT's parallel meshing leaves its thread pool's locks in a forked child (measured: the child hangs at its
+    # first mesh): once OCCT is loaded in this process (a template built with CadQuery, an earlier report in the
+    # same process; FreeCAD's own OCCT), the pages are drawn here
+    return Deferred(partial(_pages_of, cache), _prepare_pages, fork=not {"OCP", "FreeCAD"} & set(sys.modules))
+
+
+def _diagnosis_key(args, mechanism, result, data_paths: list) -> str | None:
+    from hyperstat.solver.cache import file_digest, key
+    from hyperstat.solver.cli.cached import _digest, command_cache, model_identity
+
+    from hyperstat.cad_plugin.report_parts import drawing_code_version
+
+    if not command_cache(args).enabled:
+        return None
+    import numpy as np
+
+    return key("report-diagnosis", drawing_code_version(), model_identity(args, mechanism),
+               _digest(np.asarray(result.configurations)), [file_digest(p) if p else None for p in data_paths])
+
+
+def cached_diagnosis(args, mechanism, result, data_paths: list, figures: bool) -> dict | None:
+    """A report's diagnosis as :func:`store_diagnosis` kept it for this model, analysis and data files (their bytes),
+    or None: ``identification`` and ``diagnosis`` (the report's JSON of them), ``selected`` and ``violated_defect``
+    (what ``export-controller --diagnose`` takes), ``figures`` (the diagnosis plots, SVG; None if none were drawn:
+    then not an answer when ``figures`` are wanted).  The key holds the code's version, the solver's and the drawing
+    code's (:func:`hyperstat.cad_plugin.report_parts.drawing_code_version`)."""
+    from hyperstat.solver.cli.cached import command_cache
+
+    k = _diagnosis_key(args, mechanism, result, data_paths)
+    stored = command_cache(args).load("report-diagnosis", k) if k else None
+    if not (isinstance(stored, dict) and isinstance(stored.get("diagnosis"), dict)
+            and isinstance(stored.get("identification"), dict) and isinstance(stored.get("selected"), list)):
+        return None
+    if figures and not isinstance(stored.get("figures"), dict):
+        return None
+    return stored
+
+
+def diagnosis_entry(mechanism, result, data, validation, kin, figures: bool) -> str:
+    """The report's diagnosis of ``data`` (:func:`hyperstat.solver.diagnosis.diagnose.diagnose`) as the JSON text
+    of the entry :func:`cached_diagnosis` reads (arrays and floats bit for bit: :func:`hyperstat.solver.cache.encode`),
+    with its plots (SVG) when ``figures``: what a forked child hands back (:func:`decode_entry`)."""
+    import json
+
+    from hyperstat.solver.cache import encode
+    from hyperstat.solver.diagnosis.diagnose import diagnose
+    from hyperstat.solver.export.report_content import _diagnosis_summary, _report_identification
+
+    diag = diagnose(mechanism, result, data, validation, kinematics=kin)
+    entry = {"identification": _report_identification(diag.final or diag.rigid), "diagnosis": _diagnosis_summary(diag),
+             "selected": list(diag.selected), "violated_defect": diag.violated_defect, "figures": None}
+    if figures:
+        from hyperstat.cad_plugin.plots import diagnosis_figures
+
+        entry["figures"] = diagnosis_figures(diag, data, "svg")
+    return json.dumps(encode(entry), separators=(",", ":"))
+
+
+def decode_entry(text: str):
+    """The value :func:`diagnosis_entry` encoded."""
+    import json
+
+    from hyperstat.solver.cache import decode
+
+    return decode(json.loads(text))
+
+
+def store_diagnosis(args, mechanism, result, data_paths: list, entry: dict) -> None:
+    """Keep a report's diagnosis (:func:`cached_diagnosis`)."""
+    from hyperstat.solver.cli.cached import command_cache
+
+    k = _diagnosis_key(args, mechanism, result, data_paths)
+    if k:
+        command_cache(args).store("report-diagnosis", k, entry)
+
+
 def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: dict | None = None,
-                 images: dict | None = None, step_drawings: bool = False, pdf: bool = False) -> list[Path]:
+                 images: dict | None = None, step_drawings: bool = False, pdf: bool = False,
+                 cache=None) -> list[Path]:
     """Draw the skeleton and write the report's files atomically into ``out_dir``.
 
     ``images`` may hold ``rendered`` (views already rendered, e.g. by a background process), or a
@@ -63,6 +170,8 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
     ``step_drawings``, each part is also written as ``parts/<part>.step``, STEP AP242 with its datums
     and frames as semantic PMI (:mod:`hyperstat.cad_plugin.pmi`), with the report's files or not at all;
     with ``pdf``, ``report.pdf`` printed on A4 by headless Chromium (:mod:`hyperstat.cad_plugin.report_pdf`).
+    ``images["parts"]`` may hold the pages already drawn (:func:`part_pages_worker`); ``cache`` (a
+    :class:`hyperstat.solver.cache.Cache`) keeps and reads the part pages.
     """
     out_dir = Path(out_dir)
     images = dict(images or {})
@@ -70,10 +179,21 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
     if rendered is None and mechanism is not None and "views" not in images:
         rendered = skeleton_views(mechanism, analysis_json)
     extra = []
-    if doc.get("drawings") and "parts" not in images:
+    if rendered is not None:
+        items = doc["tolerances"]["items"]
+        if doc.get("drawings"):  # the frames are on the part drawings' pages; the skeleton calls out the ids
+            items = [{**t, "drawing": []} for t in items]
+        svg, png, words = skeleton_drawing(rendered, items, f"Skeleton of {doc['mechanism']}")
+        images["views"] = svg
+        views = [(out_dir / "skeleton_views.png", png), (out_dir / "skeleton_views.png.json", dumps_json(words))]
+    else:
+        views = []
+    if hasattr(images.get("parts"), "result"):  # drawn by a child (part_pages_worker) while this drew the skeleton
+        images["parts"] = images["parts"].result(timeout=600.0)
+    if doc.get("drawings") and ("parts" not in images or step_drawings):
         from hyperstat.cad_plugin.report_parts import part_pages
 
-        images["parts"] = part_pages(doc)
+        images["parts"] = part_pages(doc, solids=step_drawings, cache=cache)
     if step_drawings:
         from hyperstat.cad_plugin.pmi import part_step_bytes
 
@@ -86,13 +206,7 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
             drawing = next(d for d in doc["drawings"] if d["part"] == page["part"])
             extra.append((out_dir / "parts" / f"{step_name(page['part'])}.step",
                           part_step_bytes(page["solid"], drawing)))
-    if rendered is not None:
-        items = doc["tolerances"]["items"]
-        if doc.get("drawings"):  # the frames are on the part drawings' pages; the skeleton calls out the ids
-            items = [{**t, "drawing": []} for t in items]
-        svg, png, words = skeleton_drawing(rendered, items, f"Skeleton of {doc['mechanism']}")
-        images["views"] = svg
-        extra += [(out_dir / "skeleton_views.png", png), (out_dir / "skeleton_views.png.json", dumps_json(words))]
+    extra += views
     html = render_html(doc, images)
     if pdf:
         from hyperstat.cad_plugin.report_pdf import print_pdf

@@ -26,7 +26,7 @@ import numpy as np
 from hyperstat.cad_plugin.drawing import FONT_PT, WIDTH_MM, figure_svg
 from hyperstat.cad_plugin.gdt import draw_symbol
 
-__all__ = ["part_pages", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
+__all__ = ["part_pages", "page_key", "drawing_code_version", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
            "PARTS_CSS"]
 
 #: drawing scales of ISO 5455 (paper mm per part mm), largest first
@@ -526,32 +526,90 @@ def _draw_indicator(ax, x: float, y: float, h: float, ind: dict, text: dict) -> 
     return x1 + tip
 
 
-def part_pages(doc: dict) -> list[dict]:
-    """Every part drawing of a report: ``{"part", "svg", "words", "solid", "error"}`` per entry of ``drawings``.
+def part_pages(doc: dict, solids: bool = False, cache=None) -> list[dict]:
+    """Every part drawing of a report: ``{"part", "svg", "words", "assumed", "solid", "error"}`` per entry of
+    ``drawings``.
 
     A part whose solid cannot be built (``error``: the sentence why; ``svg`` and ``solid`` None) still gets its
     page, with its datums and frames in words and that sentence where the views would be: the report is
-    written whole, only ``--step-drawings`` refuses (it cannot write that part's file).
-    """
-    from hyperstat.cad_plugin.part_solids import part_solid
+    written whole, only ``--step-drawings`` refuses (it cannot write that part's file).  ``assumed`` lists what the
+    solid assumes (sizes and places the drawing does not give).
 
+    ``cache`` (a :class:`hyperstat.solver.cache.Cache`) keeps each page under its drawing, the joint types and the
+    version of the drawing code (:func:`page_key`): a report of the same drawings reads its pages (the solids and
+    the hidden-line views are most of a report's drawing time).  With ``solids`` every page also carries its
+    CadQuery solid (``--step-drawings`` writes them) and is computed; else ``solid`` is None.
+    """
     types = {str(j["element"]): j.get("type") for j in doc.get("joints") or []}
     pages = []
     for drawing in doc.get("drawings") or []:
-        try:
-            solid = part_solid(drawing, types)
-        except Exception as exc:  # noqa: BLE001 - HyperstatError, or OCCT's Standard_Failure from a Boolean
-            reason = str(exc).strip() or type(exc).__name__
-            pages.append({"part": drawing["part"], "svg": None, "words": None, "solid": None, "error": reason})
+        k = page_key(drawing, types) if cache is not None and cache.enabled else None
+        stored = None if solids or k is None else cache.load("part-page", k)
+        if isinstance(stored, dict) and stored.get("part") == drawing["part"]:
+            pages.append({**stored, "solid": None})
             continue
-        # the heading, the picture, then the tables: the picture shrinks (to 80 mm) so that the tables fit on
-        # its page (their height is measured to within about 7 mm: 10 mm are kept); when they cannot, the picture
-        # keeps 200 mm and the table of a part with many frames continues on the next page
-        room = _PAGE_MM - 10.0 - _tables_height_mm(drawing, solid.assumed)
-        fig, words = part_figure(drawing, solid, room if room >= 80.0 else 200.0)
-        pages.append({"part": drawing["part"], "svg": figure_svg(fig), "words": words, "solid": solid,
-                      "error": None})
+        page = _part_page(drawing, types)
+        if k is not None:
+            cache.store("part-page", k, {n: v for n, v in page.items() if n != "solid"})
+        pages.append(page if solids else {**page, "solid": None})
     return pages
+
+
+def _part_page(drawing: dict, types: dict) -> dict:
+    """One part's page (:func:`part_pages`), its solid included."""
+    from hyperstat.cad_plugin.part_solids import part_solid
+
+    try:
+        solid = part_solid(drawing, types)
+    except Exception as exc:  # noqa: BLE001 - HyperstatError, or OCCT's Standard_Failure from a Boolean
+        reason = str(exc).strip() or type(exc).__name__
+        return {"part": drawing["part"], "svg": None, "words": None, "assumed": [], "solid": None, "error": reason}
+    # the heading, the picture, then the tables: the picture shrinks (to 80 mm) so that the tables fit on
+    # its page (their height is measured to within about 7 mm: 10 mm are kept); when they cannot, the picture
+    # keeps 200 mm and the table of a part with many frames continues on the next page
+    room = _PAGE_MM - 10.0 - _tables_height_mm(drawing, solid.assumed)
+    fig, words = part_figure(drawing, solid, room if room >= 80.0 else 200.0)
+    return {"part": drawing["part"], "svg": figure_svg(fig), "words": words, "assumed": list(solid.assumed),
+            "solid": solid, "error": None}
+
+
+_PAGES_VERSION: str | None = None
+
+
+def page_key(drawing: dict, types: dict) -> str:
+    """The cache key of a part's page: its drawing (JSON), the joint types, and the version of the code that draws
+    it (:func:`hyperstat.solver.cache.key`'s solver version, the SHA-256 of the ``cad_plugin`` package's sources and
+    the versions of CadQuery, OCP and matplotlib).
+
+    >>> d = {"part": "rod", "features": []}
+    >>> page_key(d, {}) == page_key(dict(d), {}) != page_key({**d, "part": "arm"}, {})
+    True
+    """
+    from hyperstat.solver.cache import key
+
+    return key("part-page", drawing_code_version(), drawing, dict(sorted(types.items())))
+
+
+def drawing_code_version() -> str:
+    """SHA-256 of the ``cad_plugin`` package's sources and the versions of CadQuery, OCP and matplotlib (memoised):
+    with :func:`hyperstat.solver.cache.code_version` (the solver's), the version of what the report draws."""
+    global _PAGES_VERSION
+    if _PAGES_VERSION is None:
+        import hashlib
+        from importlib.metadata import PackageNotFoundError, version
+        from pathlib import Path
+
+        h = hashlib.sha256()
+        root = Path(__file__).resolve().parent
+        for path in sorted(root.rglob("*.py")):
+            h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+        for name in ("cadquery", "cadquery-ocp", "matplotlib"):
+            try:
+                h.update(f"{name}={version(name)}\0".encode())
+            except PackageNotFoundError:  # pragma: no cover - a library installed without metadata
+                h.update(f"{name}=?\0".encode())
+        _PAGES_VERSION = h.hexdigest()
+    return _PAGES_VERSION
 
 
 def _e(text) -> str:
@@ -710,8 +768,8 @@ def _page_html(drawing: dict, page: dict | None) -> str:
     if words["notes"]:
         out.append('<ol class="part-notes">' + "".join(f"<li>{_e(text)} ({_e(', '.join(ids))})</li>"
                                                         for text, ids in words["notes"]) + "</ol>")
-    if page is not None and page.get("solid") is not None and page["solid"].assumed:
-        out.append('<p class="note">Geometry drawn: ' + _e("; ".join(page["solid"].assumed)) + ".</p>")
+    if page is not None and page.get("assumed"):
+        out.append('<p class="note">Geometry drawn: ' + _e("; ".join(page["assumed"])) + ".</p>")
     out.append("</section>")
     return "".join(out)
 

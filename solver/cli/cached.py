@@ -17,6 +17,10 @@ What is cached, and what its key holds besides the version of the code (:func:`h
   the bytes of the data files.  ``report --data`` stores it when it diagnoses;
 * ``accuracy`` and ``montecarlo``: the command's whole JSON document; the model and every option.
 
+``report`` also keeps ``report-diagnosis`` (the report's JSON of the diagnosis, and its plots) and ``part-page``
+(one part drawing's page) entries, keyed with the drawing code's version too (:mod:`hyperstat.cad_plugin.report`,
+:func:`hyperstat.cad_plugin.report_parts.page_key`).
+
 ``--no-cache`` (or ``HYPERSTAT_CACHE=off``) computes everything and stores nothing.
 """
 
@@ -157,15 +161,19 @@ def _changes(before: dict, after: dict, obj) -> dict | None:
 
 
 def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: np.ndarray,
-                  assign: Callable, **options) -> Any:
+                  assign: Callable, on_miss: Callable | None = None, **options) -> Any:
     """``assign(cl, mechanism, kin, configurations, **options)`` (:func:`assign_values`), its changes cached.
 
     The key holds the model, the classification as it is before the call, the configurations and
     the options (arrays by their bytes).  On a hit the stored changes are applied to ``cl``; a
-    stored entry whose tolerances are not those of ``cl`` is ignored.
+    stored entry whose tolerances are not those of ``cl`` is ignored.  ``on_miss()`` is called just
+    before the values are computed (not when they are read): ``report`` starts its part pages'
+    child there.
     """
     cache = command_cache(args)
     if not cache.enabled:
+        if on_miss is not None:
+            on_miss()
         return assign(cl, mechanism, kin, configurations, **options)
     before_cl = _signature(cl, _INPUTS)
     before_items = [_signature(t) for t in cl.items]
@@ -187,6 +195,8 @@ def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: 
             cache.misses.pop()
             cache.hits.append("values")
             return cl
+        if on_miss is not None:
+            on_miss()
         result = assign(cl, mechanism, kin, configurations, **options)
         changed_cl = _changes(before_cl, _signature(cl, _INPUTS), cl)
         changed_items = [_changes(b, _signature(t), t) for b, t in zip(before_items, cl.items)]

@@ -90,8 +90,10 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
     checks : list of Check, optional
         Nonlinear verification of the verdicts.
     hypotheses : list of HypothesisVerdict, optional
-    identification : IdentificationResult, optional
-    diagnosis : Diagnosis, optional
+    identification : IdentificationResult or dict, optional
+        A dict: the report's JSON of it, as a cached report kept it.
+    diagnosis : Diagnosis or dict, optional
+        A dict: the report's JSON of it (``_diagnosis_summary``), as a cached report kept it.
     tolerances : Classification, optional
         The tolerances (:func:`hyperstat.solver.tolerances.classification.classify`, values filled by
         :func:`hyperstat.solver.tolerances.values.assign_values`); classified here with
@@ -187,9 +189,8 @@ def report_document(mechanism, provenance: dict, analysis, checks=None, hypothes
         "accuracy": accuracy,
         "montecarlo": montecarlo,
         "calibration": tol["calibration"],
-        "identification": None if identification is None else {
-            k: v for k, v in identification.to_dict().items() if k != "correlations"},
-        "diagnosis": None if diagnosis is None else _diagnosis_summary(diagnosis),
+        "identification": _report_identification(identification),
+        "diagnosis": _diagnosis_summary(diagnosis),
     }
     doc.update(_part_drawings(tolerances, alloc))
     return doc
@@ -205,7 +206,17 @@ def _part_drawings(tolerances, alloc: dict) -> dict:
             "whole_drawing": whole_drawing_summary(alloc.get("whole_drawing") or {}, tolerances)}
 
 
-def _diagnosis_summary(diag) -> dict:
+def _report_identification(identification) -> dict | None:
+    """The report's JSON of an identification (without its correlations); a dict is taken as that JSON (cached)."""
+    if identification is None or isinstance(identification, dict):
+        return identification
+    return {k: v for k, v in identification.to_dict().items() if k != "correlations"}
+
+
+def _diagnosis_summary(diag) -> dict | None:
+    """The report's JSON of a diagnosis; a dict is taken as that JSON (cached)."""
+    if diag is None or isinstance(diag, dict):
+        return diag
     d = diag.to_dict()
     where = dict(d["where"])
     where["spectra"] = [{k: v for k, v in s.items() if k not in ("periods_mm", "power")} for s in where["spectra"]]

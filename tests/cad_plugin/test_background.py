@@ -34,3 +34,32 @@ def test_a_failing_child_leaves_no_file_and_the_error_is_raised_in_process():
     with pytest.raises(ValueError, match="no picture for 3"):
         job.result()
     assert path is not None and not os.path.exists(path) and not os.path.exists(path + ".part")
+
+
+def test_a_deferred_child_prepares_at_once_and_computes_the_input_sent_later():
+    from hyperstat.cad_plugin.background import Deferred
+
+    ready = {}
+
+    def prepare():
+        ready["pid"] = os.getpid()
+
+    def fn(value):
+        return {"prepared_in": ready.get("pid"), "ran_in": os.getpid(), "twice": [2 * v for v in value["x"]]}
+
+    got = Deferred(fn, prepare).result({"x": [1, 2.5]})
+    assert got["twice"] == [2, 5.0]
+    assert got["ran_in"] == got["prepared_in"] != os.getpid()  # prepared, then computed, in the child
+
+
+def test_a_deferred_child_that_fails_or_cannot_fork_leaves_the_work_to_this_process(monkeypatch):
+    from hyperstat.cad_plugin.background import Deferred
+
+    job = Deferred(_fails)
+    with pytest.raises(ValueError, match="no picture for 4"):
+        job.result(4)
+    with pytest.raises(ValueError, match="no input was sent"):
+        Deferred(_pid_and_square).result()
+    monkeypatch.setenv("HYPERSTAT_NO_FORK", "1")
+    pid, value = Deferred(_pid_and_square).result(6)
+    assert value == 36 and pid == os.getpid()

@@ -346,3 +346,36 @@ def test_each_part_drawing_prints_on_its_own_page_legible_at_8_pt(plain_report):
     for d in drawings:
         assert f"### Part drawing: {d['part']}" in md
         assert all(f"| {f['id']} " in md for f in d["frames"])
+
+
+def test_a_second_report_reads_the_diagnosis_from_the_cache_and_writes_the_same_json(full_report, tmp_path,
+                                                                                      monkeypatch):
+    """The full report's diagnosis (the session's cache holds it) is read, not computed, by a second report of the
+    same model and data files (``--json-only``: about 3 s), and its report.json is the first one's, byte for byte."""
+    import hyperstat.solver.diagnosis.diagnose as diagnose_module
+    import hyperstat.solver.export.report_content as content
+
+    out, _ = full_report
+    real = content.report_document
+    monkeypatch.setattr(content, "report_document", lambda *a, **k: with_contract_fields(real(*a, **k)))
+
+    def not_again(*args, **kwargs):
+        raise AssertionError("the diagnosis was computed again")
+
+    monkeypatch.setattr(diagnose_module, "diagnose", not_again)
+    data = out.parent / "d.csv"
+    again = tmp_path / "again"
+    assert main(["report", str(TEMPLATES / "tripteor_x7.py"), "--data", str(data), "--validation",
+                 str(out.parent / "d.validation.csv"), "--hypotheses", str(TEMPLATES / "tripteor_x7.hypotheses.yaml"),
+                 "--out", str(again), "--revision", "B", "--quiet", "--json-only"]) == 0
+    assert (again / "report.json").read_bytes() == (out / "report.json").read_bytes()
+    # other data (one measurement changed): not the stored diagnosis
+    lines = data.read_text().splitlines()
+    i = next(k for k, line in enumerate(lines) if line.startswith("P1,"))
+    cells = lines[i].split(",")
+    cells[6] = repr(float(cells[6]) + 1e-6)  # the first pose's x, 1 nm further
+    changed = tmp_path / "d.csv"
+    changed.write_text("\n".join(lines[:i] + [",".join(cells)] + lines[i + 1:]) + "\n")
+    with pytest.raises(AssertionError, match="computed again"):
+        main(["report", str(TEMPLATES / "tripteor_x7.py"), "--data", str(changed), "--validation",
+              str(out.parent / "d.validation.csv"), "--out", str(tmp_path / "other"), "--quiet", "--json-only"])

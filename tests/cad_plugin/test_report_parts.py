@@ -1,0 +1,81 @@
+"""The report's part pages drawn in a forked child or read from the cache: the pages drawn in-process, to the byte.
+
+Units: lengths and zones in mm.
+
+The session's slider-crank report (``tests/cad_plugin/conftest.py``, ``--step-drawings``: its pages drawn in the
+report's own process, with their solids) is the reference: its ``report.html`` holds the part-drawing section that
+:func:`parts_html` lays out from the pages.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from hyperstat.cad_plugin.report_parts import page_key, part_pages, parts_html
+from hyperstat.solver.cache import Cache
+
+
+def _types(doc: dict) -> dict:
+    return {str(j["element"]): j.get("type") for j in doc["joints"]}
+
+
+#: a new process (OCCT not loaded: the part pages' child is forked) draws two pages through the child, stores them
+_CHILD = """
+import json, sys
+from hyperstat.cad_plugin.report import part_pages_worker
+from hyperstat.cad_plugin.report_parts import parts_html
+from hyperstat.solver.cache import Cache
+doc, cache, out = json.load(open(sys.argv[1])), Cache(sys.argv[2]), sys.argv[3]
+assert "OCP" not in sys.modules
+job = part_pages_worker(cache)
+assert job._background._proc is not None, "no child was forked"
+pages = job.result({"drawings": doc["drawings"], "joints": doc["joints"]})
+assert "OCP" not in sys.modules  # drawn by the child
+open(out, "w").write(json.dumps([parts_html(doc, pages), [p["assumed"] for p in pages]]))
+"""
+
+
+def test_pages_from_the_child_and_from_the_cache_are_the_report_s(slider_crank_report, tmp_path):
+    out, doc = slider_crank_report
+    assert doc["drawings"], "the slider-crank's report carries part drawings"
+    in_process = part_pages(doc)
+    section = parts_html(doc, in_process)
+    # the report wrote the section of the pages drawn in its process (the same function, with the solids)
+    assert section in (out / "report.html").read_text(encoding="utf-8")
+    assert all(p["svg"] and p["solid"] is None and p["error"] is None for p in in_process)
+    # two pages drawn by the child of a new process, sent back as JSON: the same section
+    two = {**doc, "drawings": doc["drawings"][:2]}
+    (tmp_path / "doc.json").write_text(json.dumps(two))
+    subprocess.run([sys.executable, "-c", _CHILD, str(tmp_path / "doc.json"), str(tmp_path / "cache"),
+                    str(tmp_path / "pages.json")], check=True, timeout=600)
+    html, assumed = json.loads((tmp_path / "pages.json").read_text())
+    assert html == parts_html(two, in_process[:2])
+    assert assumed == [p["assumed"] for p in in_process[:2]]
+    # the child stored its pages: this process reads them, computing none
+    again = Cache(tmp_path / "cache")
+    assert parts_html(two, part_pages(two, cache=again)) == html
+    assert again.hits == ["part-page"] * 2 and not again.misses
+
+
+def test_a_changed_drawing_is_drawn_again(slider_crank_report, tmp_path):
+    _, doc = slider_crank_report
+    drawing = doc["drawings"][0]
+    frames = [fr for d in doc["drawings"] for fr in d["frames"]]
+    assert frames
+    keys = {page_key(d, _types(doc)) for d in doc["drawings"]}
+    assert len(keys) == len(doc["drawings"])  # a page per part
+    wider = {**drawing, "frames": [{**fr, "zone_mm": fr["zone_mm"] * 2} for fr in drawing["frames"]]}
+    moved = {**drawing, "features": [{**f, "point_mm": [v + 1.0 for v in f["point_mm"]]} for f in drawing["features"]]}
+    for changed in (wider, moved) if drawing["frames"] else (moved,):
+        assert page_key(changed, _types(doc)) not in keys
+    other_types = {k: ("P" if v == "R" else "R") for k, v in _types(doc).items()}
+    assert page_key(drawing, other_types) != page_key(drawing, _types(doc))
+    # a stored page that is not this part's is not used
+    cache = Cache(tmp_path / "cache")
+    k = page_key(drawing, _types(doc))
+    cache.store("part-page", k, {"part": "another part", "svg": "<svg/>", "words": {}, "assumed": [], "error": None})
+    page = part_pages({**doc, "drawings": [drawing]}, cache=cache)[0]
+    assert page["part"] == drawing["part"] and page["svg"] != "<svg/>"
+
