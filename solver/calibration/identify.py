@@ -462,8 +462,8 @@ class IdentificationResult:
     held_back : dict or None
         Directions numerically independent at the solution kept out of the base set: their
         standard errors exceed 1 % of the machine's size (:func:`undetermined_directions`, no
-        refit), or their fit did not explain significantly more (chi-square test of the nested
-        fits); ``reason`` says which.
+        refit; their number in ``undetermined_directions``), or their fit did not explain
+        significantly more (chi-square test of the nested fits); ``reason`` says which.
     converged : bool
         Whether the fit converged (cost not increased, iteration limit not hit).
     fit_quality : str
@@ -837,7 +837,10 @@ HELD_BACK_REASONS = {
                        "held at their prior",
     "undetermined": "numerically independent at the solution but not determined by the data (standard error "
                     "beyond 1 % of the machine's length scale, or 0.01 rad; second-order directions of a perturbed "
-                    "geometry): held at their prior without a refit; chi2_decrease is the linearised one"}
+                    "geometry): held at their prior without a refit; chi2_decrease is the linearised one",
+    "both": "numerically independent at the solution: undetermined_directions of them not determined by the data "
+            "(standard error beyond 1 % of the machine's length scale, or 0.01 rad), held without a refit; the others "
+            "not significant (chi-square test, 0.1 %); chi2_decrease is the fitted one of the others"}
 HELD_OUT_NOTE = 1.5  #: held-out noise ratio above which an "ok" fit gets a note (not a refusal) pointing at diagnose
 MAX_EXCLUDED = 20  #: most observations --exclude-outliers takes out (beyond, the campaign itself is suspect)
 OUTLIER_Z = 3.5  #: modified z-score (Iglewicz and Hoaglin) reported per observation as ``robust_z`` (informative)
@@ -1097,7 +1100,7 @@ def identify(
                 js, r_now, base_idx, [j for j in base_idx if j not in chosen], model.kinds, model.units, s2,
                 model.kin.length_scale)
             if undetermined:
-                held_back = (rank, len(undetermined), chi2_lin, "undetermined")
+                held_back = (rank, len(undetermined), chi2_lin, "undetermined", len(undetermined))
         if chosen is not None and base_idx == chosen:
             break  # the set decided at the solution is the one fitted
         previous = None
@@ -1127,7 +1130,9 @@ def identify(
                 fitter.q = q_prev
                 final, _, jw_all = fitter.residual(theta)
                 js = jw_all * scale
-                held_back = (rank, extra, float(previous[2] - new_cost), "not significant")
+                undetermined_before = held_back[4] if held_back is not None else 0
+                held_back = (rank, extra + undetermined_before, float(previous[2] - new_cost),
+                             "both" if undetermined_before else "not significant", undetermined_before)
                 break
         converged = converged and ok
         cost, rank_used = new_cost, rank
@@ -1336,7 +1341,7 @@ def identify(
         fit_quality=quality,
         held_back=None if held_back is None else {
             "rank_at_solution": held_back[0], "extra_directions": held_back[1], "chi2_decrease": held_back[2],
-            "reason": HELD_BACK_REASONS[held_back[3]]},
+            "reason": HELD_BACK_REASONS[held_back[3]], "undetermined_directions": held_back[4]},
         findings=findings,
         targets={name: {"identification": id_targets[name],
                         "validation": None if val_targets is None else val_targets.get(name)} for name in id_targets},

@@ -46,7 +46,7 @@ def test_second_order_directions_are_held_back_without_a_refit(campaign):
     assert res.rank == 6 * 7 + 6 + 2 * 3
     assert res.base_rounds[0] == res.rank and max(res.base_rounds) > res.rank  # more directions at the solution...
     held = res.held_back
-    assert held is not None and "not determined" in held["reason"]  # ...held back, not fitted
+    assert held is not None and held["undetermined_directions"] >= 10  # ...held back, not fitted
     assert held["extra_directions"] == max(res.base_rounds) - res.rank
     # the standard errors those directions would have had are beyond the machine's size: the fit kept none
     assert all(p["std"] is not None and p["std"] < 0.01 * kin.length_scale for p in res.parameters if p["identifiable"])
