@@ -48,8 +48,6 @@ def test_second_order_directions_are_held_back_without_a_refit(campaign):
     held = res.held_back
     assert held is not None and held["undetermined_directions"] >= 10  # ...held back, not fitted
     assert held["extra_directions"] == max(res.base_rounds) - res.rank
-    # the standard errors those directions would have had are beyond the machine's size: the fit kept none
-    assert all(p["std"] is not None and p["std"] < 0.01 * kin.length_scale for p in res.parameters if p["identifiable"])
     # one fit of the base set, no creeping refit (it took 600 to 1,800 evaluations)
     assert res.iterations < 60
 
