@@ -48,8 +48,9 @@ def test_second_order_directions_are_held_back_without_a_refit(campaign):
     held = res.held_back
     assert held is not None and held["undetermined_directions"] >= 10  # ...held back, not fitted
     assert held["extra_directions"] == max(res.base_rounds) - res.rank
-    # one fit of the base set, no creeping refit (it took 600 to 1,800 evaluations)
-    assert res.iterations < 60
+    # the fits of the base set, of one more direction the chi-square test judges, and of the nominal model: no
+    # creeping refit of the undetermined ones (600 to 1,800 evaluations each on the 107-pose campaign)
+    assert res.iterations < 200
 
 
 def _export(campaign, out, seed):
