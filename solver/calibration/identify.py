@@ -460,8 +460,10 @@ class IdentificationResult:
     base_rounds : list of int
         Rank found at each round of the base-set decision (the last at the solution).
     held_back : dict or None
-        Directions numerically independent at the solution whose fit did not explain
-        significantly more (chi-square test of the nested fits): kept out of the base set.
+        Directions numerically independent at the solution kept out of the base set: their
+        standard errors exceed 1 % of the machine's size (:func:`undetermined_directions`, no
+        refit; their number in ``undetermined_directions``), or their fit did not explain
+        significantly more (chi-square test of the nested fits); ``reason`` says which.
     converged : bool
         Whether the fit converged (cost not increased, iteration limit not hit).
     fit_quality : str
@@ -694,6 +696,90 @@ def base_parameters(jacobian: np.ndarray, preferred: list, rank_tol: float = 1e-
     return sorted(chosen), rank, gap, visible
 
 
+def undetermined_directions(js: np.ndarray, r: np.ndarray, base: list, added: list, kinds: list, units: list, s2: float,
+                            length_scale: float, limit: float = SIZE_INPUTS) -> tuple[list, list, float]:
+    """Geometry columns that joined the base set at the solution but that the data do not determine.
+
+    A machine whose nominal geometry makes some defects invisible (a hexapod's spherical and
+    universal joints: the rotations about their centres) sees them again at a perturbed solution,
+    through second-order terms: their columns are of the order of the defects times the first-order
+    ones, so that the singular values they add form a continuum (the hexapod: 1.7e-5 down to
+    2.6e-8 of the largest, no gap) which the rank threshold splits at random, and the direction of
+    each such column, normalised, is set by the last digits of the assembled configurations (the
+    assembly's convergence tolerance).  Numerically independent, they are not identified: their
+    standard errors are metres and radians.  A column added at the solution is kept only while its
+    standard error (linearised, ``sqrt(s2 (J^T J)^-1)`` of the set with it, physical units) is within
+    ``limit`` of the machine's length scale (an angle: ``limit`` rad), the line beyond which
+    :func:`fit_quality` calls residuals absurd; the worst is removed first, then the others are
+    judged again.  One QR of the Jacobian at the solution per removal, no model evaluation.
+
+    Parameters
+    ----------
+    js : ndarray, (m, n)
+        Column-scaled weighted Jacobian at the solution.
+    r : ndarray, (m,)
+        Weighted residual at the solution.
+    base : list of int
+        The base set decided at the solution.
+    added : list of int
+        Its columns that the set fitted so far did not hold.
+    kinds, units : list of str
+        Kind and unit of every column (only ``"geometry"`` columns in mm or rad are judged).
+    s2 : float
+        Variance of the weighted residuals (1 with a stated noise).
+    length_scale : float
+        Machine's length scale (mm); also the column scale of the angles.
+    limit : float
+        Largest standard error, as a share of the length scale (mm) or in rad.
+
+    Returns
+    -------
+    base : list of int
+        The base set without the undetermined columns (sorted).
+    dropped : list of int
+        The columns removed, in the order removed.
+    chi2 : float
+        Linearised decrease of the weighted sum of squares the removed columns would have given on
+        top of the others (the score statistic at the solution), for the record.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> a = rng.normal(size=(60, 2))
+    >>> js = np.c_[a, a[:, 0] + 1e-9 * rng.normal(size=60)]  # a third column all but equal to the first
+    >>> undetermined_directions(js, rng.normal(size=60), [0, 1, 2], [2], ["geometry"] * 3, ["mm"] * 3, 1.0, 1000.0)[:2]
+    ([0, 1], [2])
+    """
+    import scipy.linalg  # imported here: import hyperstat.solver stays fast
+
+    base = sorted(base)
+    start = list(base)
+    judged = [j for j in added if kinds[j] == "geometry" and units[j] in ("mm", "rad")]
+    dropped: list[int] = []
+    while judged:
+        jb = js[:, base]
+        norms = np.linalg.norm(jb, axis=0).clip(min=1e-300)
+        _, rr = np.linalg.qr(jb / norms)
+        rinv = scipy.linalg.solve_triangular(rr, np.eye(len(base)))
+        std = np.sqrt(s2 * np.sum(rinv ** 2, axis=1)) / norms  # of the scaled unknowns: mm, rad / length scale
+        ratio = {j: float(std[base.index(j)]) * length_scale / limit if units[j] == "rad" else
+                 float(std[base.index(j)]) / (limit * length_scale) for j in judged}
+        worst = max(judged, key=lambda j: (ratio[j], -j))
+        if not ratio[worst] > 1.0:
+            break
+        base.remove(worst)
+        judged.remove(worst)
+        dropped.append(worst)
+    chi2 = 0.0
+    if dropped:
+        kept = [j for j in start if j not in dropped]
+        qk, _ = np.linalg.qr(js[:, kept])
+        e = js[:, dropped] - qk @ (qk.T @ js[:, dropped])
+        qe, _ = np.linalg.qr(e / np.linalg.norm(e, axis=0).clip(min=1e-300))
+        chi2 = float(np.sum((qe.T @ r) ** 2))
+    return base, dropped, chi2
+
+
 def gauss_newton(evaluate, x0: np.ndarray, column_scale: np.ndarray, max_iter: int = 8,
                  chi2_tol: float = 0.01) -> np.ndarray:
     """Undamped Gauss-Newton iterations with step halving, the start of the Levenberg-Marquardt fit.
@@ -745,6 +831,16 @@ def gauss_newton(evaluate, x0: np.ndarray, column_scale: np.ndarray, max_iter: i
     return x
 
 
+#: Why directions independent at the solution stay out of the base set (``held_back["reason"]``).
+HELD_BACK_REASONS = {
+    "not significant": "numerically independent at the solution but not significant (chi-square test, 0.1 %): "
+                       "held at their prior",
+    "undetermined": "numerically independent at the solution but not determined by the data (standard error "
+                    "beyond 1 % of the machine's length scale, or 0.01 rad; second-order directions of a perturbed "
+                    "geometry): held at their prior without a refit; chi2_decrease is the linearised one",
+    "both": "numerically independent at the solution: undetermined_directions of them not determined by the data "
+            "(standard error beyond 1 % of the machine's length scale, or 0.01 rad), held without a refit; the others "
+            "not significant (chi-square test, 0.1 %); chi2_decrease is the fitted one of the others"}
 HELD_OUT_NOTE = 1.5  #: held-out noise ratio above which an "ok" fit gets a note (not a refusal) pointing at diagnose
 MAX_EXCLUDED = 20  #: most observations --exclude-outliers takes out (beyond, the campaign itself is suspect)
 OUTLIER_Z = 3.5  #: modified z-score (Iglewicz and Hoaglin) reported per observation as ``robust_z`` (informative)
@@ -976,6 +1072,7 @@ def identify(
     converged = True
     chosen: list | None = None
     cost, rank_used, held_back = float("inf"), 0, None
+    r_now = None
     for _round in range(max_rounds):
         # re-check at the solution: the set fitted so far first (it stays when it is still a base
         # set there), then the measurement set-up, then the rest
@@ -994,6 +1091,16 @@ def identify(
                             f"{n_visible} unknowns of '{mechanism.name}': give at least {need} poses (in practice "
                             f"3x more).")
         rounds.append(rank)
+        if chosen is not None and imposed is None:
+            # geometry directions that joined at the solution but that the data do not determine (second-order
+            # ones, standard errors beyond 1 % of the machine): held at their prior without a refit, which would
+            # creep along them (hundreds of evaluations) to a point set by round-off
+            s2 = 1.0 if data.noise is not None else cost / max(n_rows - len(chosen), 1)
+            base_idx, undetermined, chi2_lin = undetermined_directions(
+                js, r_now, base_idx, [j for j in base_idx if j not in chosen], model.kinds, model.units, s2,
+                model.kin.length_scale)
+            if undetermined:
+                held_back = (rank, len(undetermined), chi2_lin, "undetermined", len(undetermined))
         if chosen is not None and base_idx == chosen:
             break  # the set decided at the solution is the one fitted
         previous = None
@@ -1023,7 +1130,9 @@ def identify(
                 fitter.q = q_prev
                 final, _, jw_all = fitter.residual(theta)
                 js = jw_all * scale
-                held_back = (rank, extra, float(previous[2] - new_cost))
+                undetermined_before = held_back[4] if held_back is not None else 0
+                held_back = (rank, extra + undetermined_before, float(previous[2] - new_cost),
+                             "both" if undetermined_before else "not significant", undetermined_before)
                 break
         converged = converged and ok
         cost, rank_used = new_cost, rank
@@ -1232,8 +1341,7 @@ def identify(
         fit_quality=quality,
         held_back=None if held_back is None else {
             "rank_at_solution": held_back[0], "extra_directions": held_back[1], "chi2_decrease": held_back[2],
-            "reason": "numerically independent at the solution but not significant (chi-square test, 0.1 %): "
-                      "held at their prior"},
+            "reason": HELD_BACK_REASONS[held_back[3]], "undetermined_directions": held_back[4]},
         findings=findings,
         targets={name: {"identification": id_targets[name],
                         "validation": None if val_targets is None else val_targets.get(name)} for name in id_targets},

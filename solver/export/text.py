@@ -290,8 +290,13 @@ def format_identification(result) -> str:
         lines.append(f"identifiable set decided at the solution: rank by round {rounds}")
     held = getattr(result, "held_back", None)
     if held:
+        n_und = held.get("undetermined_directions", 0)
+        why = ("standard errors beyond 1 % of the machine's size: not determined by the data"
+               if n_und == held["extra_directions"] else
+               f"{n_und} with standard errors beyond 1 % of the machine's size, the others not significant"
+               if n_und else "not significant")
         lines.append(f"  {held['extra_directions']} more direction(s) independent at the solution (rank "
-                     f"{held['rank_at_solution']}) explain chi2 {held['chi2_decrease']:.3g} less: not significant, "
+                     f"{held['rank_at_solution']}) explain chi2 {held['chi2_decrease']:.3g} less: {why}, "
                      f"held at their prior")
     sel = getattr(result, "model_selection", None)
     if sel:
