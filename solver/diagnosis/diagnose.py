@@ -50,7 +50,8 @@ from hyperstat.solver.diagnosis.periodic import (aliased_orders, periodic_gate, 
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
                                                   black_box_ceiling, cv_rms, folds, plugin_guard, region_blocks,
                                                   score_entry, screen_candidates, split_key)
-from hyperstat.solver.diagnosis.selection import forward_selection
+from hyperstat.solver.diagnosis.located import below_guard_words, seen_words, settling_measurement
+from hyperstat.solver.diagnosis.selection import BIC_DROP, LOCATED_CV_DROP, forward_selection
 from hyperstat.solver.diagnosis.observations import oriented, residual_rows, row_view, stack_rows
 from hyperstat.solver.diagnosis.targets import per_target_check, targets_to_check, targets_agree
 from hyperstat.solver.diagnosis.where import (ResidualField, describe_where, spectrum_peaks, structure_tests,
@@ -122,11 +123,14 @@ class Diagnosis:
         moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them), or a
         named effect's parameters lie outside its physical prior in their pattern (``verdict.outside_prior``: a
         ``leg-thermal`` with the change on some legs only, :mod:`.leg_pattern`), or a named periodic error's order
-        is one of two that the joint's range cannot tell apart (``verdict.order_not_established``); ``"high"``
-        otherwise."""
+        is one of two that the joint's range cannot tell apart (``verdict.order_not_established``), or a named
+        effect was taken below the selection's 5 % bar because the structure tests locate it (``verdict.below_guard``,
+        :mod:`.located`), or an ``unexplained`` answer's structure tests locate a library effect on a joint that was
+        not taken (``verdict.library_effect_seen``); ``"high"`` otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
                 or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
-                or self.verdict.get("order_not_established"):
+                or self.verdict.get("order_not_established") or self.verdict.get("below_guard") \
+                or self.verdict.get("library_effect_seen"):
             return "low"
         return "high"
 
@@ -500,7 +504,16 @@ def _select(run: _Run, max_effects: int) -> None:
     run.pool_add = lambda name, joint: _add_atom(run, name, joint)
     if run.significant:
         peaks = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < run.plain["threshold"])
-        sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks)
+        screws = tuple(sp["joint"] for sp in run.plain["spectra"] if sp["peak_p_value"] < run.plain["threshold"])
+
+        def located(key: str) -> bool:
+            """A periodic error of a joint whose residual spectrum has a significant peak (the structure tests')."""
+            name, joint = split_key(key)
+            return joint is not None and ((harmonic_order(name) is not None and joint in peaks)
+                                          or (name == "screw-periodic" and joint in screws))
+
+        sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks,
+                                located)
     else:
         sel = {"selected": [], "joints": {}, "columns": {}, "keys": [], "steps": [], "refused": [], "ties": [],
                "pruned": []}
@@ -529,6 +542,7 @@ def _select(run: _Run, max_effects: int) -> None:
     run.order_sets = {split_key(k)[0]: run.aliased[k] for k in sel["keys"] if k in run.aliased
                       and split_key(k)[0] in run.selected}
     run.selection_steps, run.pruned = sel["steps"], sel["pruned"]
+    run.below_guard = [st for st in sel["steps"] if st.get("below_guard")]
     run.effect_joints = {n: list(j) for n, j in sel["joints"].items() if j and n in run.selected}
     run.selected_columns = {n: sel["columns"][n] for n in run.selected}
     for name in run.selected:  # the named effect on the joints of its group
@@ -668,6 +682,18 @@ def _answer(run: _Run) -> Diagnosis:
             f"moved {_cycles_words(u['orders'])} per revolution fit alike; moving joint {u['joint']} over more than "
             f"{2.0 * np.pi / abs(u['orders'][1] - u['orders'][0]):.2g} rad would tell them apart"
             for u in unsettled)
+    if run.significant and outcome in ("explained", "partly explained") and "evidence" in words \
+            and getattr(run, "below_guard", None):
+        info, text = below_guard_words(run.below_guard, selected,
+                                       {st["added"]: _located_peak(run, *split_key(st["added"])) for st in run.below_guard})
+        if info:
+            words["below_guard"] = info
+            words["evidence"] += text
+    if outcome == "unexplained" and run.significant and "evidence" in words:
+        seen = _library_effect_seen(run)
+        if seen is not None:
+            words["library_effect_seen"] = seen
+            words["evidence"] += seen_words(seen)
     moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
     if moved and outcome in ("explained", "partly explained"):
         words["stand_motion"] = moved
@@ -680,6 +706,70 @@ def _answer(run: _Run) -> Diagnosis:
                      spectrum_peaks(run.plain), effect_joints={n: j for n, j in run.effect_joints.items()
                                                                if n in selected},
                      selection_steps=run.selection_steps, pruned=run.pruned)
+
+
+def _located_peak(run: _Run, name: str, joint: str | None) -> dict:
+    """The significant peak of the rigid residual's spectrum that locates a periodic candidate on ``joint`` ({} when
+    none)."""
+    thr = run.plain["threshold"]
+    for sp in run.plain["revolute_spectra"]:
+        if sp["joint"] == joint and sp["peak_p_value"] < thr:
+            return {"joint": joint, "p_value": sp["peak_p_value"], "share": sp["peak_share"], "revolute": True,
+                    "order": sp["peak_cycles_per_revolution"], "range_rad": sp["range_rad"]}
+    for sp in run.plain["spectra"]:
+        if sp["joint"] == joint and sp["peak_p_value"] < thr:
+            return {"joint": joint, "p_value": sp["peak_p_value"], "share": sp["peak_share"], "revolute": False,
+                    "period_mm": sp["peak_period_mm"], "range_rad": None}
+    return {}
+
+
+def _library_effect_seen(run: _Run) -> dict | None:
+    """For an ``unexplained`` answer: the library's periodic effect on the joint whose residual spectrum has the most
+    significant peak (``angle-harmonic-<k>`` at the peak's order, or ``screw-periodic`` at the screw's period), its
+    cross-validated RMS and BIC with it, why it was not taken and what would settle it; None when no spectrum of the
+    rigid residual has a significant peak."""
+    plain = run.plain
+    peaks = [(sp["peak_p_value"], sp["joint"], True) for sp in plain["revolute_spectra"]
+             if sp["peak_p_value"] < plain["threshold"]]
+    peaks += [(sp["peak_p_value"], sp["joint"], False) for sp in plain["spectra"] if sp["peak_p_value"] < plain["threshold"]]
+    if not peaks:
+        return None
+    _, joint, revolute = min(peaks)
+    a = run.data.joints.index(joint)
+    if revolute:
+        spec = next(sp for sp in plain["revolute_spectra"] if sp["joint"] == joint)
+        order, _ = refined_order(plain["field"], run.act_jac[:, :, a], run.rows.q[:, a],
+                                 spec["peak_cycles_per_revolution"])
+        if order <= 0:
+            return None
+        name = harmonic_name(order)
+    else:
+        name = "screw-periodic"
+    key = atom_key(name, joint)
+    if key not in run.pool:
+        key = _add_atom(run, name, joint)
+    if key is None:
+        return None
+    cand = run.pool[key]
+    cv, bic, _, _ = cv_rms(run.screen, *cand["columns"])
+    peak = _located_peak(run, name, joint)
+    drop = 1.0 - cv / run.base_cv
+    why = cand["entry"].get("rejected")
+    if why is None:
+        why = next((r["reason"] for r in run.rejected if r["effect"] == name and r.get("stage") in (
+            "nonlinear fit", "validation")), None)
+    if why is None and revolute:
+        gate = periodic_gate(name, cand["effect"], cand["entry"], plain, run.rows, run.act_jac)
+        why = gate["reason"] if gate is not None else None
+    if why is None:
+        why = (f"it lowers the cross-validated RMS by {100 * drop:.1f} % (the selection asks 5 % of an effect, "
+               f"{100 * (1 - LOCATED_CV_DROP):.0f} % of one the structure tests locate)"
+               + (f" and the BIC by {bic - run.base_bic:+.0f} (it asks -{BIC_DROP:.0f})" if bic > run.base_bic - BIC_DROP
+                  else ""))
+    return {"effect": name, "joint": joint, **{k: v for k, v in peak.items() if k != "joint"},
+            "cv_rms_rigid": run.base_cv, "cv_rms_with": cv, "cv_drop": round(drop, 4),
+            "delta_bic": bic - run.base_bic, "why_not": why,
+            "settling_measurement": settling_measurement(joint, peak.get("range_rad"), revolute)}
 
 
 def _cycles_words(orders: list) -> str:
