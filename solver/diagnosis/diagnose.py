@@ -505,12 +505,15 @@ def _select(run: _Run, max_effects: int) -> None:
     if run.significant:
         peaks = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < run.plain["threshold"])
         screws = tuple(sp["joint"] for sp in run.plain["spectra"] if sp["peak_p_value"] < run.plain["threshold"])
+        signed = _significant_signatures(run)
 
         def located(key: str) -> bool:
-            """A periodic error of a joint whose residual spectrum has a significant peak (the structure tests')."""
+            """A periodic error of a joint whose residual spectrum has a significant peak, or of an effect whose
+            signature test is significant (the structure tests')."""
             name, joint = split_key(key)
-            return joint is not None and ((harmonic_order(name) is not None and joint in peaks)
-                                          or (name == "screw-periodic" and joint in screws))
+            periodic = harmonic_order(name) is not None or name == "screw-periodic"
+            return joint is not None and periodic and (name in signed or (joint in peaks if name != "screw-periodic"
+                                                                           else joint in screws))
 
         sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks,
                                 located)
@@ -708,9 +711,17 @@ def _answer(run: _Run) -> Diagnosis:
                      selection_steps=run.selection_steps, pruned=run.pruned)
 
 
+def _significant_signatures(run: _Run) -> dict:
+    """Library effect -> its significant signature test among the structure tests of the rigid residual (the effect's
+    columns fitted in sample, F-test below the structure tests' threshold)."""
+    st = run.structure
+    return {t["variable"]: t for t in st["tests"] if t["family"] == "candidate signature"
+            and t["p_value"] < st["threshold"] and is_library_effect(t["variable"])}
+
+
 def _located_peak(run: _Run, name: str, joint: str | None) -> dict:
-    """The significant peak of the rigid residual's spectrum that locates a periodic candidate on ``joint`` ({} when
-    none)."""
+    """The significant peak of the rigid residual's spectrum that locates a periodic candidate on ``joint``, else its
+    effect's significant signature test ({} when none)."""
     thr = run.plain["threshold"]
     for sp in run.plain["revolute_spectra"]:
         if sp["joint"] == joint and sp["peak_p_value"] < thr:
@@ -720,6 +731,12 @@ def _located_peak(run: _Run, name: str, joint: str | None) -> dict:
         if sp["joint"] == joint and sp["peak_p_value"] < thr:
             return {"joint": joint, "p_value": sp["peak_p_value"], "share": sp["peak_share"], "revolute": False,
                     "period_mm": sp["peak_period_mm"], "range_rad": None}
+    test = _significant_signatures(run).get(name)
+    if test is not None:
+        a = run.data.joints.index(joint) if joint in run.data.joints else None
+        revolute = a is not None and run.mechanism.joints[run.mechanism.actuated[a]].type == "R"
+        return {"joint": joint, "p_value": test["p_value"], "share": test["share"], "revolute": revolute,
+                "signature": name, "range_rad": float(np.ptp(run.rows.q[:, a])) if revolute else None}
     return {}
 
 
@@ -733,7 +750,7 @@ def _library_effect_seen(run: _Run) -> dict | None:
              if sp["peak_p_value"] < plain["threshold"]]
     peaks += [(sp["peak_p_value"], sp["joint"], False) for sp in plain["spectra"] if sp["peak_p_value"] < plain["threshold"]]
     if not peaks:
-        return None
+        return _signature_seen(run)
     _, joint, revolute = min(peaks)
     a = run.data.joints.index(joint)
     if revolute:
@@ -762,14 +779,45 @@ def _library_effect_seen(run: _Run) -> dict | None:
         gate = periodic_gate(name, cand["effect"], cand["entry"], plain, run.rows, run.act_jac)
         why = gate["reason"] if gate is not None else None
     if why is None:
-        why = (f"it lowers the cross-validated RMS by {100 * drop:.1f} % (the selection asks 5 % of an effect, "
-               f"{100 * (1 - LOCATED_CV_DROP):.0f} % of one the structure tests locate)"
-               + (f" and the BIC by {bic - run.base_bic:+.0f} (it asks -{BIC_DROP:.0f})" if bic > run.base_bic - BIC_DROP
-                  else ""))
+        why = _guard_words(drop, bic - run.base_bic)
     return {"effect": name, "joint": joint, **{k: v for k, v in peak.items() if k != "joint"},
-            "cv_rms_rigid": run.base_cv, "cv_rms_with": cv, "cv_drop": round(drop, 4),
-            "delta_bic": bic - run.base_bic, "why_not": why,
+            "cv_rms_rigid": float(run.base_cv), "cv_rms_with": float(cv), "cv_drop": round(drop, 4),
+            "delta_bic": float(bic - run.base_bic), "why_not": why,
             "settling_measurement": settling_measurement(joint, peak.get("range_rad"), revolute)}
+
+
+def _signature_seen(run: _Run) -> dict | None:
+    """For an ``unexplained`` answer without a significant spectral peak: the library periodic effect whose signature
+    test is the most significant (a screw's error whose period the screw spectra miss), on the joint where it lowers
+    the cross-validated RMS most, with the numbers of :func:`_library_effect_seen`."""
+    signed = [(t["p_value"], n) for n, t in _significant_signatures(run).items()
+              if harmonic_order(n) is not None or n == "screw-periodic"]
+    if not signed:
+        return None
+    _, name = min(signed)
+    keys = [k for k in run.pool if split_key(k)[0] == name and split_key(k)[1] is not None] or \
+        ([name] if name in run.pool else [])
+    if not keys:
+        return None
+    scored = sorted((cv_rms(run.screen, *run.pool[k]["columns"])[:2], k) for k in keys)
+    (cv, bic), key = scored[0]
+    joint = split_key(key)[1]
+    peak = _located_peak(run, name, joint)
+    drop = 1.0 - cv / run.base_cv
+    why = run.pool[key]["entry"].get("rejected") or next(
+        (r["reason"] for r in run.rejected if r["effect"] == name and r.get("stage") in ("nonlinear fit", "validation")),
+        None) or _guard_words(drop, bic - run.base_bic)
+    return {"effect": name, "joint": joint, **{k: v for k, v in peak.items() if k != "joint"},
+            "cv_rms_rigid": float(run.base_cv), "cv_rms_with": float(cv), "cv_drop": round(drop, 4),
+            "delta_bic": float(bic - run.base_bic), "why_not": why,
+            "settling_measurement": settling_measurement(joint or "", peak.get("range_rad"), peak.get("revolute", False))}
+
+
+def _guard_words(drop: float, delta_bic: float) -> str:
+    """Why a candidate did not pass the selection's guard, in numbers."""
+    return (f"it lowers the cross-validated RMS by {100 * drop:.1f} % (the selection asks 5 % of an effect, "
+            f"{100 * (1 - LOCATED_CV_DROP):.0f} % of one the structure tests locate)"
+            + (f" and the BIC by {delta_bic:+.0f} (it asks -{BIC_DROP:.0f})" if delta_bic > -BIC_DROP else ""))
 
 
 def _cycles_words(orders: list) -> str:

@@ -73,11 +73,16 @@ def below_guard_words(steps: list, selected: list, located: dict) -> tuple[list,
                      f"({100 * drop:.1f} % lower, under the 5 % the selection asks of an effect) and the BIC by "
                      f"{-st['delta_bic']:.0f}; it is taken because the structure tests locate it on joint {joint}"
                      + (f" ({_peak_words(peak)})" if peak else "")
-                     + f" and its order passes the spectrum's gate; {settle} would size it with confidence")
+                     + (" and its period is the spectrum's" if "period_mm" in peak else
+                        " and its order passes the spectrum's gate" if peak.get("revolute", True) else "")
+                     + f"; {settle} would size it with confidence")
     return out, "".join(parts)
 
 
 def _peak_words(peak: dict) -> str:
+    if "signature" in peak:
+        return (f"the signature test of {peak['signature']}: {100 * peak['share']:.0f} % of the residual variance, "
+                f"F-test p = {peak['p_value']:.2g}")
     if "order" in peak:
         what = f"its spectrum's peak at {_cycles(peak['order'])} per revolution"
     else:
