@@ -504,7 +504,12 @@ def _select(run: _Run, max_effects: int) -> None:
     run.pool_add = lambda name, joint: _add_atom(run, name, joint)
     if run.significant:
         peaks = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < run.plain["threshold"])
-        screws = tuple(sp["joint"] for sp in run.plain["spectra"] if sp["peak_p_value"] < run.plain["threshold"])
+        # located: at the threshold of the structure tests with the candidates' signatures (the stricter), so that a
+        # located candidate is always a structured residual: never a campaign answered "no significant gap" or
+        # "understated noise" (both need no structure)
+        strict = run.structure["threshold"]
+        spiked = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < strict)
+        screws = tuple(sp["joint"] for sp in run.plain["spectra"] if sp["peak_p_value"] < strict)
         signed = _significant_signatures(run)
 
         def located(key: str) -> bool:
@@ -512,7 +517,7 @@ def _select(run: _Run, max_effects: int) -> None:
             signature test is significant (the structure tests')."""
             name, joint = split_key(key)
             periodic = harmonic_order(name) is not None or name == "screw-periodic"
-            return joint is not None and periodic and (name in signed or (joint in peaks if name != "screw-periodic"
+            return joint is not None and periodic and (name in signed or (joint in spiked if name != "screw-periodic"
                                                                            else joint in screws))
 
         sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks,
@@ -722,7 +727,7 @@ def _significant_signatures(run: _Run) -> dict:
 def _located_peak(run: _Run, name: str, joint: str | None) -> dict:
     """The significant peak of the rigid residual's spectrum that locates a periodic candidate on ``joint``, else its
     effect's significant signature test ({} when none)."""
-    thr = run.plain["threshold"]
+    thr = run.structure["threshold"]
     for sp in run.plain["revolute_spectra"]:
         if sp["joint"] == joint and sp["peak_p_value"] < thr:
             return {"joint": joint, "p_value": sp["peak_p_value"], "share": sp["peak_share"], "revolute": True,
@@ -745,10 +750,9 @@ def _library_effect_seen(run: _Run) -> dict | None:
     significant peak (``angle-harmonic-<k>`` at the peak's order, or ``screw-periodic`` at the screw's period), its
     cross-validated RMS and BIC with it, why it was not taken and what would settle it; None when no spectrum of the
     rigid residual has a significant peak."""
-    plain = run.plain
-    peaks = [(sp["peak_p_value"], sp["joint"], True) for sp in plain["revolute_spectra"]
-             if sp["peak_p_value"] < plain["threshold"]]
-    peaks += [(sp["peak_p_value"], sp["joint"], False) for sp in plain["spectra"] if sp["peak_p_value"] < plain["threshold"]]
+    plain, strict = run.plain, run.structure["threshold"]
+    peaks = [(sp["peak_p_value"], sp["joint"], True) for sp in plain["revolute_spectra"] if sp["peak_p_value"] < strict]
+    peaks += [(sp["peak_p_value"], sp["joint"], False) for sp in plain["spectra"] if sp["peak_p_value"] < strict]
     if not peaks:
         return _signature_seen(run)
     _, joint, revolute = min(peaks)
