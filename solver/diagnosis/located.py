@@ -60,7 +60,12 @@ def below_guard_words(steps: list, selected: list, located: dict) -> tuple[list,
     for st in steps:
         key = st["added"]
         name, _, joint = key.partition("@")
-        if name not in selected:
+        if name not in selected:  # removed again by the nonlinear fit: what was added after it was chosen beside it
+            out.append({"effect": name, "joint": joint, "removed": True, "cv_rms_before": st["cv_rms_before"],
+                        "cv_rms_after": st["cv_rms_after"], "delta_bic": st["delta_bic"]})
+            parts.append(f"; confidence low: the selection started from {name} of joint {joint}, taken under the 5 % "
+                         f"bar of the cross-validation because the structure tests locate it, and the nonlinear fit "
+                         f"removed it again: what is named was chosen beside it")
             continue
         peak = located.get(key, {})
         drop = round(1.0 - st["cv_rms_after"] / st["cv_rms_before"], 4)
