@@ -749,7 +749,7 @@ def _library_effect_seen(run: _Run) -> dict | None:
     """For an ``unexplained`` answer: the library's periodic effect on the joint whose residual spectrum has the most
     significant peak (``angle-harmonic-<k>`` at the peak's order, or ``screw-periodic`` at the screw's period), its
     cross-validated RMS and BIC with it, why it was not taken and what would settle it; None when no spectrum of the
-    rigid residual has a significant peak."""
+    rigid residual has a significant peak, or when the data speak against that effect (:func:`_refuted`)."""
     plain, strict = run.plain, run.structure["threshold"]
     peaks = [(sp["peak_p_value"], sp["joint"], True) for sp in plain["revolute_spectra"] if sp["peak_p_value"] < strict]
     peaks += [(sp["peak_p_value"], sp["joint"], False) for sp in plain["spectra"] if sp["peak_p_value"] < strict]
@@ -775,10 +775,9 @@ def _library_effect_seen(run: _Run) -> dict | None:
     cv, bic, _, _ = cv_rms(run.screen, *cand["columns"])
     peak = _located_peak(run, name, joint)
     drop = 1.0 - cv / run.base_cv
+    if _refuted(run, name, cand, drop, bic):
+        return None
     why = cand["entry"].get("rejected")
-    if why is None:
-        why = next((r["reason"] for r in run.rejected if r["effect"] == name and r.get("stage") in (
-            "nonlinear fit", "validation")), None)
     if why is None and revolute:
         gate = periodic_gate(name, cand["effect"], cand["entry"], plain, run.rows, run.act_jac)
         why = gate["reason"] if gate is not None else None
@@ -808,13 +807,23 @@ def _signature_seen(run: _Run) -> dict | None:
     joint = split_key(key)[1]
     peak = _located_peak(run, name, joint)
     drop = 1.0 - cv / run.base_cv
-    why = run.pool[key]["entry"].get("rejected") or next(
-        (r["reason"] for r in run.rejected if r["effect"] == name and r.get("stage") in ("nonlinear fit", "validation")),
-        None) or _guard_words(drop, bic - run.base_bic)
+    if _refuted(run, name, run.pool[key], drop, bic):
+        return None
+    why = run.pool[key]["entry"].get("rejected") or _guard_words(drop, bic - run.base_bic)
     return {"effect": name, "joint": joint, **{k: v for k, v in peak.items() if k != "joint"},
             "cv_rms_rigid": float(run.base_cv), "cv_rms_with": float(cv), "cv_drop": round(drop, 4),
             "delta_bic": float(bic - run.base_bic), "why_not": why,
             "settling_measurement": settling_measurement(joint or "", peak.get("range_rad"), peak.get("revolute", False))}
+
+
+def _refuted(run: _Run, name: str, cand: dict, drop: float, bic: float) -> bool:
+    """Whether the data speak against a located effect, so that the ``unexplained`` answer keeps its confidence: it
+    does not lower the cross-validated RMS and the BIC by :data:`BIC_DROP`, its estimate leaves its physical prior
+    (``bounded_estimates``: the screening's refusal), or it made the held-out validation worse (the nonlinear fit).
+    What is left unsettled is only the 5 % bar or the order (the spectrum's gate)."""
+    if not (drop > 0.0 and bic < run.base_bic - BIC_DROP) or "bounded_estimates" in cand["entry"]:
+        return True
+    return any(r["effect"] == name and r.get("stage") in ("nonlinear fit", "validation") for r in run.rejected)
 
 
 def _guard_words(drop: float, delta_bic: float) -> str:
