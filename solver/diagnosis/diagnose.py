@@ -511,14 +511,23 @@ def _select(run: _Run, max_effects: int) -> None:
         spiked = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < strict)
         screws = tuple(sp["joint"] for sp in run.plain["spectra"] if sp["peak_p_value"] < strict)
         signed = _significant_signatures(run)
+        best = run.structure["best"] or {}
+
+        def headline(name: str, joint: str) -> bool:
+            """Whether the most significant structure test (what ``where`` names) is this joint's periodic error or
+            this effect's signature: a weak periodic error is not named beside a larger structure it does not
+            explain (an out-of-library coupling of joint 4 with joint 5 shows a 2/rev peak on joint 4 too)."""
+            if best.get("family") == "candidate signature":
+                return best.get("variable") == name
+            return best.get("family") == "joint error" and best.get("kind") == "periodic" and best.get("joint") == joint
 
         def located(key: str) -> bool:
             """A periodic error of a joint whose residual spectrum has a significant peak, or of an effect whose
-            signature test is significant (the structure tests')."""
+            signature test is significant (the structure tests'), that peak or test being what ``where`` names."""
             name, joint = split_key(key)
             periodic = harmonic_order(name) is not None or name == "screw-periodic"
-            return joint is not None and periodic and (name in signed or (joint in spiked if name != "screw-periodic"
-                                                                           else joint in screws))
+            return joint is not None and periodic and headline(name, joint) and (
+                name in signed or (joint in spiked if name != "screw-periodic" else joint in screws))
 
         sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks,
                                 located)
@@ -828,6 +837,10 @@ def _refuted(run: _Run, name: str, cand: dict, drop: float, bic: float) -> bool:
 
 def _guard_words(drop: float, delta_bic: float) -> str:
     """Why a candidate did not pass the selection's guard, in numbers."""
+    if drop >= 1.0 - LOCATED_CV_DROP and delta_bic <= -BIC_DROP:
+        return (f"it lowers the cross-validated RMS by {100 * drop:.1f} %, under the 5 % the selection asks of an "
+                f"effect, and an effect under that bar is taken only when it is the largest structure the tests find "
+                f"(here another: see where)")
     return (f"it lowers the cross-validated RMS by {100 * drop:.1f} % (the selection asks 5 % of an effect, "
             f"{100 * (1 - LOCATED_CV_DROP):.0f} % of one the structure tests locate)"
             + (f" and the BIC by {delta_bic:+.0f} (it asks -{BIC_DROP:.0f})" if delta_bic > -BIC_DROP else ""))
