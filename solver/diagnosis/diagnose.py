@@ -50,7 +50,8 @@ from hyperstat.solver.diagnosis.periodic import (aliased_orders, periodic_gate, 
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
                                                   black_box_ceiling, cv_rms, folds, plugin_guard, region_blocks,
                                                   score_entry, screen_candidates, split_key)
-from hyperstat.solver.diagnosis.selection import forward_selection
+from hyperstat.solver.diagnosis.located import below_guard_words, seen_words, settling_measurement
+from hyperstat.solver.diagnosis.selection import BIC_DROP, LOCATED_CV_DROP, forward_selection
 from hyperstat.solver.diagnosis.observations import oriented, residual_rows, row_view, stack_rows
 from hyperstat.solver.diagnosis.targets import per_target_check, targets_to_check, targets_agree
 from hyperstat.solver.diagnosis.where import (ResidualField, describe_where, spectrum_peaks, structure_tests,
@@ -122,11 +123,14 @@ class Diagnosis:
         moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them), or a
         named effect's parameters lie outside its physical prior in their pattern (``verdict.outside_prior``: a
         ``leg-thermal`` with the change on some legs only, :mod:`.leg_pattern`), or a named periodic error's order
-        is one of two that the joint's range cannot tell apart (``verdict.order_not_established``); ``"high"``
-        otherwise."""
+        is one of two that the joint's range cannot tell apart (``verdict.order_not_established``), or a named
+        effect was taken below the selection's 5 % bar because the structure tests locate it (``verdict.below_guard``,
+        :mod:`.located`), or an ``unexplained`` answer's structure tests locate a library effect on a joint that was
+        not taken (``verdict.library_effect_seen``); ``"high"`` otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
                 or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
-                or self.verdict.get("order_not_established"):
+                or self.verdict.get("order_not_established") or self.verdict.get("below_guard") \
+                or self.verdict.get("library_effect_seen"):
             return "low"
         return "high"
 
@@ -500,7 +504,33 @@ def _select(run: _Run, max_effects: int) -> None:
     run.pool_add = lambda name, joint: _add_atom(run, name, joint)
     if run.significant:
         peaks = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < run.plain["threshold"])
-        sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks)
+        # located: at the threshold of the structure tests with the candidates' signatures (the stricter), so that a
+        # located candidate is always a structured residual: never a campaign answered "no significant gap" or
+        # "understated noise" (both need no structure)
+        strict = run.structure["threshold"]
+        spiked = tuple(sp["joint"] for sp in run.plain["revolute_spectra"] if sp["peak_p_value"] < strict)
+        screws = tuple(sp["joint"] for sp in run.plain["spectra"] if sp["peak_p_value"] < strict)
+        signed = _significant_signatures(run)
+        best = run.structure["best"] or {}
+
+        def headline(name: str, joint: str) -> bool:
+            """Whether the most significant structure test (what ``where`` names) is this joint's periodic error or
+            this effect's signature: a weak periodic error is not named beside a larger structure it does not
+            explain (an out-of-library coupling of joint 4 with joint 5 shows a 2/rev peak on joint 4 too)."""
+            if best.get("family") == "candidate signature":
+                return best.get("variable") == name
+            return best.get("family") == "joint error" and best.get("kind") == "periodic" and best.get("joint") == joint
+
+        def located(key: str) -> bool:
+            """A periodic error of a joint whose residual spectrum has a significant peak, or of an effect whose
+            signature test is significant (the structure tests'), that peak or test being what ``where`` names."""
+            name, joint = split_key(key)
+            periodic = harmonic_order(name) is not None or name == "screw-periodic"
+            return joint is not None and periodic and headline(name, joint) and (
+                name in signed or (joint in spiked if name != "screw-periodic" else joint in screws))
+
+        sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks,
+                                located)
     else:
         sel = {"selected": [], "joints": {}, "columns": {}, "keys": [], "steps": [], "refused": [], "ties": [],
                "pruned": []}
@@ -529,6 +559,7 @@ def _select(run: _Run, max_effects: int) -> None:
     run.order_sets = {split_key(k)[0]: run.aliased[k] for k in sel["keys"] if k in run.aliased
                       and split_key(k)[0] in run.selected}
     run.selection_steps, run.pruned = sel["steps"], sel["pruned"]
+    run.below_guard = [st for st in sel["steps"] if st.get("below_guard")]
     run.effect_joints = {n: list(j) for n, j in sel["joints"].items() if j and n in run.selected}
     run.selected_columns = {n: sel["columns"][n] for n in run.selected}
     for name in run.selected:  # the named effect on the joints of its group
@@ -668,6 +699,18 @@ def _answer(run: _Run) -> Diagnosis:
             f"moved {_cycles_words(u['orders'])} per revolution fit alike; moving joint {u['joint']} over more than "
             f"{2.0 * np.pi / abs(u['orders'][1] - u['orders'][0]):.2g} rad would tell them apart"
             for u in unsettled)
+    if run.significant and outcome in ("explained", "partly explained") and "evidence" in words \
+            and getattr(run, "below_guard", None):
+        info, text = below_guard_words(run.below_guard, selected,
+                                       {st["added"]: _located_peak(run, *split_key(st["added"])) for st in run.below_guard})
+        if info:
+            words["below_guard"] = info
+            words["evidence"] += text
+    if outcome == "unexplained" and run.significant and "evidence" in words:
+        seen = _library_effect_seen(run)
+        if seen is not None:
+            words["library_effect_seen"] = seen
+            words["evidence"] += seen_words(seen)
     moved = [s["effect"] for s in sets if STAND_MOTION in s["members"]]
     if moved and outcome in ("explained", "partly explained"):
         words["stand_motion"] = moved
@@ -680,6 +723,127 @@ def _answer(run: _Run) -> Diagnosis:
                      spectrum_peaks(run.plain), effect_joints={n: j for n, j in run.effect_joints.items()
                                                                if n in selected},
                      selection_steps=run.selection_steps, pruned=run.pruned)
+
+
+def _significant_signatures(run: _Run) -> dict:
+    """Library effect -> its significant signature test among the structure tests of the rigid residual (the effect's
+    columns fitted in sample, F-test below the structure tests' threshold)."""
+    st = run.structure
+    return {t["variable"]: t for t in st["tests"] if t["family"] == "candidate signature"
+            and t["p_value"] < st["threshold"] and is_library_effect(t["variable"])}
+
+
+def _located_peak(run: _Run, name: str, joint: str | None) -> dict:
+    """The significant peak of the rigid residual's spectrum that locates a periodic candidate on ``joint``, else its
+    effect's significant signature test ({} when none)."""
+    thr = run.structure["threshold"]
+    for sp in run.plain["revolute_spectra"]:
+        if sp["joint"] == joint and sp["peak_p_value"] < thr:
+            return {"joint": joint, "p_value": sp["peak_p_value"], "share": sp["peak_share"], "revolute": True,
+                    "order": sp["peak_cycles_per_revolution"], "range_rad": sp["range_rad"]}
+    for sp in run.plain["spectra"]:
+        if sp["joint"] == joint and sp["peak_p_value"] < thr:
+            return {"joint": joint, "p_value": sp["peak_p_value"], "share": sp["peak_share"], "revolute": False,
+                    "period_mm": sp["peak_period_mm"], "range_rad": None}
+    test = _significant_signatures(run).get(name)
+    if test is not None:
+        a = run.data.joints.index(joint) if joint in run.data.joints else None
+        revolute = a is not None and run.mechanism.joints[run.mechanism.actuated[a]].type == "R"
+        return {"joint": joint, "p_value": test["p_value"], "share": test["share"], "revolute": revolute,
+                "signature": name, "range_rad": float(np.ptp(run.rows.q[:, a])) if revolute else None}
+    return {}
+
+
+def _library_effect_seen(run: _Run) -> dict | None:
+    """For an ``unexplained`` answer: the library's periodic effect on the joint whose residual spectrum has the most
+    significant peak (``angle-harmonic-<k>`` at the peak's order, or ``screw-periodic`` at the screw's period), its
+    cross-validated RMS and BIC with it, why it was not taken and what would settle it; None when no spectrum of the
+    rigid residual has a significant peak, or when the data speak against that effect (:func:`_refuted`)."""
+    plain, strict = run.plain, run.structure["threshold"]
+    peaks = [(sp["peak_p_value"], sp["joint"], True) for sp in plain["revolute_spectra"] if sp["peak_p_value"] < strict]
+    peaks += [(sp["peak_p_value"], sp["joint"], False) for sp in plain["spectra"] if sp["peak_p_value"] < strict]
+    if not peaks:
+        return _signature_seen(run)
+    _, joint, revolute = min(peaks)
+    a = run.data.joints.index(joint)
+    if revolute:
+        spec = next(sp for sp in plain["revolute_spectra"] if sp["joint"] == joint)
+        order, _ = refined_order(plain["field"], run.act_jac[:, :, a], run.rows.q[:, a],
+                                 spec["peak_cycles_per_revolution"])
+        if order <= 0:
+            return None
+        name = harmonic_name(order)
+    else:
+        name = "screw-periodic"
+    key = atom_key(name, joint)
+    if key not in run.pool:
+        key = _add_atom(run, name, joint)
+    if key is None:
+        return None
+    cand = run.pool[key]
+    cv, bic, _, _ = cv_rms(run.screen, *cand["columns"])
+    peak = _located_peak(run, name, joint)
+    drop = 1.0 - cv / run.base_cv
+    if _refuted(run, name, cand, drop, bic):
+        return None
+    why = cand["entry"].get("rejected")
+    if why is None and revolute:
+        gate = periodic_gate(name, cand["effect"], cand["entry"], plain, run.rows, run.act_jac)
+        why = gate["reason"] if gate is not None else None
+    if why is None:
+        why = _guard_words(drop, bic - run.base_bic)
+    return {"effect": name, "joint": joint, **{k: v for k, v in peak.items() if k != "joint"},
+            "cv_rms_rigid": float(run.base_cv), "cv_rms_with": float(cv), "cv_drop": round(drop, 4),
+            "delta_bic": float(bic - run.base_bic), "why_not": why,
+            "settling_measurement": settling_measurement(joint, peak.get("range_rad"), revolute)}
+
+
+def _signature_seen(run: _Run) -> dict | None:
+    """For an ``unexplained`` answer without a significant spectral peak: the library periodic effect whose signature
+    test is the most significant (a screw's error whose period the screw spectra miss), on the joint where it lowers
+    the cross-validated RMS most, with the numbers of :func:`_library_effect_seen`."""
+    signed = [(t["p_value"], n) for n, t in _significant_signatures(run).items()
+              if harmonic_order(n) is not None or n == "screw-periodic"]
+    if not signed:
+        return None
+    _, name = min(signed)
+    keys = [k for k in run.pool if split_key(k)[0] == name and split_key(k)[1] is not None] or \
+        ([name] if name in run.pool else [])
+    if not keys:
+        return None
+    scored = sorted((cv_rms(run.screen, *run.pool[k]["columns"])[:2], k) for k in keys)
+    (cv, bic), key = scored[0]
+    joint = split_key(key)[1]
+    peak = _located_peak(run, name, joint)
+    drop = 1.0 - cv / run.base_cv
+    if _refuted(run, name, run.pool[key], drop, bic):
+        return None
+    why = run.pool[key]["entry"].get("rejected") or _guard_words(drop, bic - run.base_bic)
+    return {"effect": name, "joint": joint, **{k: v for k, v in peak.items() if k != "joint"},
+            "cv_rms_rigid": float(run.base_cv), "cv_rms_with": float(cv), "cv_drop": round(drop, 4),
+            "delta_bic": float(bic - run.base_bic), "why_not": why,
+            "settling_measurement": settling_measurement(joint or "", peak.get("range_rad"), peak.get("revolute", False))}
+
+
+def _refuted(run: _Run, name: str, cand: dict, drop: float, bic: float) -> bool:
+    """Whether the data speak against a located effect, so that the ``unexplained`` answer keeps its confidence: it
+    does not lower the cross-validated RMS and the BIC by :data:`BIC_DROP`, its estimate leaves its physical prior
+    (``bounded_estimates``: the screening's refusal), or it made the held-out validation worse (the nonlinear fit).
+    What is left unsettled is only the 5 % bar or the order (the spectrum's gate)."""
+    if not (drop > 0.0 and bic < run.base_bic - BIC_DROP) or "bounded_estimates" in cand["entry"]:
+        return True
+    return any(r["effect"] == name and r.get("stage") in ("nonlinear fit", "validation") for r in run.rejected)
+
+
+def _guard_words(drop: float, delta_bic: float) -> str:
+    """Why a candidate did not pass the selection's guard, in numbers."""
+    if drop >= 1.0 - LOCATED_CV_DROP and delta_bic <= -BIC_DROP:
+        return (f"it lowers the cross-validated RMS by {100 * drop:.1f} %, under the 5 % the selection asks of an "
+                f"effect, and an effect under that bar is taken only when it is the largest structure the tests find "
+                f"(here another: see where)")
+    return (f"it lowers the cross-validated RMS by {100 * drop:.1f} % (the selection asks 5 % of an effect, "
+            f"{100 * (1 - LOCATED_CV_DROP):.0f} % of one the structure tests locate)"
+            + (f" and the BIC by {delta_bic:+.0f} (it asks -{BIC_DROP:.0f})" if delta_bic > -BIC_DROP else ""))
 
 
 def _cycles_words(orders: list) -> str:

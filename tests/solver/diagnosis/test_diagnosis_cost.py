@@ -51,14 +51,14 @@ def test_the_diagnosis_does_not_refit_the_rigid_model_to_name_outliers():
 _pkm_model = pkm_model  # the machine, its analysis and kinematics, once per test process
 
 
-def _pkm_diagnose(arm: str, seed: int, lead: float | None, n_id: int = 60, n_val: int = 20):
+def _pkm_diagnose(arm: str, seed: int, lead: float | None, n_id: int = 60, n_val: int = 20, size: float = 1.0):
     from tests.solver.diagnosis import pkm_generator as pkm
 
     mech, analysis, kin = _pkm_model(arm)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         id_text, val_text, truth = pkm.campaign(pkm.MODELS[arm], "screw-periodic", seed, n_id=n_id, n_val=n_val,
-                                                lead=lead)
+                                                lead=lead, size=size)
         data = parse_measurements(id_text, mech, "id.csv")
         val = parse_measurements(val_text, mech, "val.csv")
         return diagnose(mech, analysis, data, val, kinematics=kin, per_target=False), truth
@@ -82,6 +82,23 @@ def test_a_screw_error_at_twice_per_turn_is_named_at_its_order():
     assert ("assumed: the model declares no metadata.screw_lead" in d.verdict["evidence"]) is not declared
     amp = np.hypot(*[p["estimate"] for p in d.effect_parameters])
     assert abs(amp - truth["value"]) < 0.3 * truth["value"]  # mm
+
+
+def test_a_screw_error_below_the_five_percent_bar_is_named_with_low_confidence():
+    """The same campaign at 0.8 of the error (0.0061 mm at twice per turn of leg 42): the candidate on leg 42 lowers the
+    BIC by about 20 but the cross-validated RMS by less than the selection's 5 %, while the structure tests' signature
+    test of the screw's error is significant.  It is taken at the lower bar for an effect the structure tests locate,
+    on leg 42 at 2 cycles per turn, with a low confidence and words saying it is under the 5 %.  Before: "unexplained"
+    with high confidence, although ``where`` named the signature of screw-periodic (the hexapod's 2/turn error of leg
+    32 at 0.0087 mm over 107 + 30 poses was the same miss: docs/diagnosis.md)."""
+    d, truth = _pkm_diagnose("tripteor_x7", 1, 5.0, size=0.8)
+    assert d.outcome == "explained" and d.named_effects == ["screw-periodic"]
+    assert d.effect_joints["screw-periodic"] == truth["joints"]
+    lead = d.verdict["screw_order"]["lead_mm"]
+    assert d.verdict["screw_order"]["cycles_per_turn"] == lead / truth["lead"]
+    (weak,) = d.verdict["below_guard"]
+    assert weak["joint"] == truth["joints"][0] and 0.02 <= weak["cv_drop"] < 0.05 and weak["delta_bic"] < -10.0
+    assert d.confidence == "low" and "under the 5 % the selection asks" in d.verdict["evidence"]
 
 
 def test_a_screw_error_once_per_turn_is_still_named_at_the_lead():

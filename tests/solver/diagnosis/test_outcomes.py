@@ -143,6 +143,15 @@ def test_three_cycles_over_a_short_range_is_unexplained_with_the_spectrum_peak(t
     assert {"angle-harmonic-1", "angle-harmonic-2"} & set(refused)
     assert all("not established" in why or "does not agree" in why for name, why in refused.items()
                if name.startswith("angle-harmonic"))
+    # the spectrum locates a library effect on that joint: the answer names it, with its cross-validation, why it was
+    # not taken and the range of the joint that would settle it, and it is not given with high confidence (issue 40;
+    # before: "unexplained", confidence high)
+    seen = d.verdict["library_effect_seen"]
+    assert seen["joint"] == truth["joint"] and seen["effect"].startswith("angle-harmonic-")
+    assert seen["why_not"] and seen["settling_measurement"].startswith(f"poses over more than {2 * np.pi:.2g} rad of "
+                                                                      f"joint {truth['joint']}")
+    assert d.confidence == "low" and d.to_dict()["confidence"] == "low"
+    assert f"locate a library effect, {seen['effect']} of joint {truth['joint']}" in d.verdict["evidence"]
     # the plots show the spectrum per revolute joint, with the answer's frequency on the right joint
     from hyperstat.cad_plugin.plots import answered_frequency, revolute_spectra_figure
 

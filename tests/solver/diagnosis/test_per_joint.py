@@ -201,3 +201,25 @@ def test_a_periodic_error_whose_order_the_range_cannot_establish_is_named_as_a_s
     assert f"of joint {truth['joint']}" in sep and span > peak["range_rad"]
     assert d.confidence == "low" and d.to_dict()["confidence"] == "low" and d.ambiguous
     assert "confidence low" in d.verdict["evidence"] and d.verdict["order_not_established"][0]["joint"] == "2"
+
+
+@pytest.mark.parametrize("seed", [7, 9])
+def test_a_weak_periodic_error_the_spectrum_locates_is_named_with_low_confidence(kuka_wide_shoulder, seed):
+    """The same 2/rev error of joint 2 (1.5e-5 rad over about 2.8 rad) on seeds where the order is established or one
+    of two: the candidate on joint 2 alone (2 parameters) lowers the BIC by 20 to 35 but the cross-validated RMS by 3 to
+    4 %, under the selection's 5 % bar, and nothing else passes.  Joint 2's spectrum has a significant peak (the
+    structure tests), so the candidate is taken at the lower bar for an effect they locate, named on joint 2 with the
+    truth in its set, and the answer says it is below the 5 % and lowers its confidence.  Before: "unexplained" with
+    high confidence, although ``where`` named joint 2's error at 2 cycles per revolution."""
+    d, truth = _diagnose(kuka_wide_shoulder, "harmonic", seed, joint=1, order=2.0, amplitude=1.5e-5,
+                         narrow={1: (-180.0, 15.0)})
+    assert d.spectrum_peaks[truth["joint"]]["p_value"] < d.gap_test["structure"]["threshold"]  # located
+    assert d.outcome in ("explained", "partly explained") and len(d.named_effects) == 1
+    named = d.named_effects[0]
+    members = next(s["members"] for s in d.equivalence_sets if s["effect"] == named)
+    assert f"angle-harmonic-{truth['order']:g}" in members and d.effect_joints == {named: [truth["joint"]]}
+    (weak,) = d.verdict["below_guard"]
+    assert weak["effect"] == named and weak["joint"] == truth["joint"]
+    assert 0.02 <= weak["cv_drop"] < 0.05 and weak["delta_bic"] < -10.0  # the 2 % bar, under the 5 %; the BIC's 10
+    assert weak["settling_measurement"].startswith(f"poses over more than {2 * np.pi:.2g} rad of joint 2")
+    assert d.confidence == "low" and "under the 5 % the selection asks" in d.verdict["evidence"]
