@@ -39,7 +39,13 @@ joints' closure Jacobian (their motion is free), the largest violation ``t(q)`` 
 linear programme ``max t`` subject to ``U0^T A (d t + C y) = 0``, ``y`` within the play
 (``A``: closure motion per defect, paper 1 eq. 3; ``d``: one unit of violation; ``C``: the
 play columns), solved by HiGHS through :func:`scipy.optimize.linprog`; many configurations
-and conditions are one block-diagonal programme with one ``t`` per block.
+and conditions are one block-diagonal programme with one ``t`` per block.  For the value alone the
+programme is written on the play set as a zonotope (:meth:`ClearanceModel.generators`): a support's
+regular octagon is the sum of four segments, so ``y = G lam`` with ``lam`` in ``[-1, 1]`` maps the box
+onto the play set exactly, and the programme has only the closure's equality rows and bounded
+variables; ``t`` is scaled by its bound from duality (``u = e / |e|^2``), so that HiGHS' absolute
+tolerance is a relative one on ``t`` (on the revolute Delta's programmes the value agrees to 2e-15 with
+the optimum certified by a primal and a dual solution; the polygon form with ``t`` unscaled, to 1e-6).
 
 **Over the workspace** the value is ``min_q t(q)``, found by the one worst-case engine
 (:func:`hyperstat.solver.tolerances.worst_case.search_extremes`): the given configurations,
@@ -56,6 +62,7 @@ linear programming.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -116,6 +123,51 @@ class ClearanceModel:
     groups: list
     index_of: dict
     sources: dict
+
+    @functools.cached_property
+    def generators(self) -> np.ndarray:
+        """``G`` (n_g, n_lam): the play set is ``{G lam : |lam| <= 1}`` (a zonotope).
+
+        A regular polygon of :data:`POLYGON_SIDES` sides inscribed in the unit disc is the sum of
+        ``POLYGON_SIDES / 2`` segments ``[-g, g]``, ``g = sin(pi / POLYGON_SIDES) (cos phi, sin phi)`` along its
+        edges (``phi = k pi / (POLYGON_SIDES / 2)``): a support's position ``(v1 + s w2, v2 - s w1)``
+        (``"pads"``, ``s = -1, +1``), ``(v1, v2)`` (``"pad"``) or ``(w1, w2)`` (``"disc"``) is such a sum, and
+        a segment is its own variable.  The box ``|y| <= 1`` adds nothing to the polygons (their points have
+        coordinates of at most ``cos(pi / POLYGON_SIDES)``), so the image of the box is the play set.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> m = ClearanceModel(None, np.zeros((0, 2)), np.zeros((0, 2)), 1.0, [], [], [("pad", [0, 1])], {}, {})
+        >>> g = m.generators                          # one support: four segments of an octagon
+        >>> g.shape
+        (2, 4)
+        >>> bool(np.isclose(np.linalg.norm(g @ np.ones(4)), 1.0))   # all at +1: a vertex, on the unit circle
+        True
+        """
+        n_g = self.columns.shape[1]
+        half = POLYGON_SIDES // 2
+        phi = np.pi * np.arange(half) / half
+        seg = math.sin(math.pi / POLYGON_SIDES) * np.stack([np.cos(phi), np.sin(phi)])  # (2, half)
+        cols = []
+        for kind, idx in self.groups:
+            if kind == "pads":  # y = (v1, v2, w1, w2) from the supports p_s = (v1 + s w2, v2 - s w1), s = -1, 1
+                for s in (-1.0, 1.0):
+                    for k in range(half):
+                        col = np.zeros(n_g)
+                        col[idx[0]], col[idx[1]] = seg[0, k] / 2, seg[1, k] / 2
+                        col[idx[3]], col[idx[2]] = s * seg[0, k] / 2, -s * seg[1, k] / 2
+                        cols.append(col)
+            elif kind in ("pad", "disc"):
+                for k in range(half):
+                    col = np.zeros(n_g)
+                    col[idx[0]], col[idx[1]] = seg[0, k], seg[1, k]
+                    cols.append(col)
+            else:
+                col = np.zeros(n_g)
+                col[idx[0]] = 1.0
+                cols.append(col)
+        return np.array(cols).T if cols else np.zeros((n_g, 0))
 
     def use(self, y: np.ndarray) -> dict:
         """Joint -> largest share of its play used by the plays ``y`` (1 = at the clearance)."""
@@ -265,30 +317,147 @@ def _constraint_blocks(model: ClearanceModel, q: np.ndarray, kin: Kinematics | N
 
 
 #: blocks per block-diagonal programme of :func:`_solve`: HiGHS' dual simplex takes superlinear time in the number
-#: of blocks (per block on the revolute Delta: 4.1 ms in programmes of 8 blocks, 4.9 ms of 32, 8.9 ms of 128,
-#: 15.9 ms of 256); each block's maximum is its own, so the grouping changes the time, not the programme
+#: of blocks (per block on the revolute Delta, the polygon form: 4.1 ms in programmes of 8 blocks, 4.9 ms of 32,
+#: 8.9 ms of 128, 15.9 ms of 256); each block's maximum is its own, so the grouping changes the time, not the programme
 LP_GROUP = 8
 
 
-def _solve(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
+def _solve(model: ClearanceModel, pairs: list, plays: bool = False) -> tuple[np.ndarray, list]:
     """Largest violation ``t`` of each ``(U0^T A C, U0^T A d)`` pair: block-diagonal linear programmes.
 
-    Each block has its own plays ``y`` and its own ``t`` (the objective is their sum, so each is its own
+    Each block has its own plays and its own ``t`` (the objective is their sum, so each is its own
     block's maximum); ``t`` is capped at :data:`_UNBOUNDED` (reported as infinite: the plays absorb any
-    small violation to first order).  Returns ``t`` (K,) and the plays of each block (None where unsolved).
-    The blocks are solved :data:`LP_GROUP` at a time.
+    small violation to first order).  Returns ``t`` (K,) and the plays ``y`` of each block (None where
+    unsolved).  The blocks are solved :data:`LP_GROUP` at a time, on the zonotope form of the play set
+    (:func:`_solve_zonotope`); with ``plays`` on its polygon form (:func:`_solve_polygon`), whose vertex
+    names the joints whose play is used up (the value is the same).
     """
     if len(pairs) > LP_GROUP:
         t, ys = np.full(len(pairs), np.inf), []
         for start in range(0, len(pairs), LP_GROUP):
-            t[start:start + LP_GROUP], y = _solve_group(model, pairs[start:start + LP_GROUP])
+            t[start:start + LP_GROUP], y = _solve_group(model, pairs[start:start + LP_GROUP], plays)
             ys += y
         return t, ys
-    return _solve_group(model, pairs)
+    return _solve_group(model, pairs, plays)
 
 
-def _solve_group(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
+def _solve_group(model: ClearanceModel, pairs: list, plays: bool = False) -> tuple[np.ndarray, list]:
     """:func:`_solve` of a few blocks: one block-diagonal linear programme."""
+    return _solve_polygon(model, pairs) if plays else _solve_zonotope(model, pairs)
+
+
+def _felt(cg: np.ndarray, av: np.ndarray) -> float | None:
+    """The scale of a block (largest entry), or None when the violation is not felt at its configuration."""
+    scale = max(float(np.max(np.abs(cg))) if cg.size else 0.0, float(np.max(np.abs(av))) if av.size else 0.0,
+                1e-300)
+    return None if av.size == 0 or float(np.linalg.norm(av)) <= 1e-12 * scale else scale
+
+
+def _solve_zonotope(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
+    """:func:`_solve_group` on the play set as a zonotope: ``max t`` s.t. ``E G lam + e t = 0``, ``|lam| <= 1``.
+
+    ``G`` is :attr:`ClearanceModel.generators` (``E G`` has as many rows as the closure leaves, about 12 on the
+    revolute Delta, against 12 + 336 rows of the polygon form).  ``t = b tau`` with ``b = h(E^T u)`` at
+    ``u = e / |e|^2`` (``h`` the support function of the play set, a sum of ``|g . E^T u|``): by duality
+    ``t <= b``, so ``tau`` is at most 1 and HiGHS' absolute feasibility tolerance (1e-10) is a relative one
+    on ``t``.  The homogeneous programme is feasible at ``lam = 0``: it never fails but for the solver.
+    """
+    from scipy.optimize import linprog
+    from scipy.sparse import block_diag
+
+    k_all = len(pairs)
+    t = np.full(k_all, np.inf)
+    ys: list = [None] * k_all
+    gen = model.generators
+    n_lam = gen.shape[1]
+    eq_blocks, felt, bound = [], [], []
+    for k, (cg, av) in enumerate(pairs):
+        scale = _felt(cg, av)
+        if scale is None:
+            continue  # not felt at this configuration
+        g = cg @ gen
+        b = min(float(np.sum(np.abs(av @ g))) / float(av @ av), _UNBOUNDED)
+        if not b > 0:  # every play moves the closure across the violation: nothing absorbs it
+            t[k], ys[k] = 0.0, np.zeros(gen.shape[0])
+            continue
+        _, s, vt = np.linalg.svd(np.concatenate([g, b * av[:, None]], axis=1) / scale, full_matrices=False)
+        r = int(np.sum(s > 1e-10 * s[0]))
+        eq_blocks.append(vt[:r])  # orthonormal rows: the solver's feasibility tolerance is absolute per row
+        felt.append(k)
+        bound.append(b)
+    if not felt:
+        return t, ys
+    nb = len(felt)
+    # variables: (lam_1, tau_1, lam_2, tau_2, ...); rows: each block's equalities
+    a_eq = block_diag(eq_blocks, format="csc")
+    cost = np.zeros(nb * (n_lam + 1))
+    cost[n_lam::n_lam + 1] = -1.0
+    lower = np.tile(np.r_[np.full(n_lam, -1.0), 0.0], nb)
+    upper = np.concatenate([np.r_[np.full(n_lam, 1.0), _UNBOUNDED / b] for b in bound])
+    x = _highs_direct(cost, a_eq, lower, upper)
+    if x is None:
+        res = linprog(cost, A_eq=a_eq, b_eq=np.zeros(a_eq.shape[0]), bounds=np.stack([lower, upper], axis=1),
+                      method="highs-ds", options={"presolve": False, **_HIGHS_TOLERANCES})
+        x = res.x if res.success else None
+    if x is None:
+        if nb > 1:  # one block at a time (the solver's failure on one block would lose the others)
+            for k in felt:
+                tk, yk = _solve_zonotope(model, [pairs[k]])
+                t[k], ys[k] = tk[0], yk[0]
+            return t, ys
+        return _solve_polygon(model, pairs)
+    x = x.reshape(nb, n_lam + 1)
+    for j, k in enumerate(felt):
+        tk = x[j, -1] * bound[j]
+        t[k] = tk if tk < 0.5 * _UNBOUNDED else np.inf
+        ys[k] = gen @ x[j, :n_lam]
+    return t, ys
+
+
+_HIGHS_TOLERANCES = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+_HIGHS: dict = {}
+
+
+def _highs_direct(cost: np.ndarray, a_eq, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
+    """``min cost . x`` s.t. ``a_eq x = 0``, ``lower <= x <= upper`` by HiGHS' dual simplex, presolve off, called
+    directly: the copy of HiGHS' own Python interface that scipy ships (``scipy.optimize._highspy``, the engine of
+    :func:`scipy.optimize.linprog`), one solver object per process.  :func:`scipy.optimize.linprog` costs 0.6 ms
+    more per block on the revolute Delta (its wrapper reads the basis back column by column); the same HiGHS gives
+    the same bits.  Returns ``x``, or None when that interface is missing (another scipy: the caller uses
+    :func:`~scipy.optimize.linprog`) or the programme is not solved to optimality.
+    """
+    if "highs" not in _HIGHS:
+        try:
+            from scipy.optimize._highspy import _core
+
+            highs = _core._Highs()
+            for key, value in {"output_flag": False, "presolve": "off", "solver": "simplex", "simplex_strategy": 1,
+                               **_HIGHS_TOLERANCES}.items():
+                highs.setOptionValue(key, value)
+            _HIGHS.update(highs=highs, core=_core)
+        except (ImportError, AttributeError, TypeError):  # another scipy: linprog
+            _HIGHS.update(highs=None, core=None)
+    highs, core = _HIGHS["highs"], _HIGHS["core"]
+    if highs is None:
+        return None
+    lp = core.HighsLp()
+    n_row, n_col = a_eq.shape
+    lp.num_col_, lp.num_row_ = n_col, n_row
+    lp.col_cost_, lp.col_lower_, lp.col_upper_ = cost, lower, upper
+    lp.row_lower_ = lp.row_upper_ = np.zeros(n_row)
+    lp.a_matrix_.format_ = core.MatrixFormat.kColwise
+    lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = n_col, n_row
+    lp.a_matrix_.start_, lp.a_matrix_.index_, lp.a_matrix_.value_ = a_eq.indptr, a_eq.indices, a_eq.data
+    highs.clearModel()
+    highs.passModel(lp)
+    highs.run()
+    if highs.getModelStatus() != core.HighsModelStatus.kOptimal:
+        return None
+    return np.array(highs.getSolution().col_value)
+
+
+def _solve_polygon(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
+    """:func:`_solve_group` on the play set as the supports' polygons (``|P y| <= limit``, ``|y| <= 1``)."""
     from scipy.optimize import linprog
     from scipy.sparse import block_diag, csr_matrix
 
@@ -326,7 +495,7 @@ def _solve_group(model: ClearanceModel, pairs: list) -> tuple[np.ndarray, list]:
         # the blocks one by one (rare: only at a configuration where the linearisation fails)
         if nb > 1:
             for j, k in enumerate(felt):
-                tk, yk = _solve_group(model, [pairs[k]])
+                tk, yk = _solve_polygon(model, [pairs[k]])
                 t[k], ys[k] = tk[0], yk[0]
             return t, ys
         t[felt[0]] = 0.0
@@ -471,7 +640,7 @@ class AssemblyConditions(Objective):
                 t[idx] = _violation_dual(self.model, np.stack([pairs[k][0] for k in idx]),
                                          np.stack([pairs[k][1] for k in idx]))
         if lp:
-            tk, yk = _solve(self.model, [pairs[k] for k in lp])
+            tk, yk = _solve(self.model, [pairs[k] for k in lp], plays=exact)
             t[lp] = tk
             for k, y in zip(lp, yk):
                 ys[k] = y

@@ -191,3 +191,39 @@ def test_tripteor_relation_and_shift_confirmed_nonlinearly():
         check = confirm_nonlinear(mech, t.direction, v["value"], v["worst_q"], cl.declaration, model=model)
         assert check["below"]["closure_residual_mm"] < 1e-9 and check["below"]["largest_clearance_use"] <= 1 + 1e-9
         assert check["relative_difference"] < 1e-2, (t.statement, check)
+
+
+def test_the_zonotope_programme_gives_the_polygon_programmes_value(slider):
+    """The value-only programme works on the play set as a sum of segments (``ClearanceModel.generators``); written
+    here independently on the supports' polygons (``|P y| <= limit``, ``|y| <= 1``) with HiGHS, ``t`` in units of
+    the block's own scale so that the solver's absolute tolerance does not limit it, the two agree: the same set
+    (its support function in 40 directions) and the same largest violation at every configuration."""
+    from scipy.optimize import linprog
+
+    from hyperstat.solver.tolerances.clearance import AssemblyConditions, _constraint_blocks, _lift
+
+    mech, result, cl, items, model, values = slider
+    gen = model.generators
+    n_g = model.columns.shape[1]
+    a_ub = np.vstack([model.polygon, -model.polygon])
+    b_ub = np.full(len(a_ub), model.limit)
+    rng = np.random.default_rng(3)
+    for c in rng.normal(size=(40, n_g)):  # support functions: max c.y over the polygons = sum |c . g|
+        res = linprog(-c, A_ub=a_ub, b_ub=b_ub, bounds=[(-1, 1)] * n_g, method="highs-ds")
+        assert float(np.sum(np.abs(c @ gen))) == pytest.approx(-res.fun, rel=1e-9)
+    q = result.configurations[:4]
+    objective = AssemblyConditions(model, items)
+    got = objective.values(q)
+    blocks = _constraint_blocks(model, q)
+    assert all(len(av) == 3 for _, av in blocks)  # three rows left: the programme, not the closed form
+    for t in items:
+        d = _lift(model, t.direction)
+        for k, (cg, a) in enumerate(blocks):
+            av = a @ d
+            unit = np.linalg.norm(cg) / np.linalg.norm(av)  # t = unit * s
+            res = linprog(np.r_[np.zeros(n_g), -1.0], A_eq=np.c_[cg, unit * av], b_eq=np.zeros(len(av)),
+                          A_ub=np.c_[a_ub, np.zeros(len(a_ub))], b_ub=b_ub, bounds=[(-1, 1)] * n_g + [(0, None)],
+                          method="highs-ds", options={"primal_feasibility_tolerance": 1e-10,
+                                                      "dual_feasibility_tolerance": 1e-10})
+            assert res.success
+            assert got[t.id][k] == pytest.approx(unit * res.x[-1], rel=1e-8), (t.statement, k)
