@@ -25,7 +25,7 @@ import numpy as np
 from hyperstat.solver.diagnosis.gap import gap_test, noise_statement
 from hyperstat.solver.diagnosis.where import describe_where, targets_words
 
-__all__ = ["OUTCOMES", "verdict", "format_outcome", "set_words", "BLACK_BOX_NOTHING"]
+__all__ = ["OUTCOMES", "verdict", "format_outcome", "set_words", "BLACK_BOX_NOTHING", "NEAR_STRUCTURE_FACTOR", "near_structure"]
 
 OUTCOMES = ("no significant gap", "explained", "partly explained", "unexplained", "understated noise",
             "over-fitting", "inputs wrong")
@@ -69,8 +69,54 @@ def _stand_in_words(selected: list, cannot_size: list) -> str:
 
 
 def _spectrum_words(rejected: list) -> str:
-    refused = [r for r in rejected if r["stage"] == "spectrum"]
-    return "".join(f"; {r['effect']} was not chosen: {r['reason']}" for r in refused)
+    """The spectrum's refusals in words, each sentence once (a per-joint candidate and its all-joints effect are
+    refused for the same reason, with the same words).
+
+    >>> r = {"effect": "angle-harmonic-2", "stage": "spectrum", "reason": "the order is not established"}
+    >>> _spectrum_words([r, dict(r)])
+    '; angle-harmonic-2 was not chosen: the order is not established'
+    """
+    sentences = [f"; {r['effect']} was not chosen: {r['reason']}" for r in rejected if r["stage"] == "spectrum"]
+    return "".join(dict.fromkeys(sentences))
+
+
+NEAR_STRUCTURE_FACTOR = 10.0
+"""A structure test whose p-value is within this factor of the threshold (family-wise p under 1 % where the
+threshold holds it under 0.1 %) is near-significant: a noise-only residual shows one in about 1 % of campaigns."""
+
+
+def near_structure(structure: dict) -> dict | None:
+    """The strongest structure test when it falls short of the threshold by less than :data:`NEAR_STRUCTURE_FACTOR`.
+
+    The structure tests are judged at a Bonferroni threshold (``threshold = 0.001 / n_tests``); the family-wise
+    p-value of the strongest test is ``min(1, p * n_tests)``. An answer that the excess is noise ("understated
+    noise") is not stated with high confidence when that family-wise p-value is under 1 %: an effect present on a
+    few poses only (an encoder glitch in one sector) looks like this.
+
+    Parameters
+    ----------
+    structure : dict
+        The structure tests' summary (``best`` with its ``p_value``, ``threshold``, ``n_tests``, ``structured``).
+
+    Returns
+    -------
+    dict or None
+        ``{"test", "p_value", "threshold", "family_wise_p"}``, or None when nothing is near the threshold.
+
+    Examples
+    --------
+    >>> s = {"best": {"p_value": 1.5e-5}, "threshold": 0.001 / 294, "n_tests": 294, "structured": False}
+    >>> round(near_structure(s)["family_wise_p"], 4)
+    0.0044
+    >>> near_structure({**s, "best": {"p_value": 1e-3}}) is None
+    True
+    """
+    best = structure.get("best") or {}
+    p, threshold = best.get("p_value"), structure.get("threshold")
+    if structure.get("structured") or p is None or not threshold or p >= NEAR_STRUCTURE_FACTOR * threshold:
+        return None
+    return {"test": best, "p_value": float(p), "threshold": float(threshold),
+            "family_wise_p": float(min(1.0, p * structure.get("n_tests", 1)))}
 
 
 def verdict(data, validation, significant: bool, test: dict, final, selected: list, structure: dict, rest: dict | None,
@@ -167,6 +213,14 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
                            f"and metadata explains {100 * max(bb_share, 0.0):.0f} % of the residual variance under "
                            f"cross-validation. A noise of {out['noise_consistent']['text']} would make the data "
                            f"consistent." + tail)
+        near = near_structure(structure)
+        if near is not None:
+            out["near_structure"] = near
+            out["evidence"] += (f"; confidence low: the strongest pattern, {describe_where(near['test'])}, has "
+                                f"p = {near['p_value']:.2g}, short of the threshold {near['threshold']:.2g} by less "
+                                f"than {NEAR_STRUCTURE_FACTOR:g}x (family-wise p = {near['family_wise_p']:.2g}): an "
+                                f"effect on some poses only looks like this; more poses where it shows would tell it "
+                                f"from noise")
         return "understated noise", out
     if structure["structured"] and not homogeneous:
         out["where"] = (targets_words(structure["targets"]) + "; and "

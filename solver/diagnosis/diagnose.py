@@ -126,11 +126,13 @@ class Diagnosis:
         is one of two that the joint's range cannot tell apart (``verdict.order_not_established``), or a named
         effect was taken below the selection's 5 % bar because the structure tests locate it (``verdict.below_guard``,
         :mod:`.located`), or an ``unexplained`` answer's structure tests locate a library effect on a joint that was
-        not taken (``verdict.library_effect_seen``); ``"high"`` otherwise."""
+        not taken (``verdict.library_effect_seen``), or an ``understated noise`` answer's strongest structure test
+        falls short of its threshold by less than 10x (``verdict.near_structure``, :func:`.answer.near_structure`);
+        ``"high"`` otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
                 or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
                 or self.verdict.get("order_not_established") or self.verdict.get("below_guard") \
-                or self.verdict.get("library_effect_seen"):
+                or self.verdict.get("library_effect_seen") or self.verdict.get("near_structure"):
             return "low"
         return "high"
 
