@@ -784,20 +784,10 @@ def _library_effect_seen(run: _Run) -> dict | None:
         return None
     cand = run.pool[key]
     cv, bic, _, _ = cv_rms(run.screen, *cand["columns"])
-    peak = _located_peak(run, name, joint)
-    drop = 1.0 - cv / run.base_cv
-    if _refuted(run, name, cand, drop, bic):
-        return None
-    why = cand["entry"].get("rejected")
-    if why is None and revolute:
+    gate = None
+    if revolute and cand["entry"].get("rejected") is None:
         gate = periodic_gate(name, cand["effect"], cand["entry"], plain, run.rows, run.act_jac)
-        why = gate["reason"] if gate is not None else None
-    if why is None:
-        why = _guard_words(drop, bic - run.base_bic)
-    return {"effect": name, "joint": joint, **{k: v for k, v in peak.items() if k != "joint"},
-            "cv_rms_rigid": float(run.base_cv), "cv_rms_with": float(cv), "cv_drop": round(drop, 4),
-            "delta_bic": float(bic - run.base_bic), "why_not": why,
-            "settling_measurement": settling_measurement(joint, peak.get("range_rad"), revolute)}
+    return _seen(run, name, joint, cand, cv, bic, gate["reason"] if gate is not None else None, revolute)
 
 
 def _signature_seen(run: _Run) -> dict | None:
@@ -815,16 +805,25 @@ def _signature_seen(run: _Run) -> dict | None:
         return None
     scored = sorted((cv_rms(run.screen, *run.pool[k]["columns"])[:2], k) for k in keys)
     (cv, bic), key = scored[0]
-    joint = split_key(key)[1]
+    return _seen(run, name, split_key(key)[1], run.pool[key], cv, bic, None, None)
+
+
+def _seen(run: _Run, name: str, joint: str | None, cand: dict, cv: float, bic: float, gate_reason: str | None,
+          revolute: bool | None) -> dict | None:
+    """The record of a located library effect that was not taken (``verdict.library_effect_seen``): its peak, its
+    cross-validated RMS and BIC, why it was not taken (the screening's refusal, else the spectrum's gate, else the
+    guard in numbers) and what would settle it; None when the data speak against it (:func:`_refuted`).
+    ``revolute`` None: read from the located peak."""
     peak = _located_peak(run, name, joint)
     drop = 1.0 - cv / run.base_cv
-    if _refuted(run, name, run.pool[key], drop, bic):
+    if _refuted(run, name, cand, drop, bic):
         return None
-    why = run.pool[key]["entry"].get("rejected") or _guard_words(drop, bic - run.base_bic)
+    why = cand["entry"].get("rejected") or gate_reason or _guard_words(drop, bic - run.base_bic)
+    revolute = peak.get("revolute", False) if revolute is None else revolute
     return {"effect": name, "joint": joint, **{k: v for k, v in peak.items() if k != "joint"},
             "cv_rms_rigid": float(run.base_cv), "cv_rms_with": float(cv), "cv_drop": round(drop, 4),
             "delta_bic": float(bic - run.base_bic), "why_not": why,
-            "settling_measurement": settling_measurement(joint or "", peak.get("range_rad"), peak.get("revolute", False))}
+            "settling_measurement": settling_measurement(joint or "", peak.get("range_rad"), revolute)}
 
 
 def _refuted(run: _Run, name: str, cand: dict, drop: float, bic: float) -> bool:
