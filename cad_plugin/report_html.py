@@ -431,6 +431,7 @@ def _diagnosis(doc: dict, images: dict) -> str:
              + f"; selected effects: {_e(', '.join(diag['selected']) or 'none')}.</p>")
     if diag.get("outcome"):
         first += (f"<p>The answer: <b>{_e(diag['outcome'])}</b>"
+                  + (f" (confidence <b>{_e(diag['confidence'])}</b>)" if diag.get("confidence") else "")
                   + (f": {_e(diag['verdict'].get('evidence', ''))}" if diag.get("verdict") else "") + ".</p>")
     rows = [[_e(r["effect"]), _e(r.get("defect") or ""), um(r["cv_rms"]).replace(" µm", ""), f"{r['criterion']:.1f}",
              _e(r.get("note", ""))] for r in diag["ranking"]]

@@ -137,7 +137,9 @@ def render_markdown(doc: dict) -> str:
     if doc["diagnosis"]:
         d = doc["diagnosis"]
         lines += ["", "## Sim-to-real gap", "", f"gap significant: {d['gap_significant']}; selected: "
-                  f"{', '.join(d['selected']) or 'none'}; answer: {d.get('outcome', '-')}", "",
+                  f"{', '.join(d['selected']) or 'none'}; answer: {d.get('outcome', '-')}"
+                  + (f" (confidence {d['confidence']})" if d.get("confidence") else ""),
+                  *(["", d["verdict"]["evidence"]] if (d.get("verdict") or {}).get("evidence") else []), "",
                   "| candidate effect | CV RMS (µm) | ΔBIC vs rigid |", "|---|---|---|"]
         lines += [_row(r["effect"], um(r["cv_rms"]).replace(" µm", ""), number(r["criterion"], ".1f", "-"))
                   for r in d["ranking"]]

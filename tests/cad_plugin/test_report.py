@@ -245,6 +245,10 @@ def test_markdown_and_json_say_the_same(full_report):
     classes = [p["class"] for j in doc["joints"] for p in j["parameters"]]
     assert len(classes) == doc["summary"]["parameters"] == 87
     assert doc["diagnosis"]["selected"][0] == "backlash"
+    d = doc["diagnosis"]  # the confidence and its reasons reach the reader of the Markdown and the HTML
+    assert f"answer: {d['outcome']} (confidence {d['confidence']})" in md
+    assert f"(confidence <b>{d['confidence']}</b>)" in page
+    assert d["verdict"]["evidence"] in md
     assert doc["identification"]["validation"]["rms"] <= 1.3 * doc["identification"]["noise_rms"]
     for r in doc["relations"]:
         assert r["mathml"].startswith("<math")
