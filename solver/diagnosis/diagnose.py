@@ -42,7 +42,8 @@ from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MA
                                                 screw_lead)
 from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_WORDS, bending_alternatives,
                                                     equivalence_sets, gravity_family, stand_motion_family)
-from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting
+from hyperstat.solver.diagnosis.confirmation import CONFIRM_P, validation_confirms
+from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting, weighted_validation
 from hyperstat.solver.diagnosis.leg_pattern import (LEG_OFFSET, LEG_OFFSET_WORDS, leg_offset_family,
                                                     leg_thermal_pattern, prismatic_legs)
 from hyperstat.solver.diagnosis.periodic import (aliased_orders, periodic_gate, refined_order, screw_order,
@@ -613,7 +614,7 @@ def _shrink(run: _Run) -> None:
     rigid, screen, columns = run.rigid, run.screen, run.columns
     run.final, run.selected = _nonlinear_fit(run.mechanism, run.analysis, run.kin, run.data, run.validation,
                                              run.selected, run.effects, rigid.validation, run.rejected, run.ranking,
-                                             rigid)
+                                             rigid, confirm=not run.structure["structured"])
     current_cv = run.base_cv
     if run.selected:
         chosen = run.selected_columns
@@ -908,9 +909,13 @@ def _leg_thermal_words(run: _Run, words: dict, sets: list, others: list) -> None
 
 
 def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, effects: dict, before: dict | None,
-                   rejected: list, ranking: list, rigid: IdentificationResult) -> tuple:
+                   rejected: list, ranking: list, rigid: IdentificationResult, confirm: bool = False) -> tuple:
     """Identify the selected effects with the geometry (full nonlinear fit); an effect whose estimate leaves its
-    domain or prior there, or whose addition makes the validation RMS worse, is removed again (with the reason)."""
+    domain or prior there, or whose addition makes the validation RMS worse, is removed again (with the reason).
+
+    With ``confirm`` (the rigid residuals showed no significant structure: the selection's cross-validation is the
+    only evidence), the held-out poses must also confirm the effects' prediction (:func:`.validation_confirms`);
+    the last effect added is removed until they do."""
     selected = list(selected)
     final = None
     while selected:
@@ -939,6 +944,16 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
             dropped = (selected[-1], "validation",
                        f"adding it made the validation error worse (RMS {1000 * before['rms']:.1f} -> "
                        f"{1000 * final.validation['rms']:.1f} µm)")
+        if dropped is None and confirm and final.validation_residuals is not None \
+                and rigid.validation_residuals is not None:
+            check = validation_confirms(weighted_validation(rigid, validation), weighted_validation(final, validation))
+            if not check["confirmed"]:
+                dropped = (selected[-1], "validation",
+                           f"the held-out poses do not confirm it: the rigid residuals showed no significant "
+                           f"structure, and the validation residuals move along its prediction by only "
+                           f"z = {check['z']:.2g} (one-sided p = {check['p_value']:.2g}, {CONFIRM_P:g} needed; a real "
+                           f"effect of this size would give about {check['prediction']:.2g}); validation RMS "
+                           f"{1000 * before['rms']:.1f} -> {1000 * final.validation['rms']:.1f} µm")
         if dropped is None:
             break
         rejected.append({"effect": dropped[0], "stage": dropped[1], "reason": dropped[2]})

@@ -26,7 +26,7 @@ from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.observations import oriented, residual_rows
 from hyperstat.solver.diagnosis.where import P_THRESHOLD
 
-__all__ = ["gap_test", "noise_statement", "overfitting", "inputs_wrong", "OVERFIT_RATIO"]
+__all__ = ["gap_test", "noise_statement", "overfitting", "inputs_wrong", "weighted_validation", "OVERFIT_RATIO"]
 
 OVERFIT_RATIO = 1.3  #: validation noise factor this many times the identification's (and significant): over-fitting
 FEW_EQUATIONS = 2.0  #: fewer equations per identified parameter than this: over-fitting whatever the factors
@@ -123,6 +123,13 @@ def _rows(result: IdentificationResult, data: MeasurementSet, positions: np.ndar
         resid, w, _, _ = residual_rows(result.model, result.theta, data)
         return resid, w
     return positions, _weights(data)
+
+
+def weighted_validation(result: IdentificationResult, validation: MeasurementSet) -> np.ndarray:
+    """A fit's validation residual rows (positions, and orientations for 6-D data) times their weights: noise of
+    unit variance per row when the file's noise model is right and nothing is missing."""
+    resid, w = _rows(result, validation, result.validation_residuals)
+    return resid * w[:, None]
 
 
 def noise_statement(data: MeasurementSet, factor: float) -> dict:
