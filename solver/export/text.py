@@ -368,7 +368,8 @@ def format_diagnosis(diag) -> str:
     if diag.share_explained is not None:
         lines.append(f"  share of the gap explained: {100 * diag.share_explained:.0f} %")
     c = diag.ceiling
-    if "share_black_box" in c:
-        lines.append(f"  ceiling: a black-box regression of the residuals explains {100 * c['share_black_box']:.0f} % "
-                     f"under the same folds (the selected effects: {100 * c['share_selected']:.0f} %)")
+    if "black_box_share_blocked" in c and "selected_share_blocked" in c:
+        lines.append(f"  ceiling: under the same blocked folds, a black-box regression on joints and metadata removes "
+                     f"{100 * c['black_box_share_blocked']:.0f} % of the rigid residuals' variance (the selected "
+                     f"effects: {100 * c['selected_share_blocked']:.0f} %)")
     return "\n".join(lines) + "\n"
