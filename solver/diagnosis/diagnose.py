@@ -700,7 +700,7 @@ def _answer(run: _Run) -> Diagnosis:
         words["evidence"] += "".join(
             f"; confidence low: a periodic error of joint {u['joint']} fits, but over the {u['range_rad']:.2g} rad it "
             f"moved {_cycles_words(u['orders'])} per revolution fit alike; moving joint {u['joint']} over more than "
-            f"{2.0 * np.pi / abs(u['orders'][1] - u['orders'][0]):.2g} rad would tell them apart"
+            f"{_separating_range(u['orders']):.2g} rad would tell them apart"
             for u in unsettled)
     if run.significant and outcome in ("explained", "partly explained") and "evidence" in words \
             and getattr(run, "below_guard", None):
@@ -849,8 +849,16 @@ def _guard_words(drop: float, delta_bic: float) -> str:
 
 
 def _cycles_words(orders: list) -> str:
-    """``1 and 2 cycles``."""
-    return " and ".join(f"{o:g}" for o in orders) + " cycles"
+    """``1 and 2 cycles``, ``1, 2 and 3 cycles``."""
+    words = [f"{o:g}" for o in orders]
+    return (", ".join(words[:-1]) + " and " + words[-1] if len(words) > 1 else words[0]) + " cycles"
+
+
+def _separating_range(orders: list) -> float:
+    """The range of a joint (rad) over which the closest two of ``orders`` (cycles per revolution) differ by one
+    cycle."""
+    gaps = np.diff(sorted(orders))
+    return float(2.0 * np.pi / max(float(np.min(gaps)), 1e-12)) if len(gaps) else float("inf")
 
 
 def _order_sets(run: _Run, selected: list, sets: list) -> None:
@@ -869,7 +877,7 @@ def _order_sets(run: _Run, selected: list, sets: list) -> None:
         if not others:  # the equivalence check already has it, with its separating measurement
             continue
         s["members"] += others
-        span = 2.0 * np.pi / abs(info["orders"][1] - info["orders"][0])
+        span = _separating_range(info["orders"])
         way = (f"poses over more than {span:.2g} rad of joint {info['joint']} ({' and '.join([name] + others)} "
                f"alias over the {info['range_rad']:.2g} rad it moved)")
         s["separating_measurement"] = "; ".join(w for w in (s["separating_measurement"], way) if w)

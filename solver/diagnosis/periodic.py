@@ -325,13 +325,16 @@ def aliased_orders(why: dict, field: ResidualField, col: np.ndarray, qv: np.ndar
     linear and quadratic trend of the joint) but the range the joint moved cannot tell its order from
     a neighbour's: the candidate's order and the neighbours (``k - 1``, ``k + 1``; for a gear stage's
     order also the integers around it) within :data:`EQUIVALENT_CHI2` of it are returned, when they are
-    two, the spectrum's peak lies between them (within half a cycle per revolution), and the range
-    bounds the order to its neighbours (resolution ``2 pi / range`` below :data:`BOUNDED_RESOLUTION`:
-    orders three apart are resolved; over a shorter range the data's narrow exclusions are not an
-    order's bounds).  Three or
-    more orders that fit alike, a peak elsewhere, or (for an order other than the library's 1 and 2,
-    which the gate also spares that check) a trend that fits as well: None (the order is not even
-    bounded; the answer stays "unexplained" with the peak).
+    two, and the spectrum's peak lies between them (within half a cycle per revolution).  Three or
+    more orders that fit alike, a peak elsewhere, or a trend that fits as well: None (the order is
+    not even bounded; the answer stays "unexplained" with the peak).  The trend check is spared the
+    library's orders 1 and 2 (as in the gate) only where the range bounds an order to its neighbours
+    (resolution ``2 pi / range`` below :data:`BOUNDED_RESOLUTION`: orders three apart are resolved);
+    over a shorter range (a palletiser's joint 2 over 1.9 rad: 3.3 cycles per revolution) a 1 or
+    2/rev error is taken only when the data show it periodic, i.e. better than a quadratic trend of
+    the joint by :data:`EQUIVALENT_CHI2`, and the rivals are every integer order up to one beyond
+    the resolution (not only the neighbours): all those that fit alike are returned (two or more),
+    provided the highest order tried does not (the set is bounded by the data).
 
     >>> rng = np.random.default_rng(1)
     >>> q = rng.uniform(-1.4, 1.4, 200)  # 2.8 rad of the joint: orders closer than 2.2 per revolution alias
@@ -341,24 +344,39 @@ def aliased_orders(why: dict, field: ResidualField, col: np.ndarray, qv: np.ndar
     >>> why = {"order": 2.0, "alias": 1.0, "peak_cycles_per_revolution": 2.0, "resolution_cycles_per_revolution": 2.2}
     >>> aliased_orders({**why, "alias": 0.0}, field, col, q) is None  # a smooth trend fits as well: another case
     True
-    >>> aliased_orders({**why, "resolution_cycles_per_revolution": 4.0}, field, col, q) is None  # range too short
+    >>> q_short = rng.uniform(-0.6, 0.6, 200)  # 1.2 rad: a 1/rev error there is a quadratic trend of the joint
+    >>> offset = col.reshape(600, 1) / np.sqrt(200)  # the geometry's joint offset, projected off as in a diagnosis
+    >>> trend = ResidualField(0.01 * np.sin(q_short + 0.4)[:, None] * np.eye(3)[0] + rng.normal(0, 2e-3, (200, 3)),
+    ...                       np.full(200, 500.0), offset)
+    >>> one = {**why, "order": 1.0, "alias": 2.0, "peak_cycles_per_revolution": 1.0}
+    >>> aliased_orders({**one, "resolution_cycles_per_revolution": 5.2}, trend, col, q_short) is None  # 2 pi / 1.2
     True
+    >>> aliased_orders({**one, "resolution_cycles_per_revolution": 2.0}, trend, col, q_short)  # were the range long
+    [1.0, 2.0]
     >>> aliased_orders(why, field, col, q) is None  # a strong 2/rev: 1 explains far less, the order is established
     True
     """
     k, k2 = why.get("order"), why.get("alias")
-    if k is None or not k2 or not why.get("resolution_cycles_per_revolution", np.inf) < BOUNDED_RESOLUTION:
+    if k is None or not k2:
         return None
+    short = not why.get("resolution_cycles_per_revolution", np.inf) < BOUNDED_RESOLUTION
     scale = field.scale()
     e_k = field.harmonic(col, qv, k)
     x = (qv - qv.mean()) / max(float(np.std(qv)), 1e-300)
     e_t = field.fit(col[:, :, None] * np.column_stack([x, x**2])[:, None, :])[4]
-    if (e_k - e_t) / scale < EQUIVALENT_CHI2 and k not in (1.0, 2.0):
-        return None  # the library's orders 1 and 2 are tried on every revolute without that check (as in the gate)
-    rivals = {k - 1.0, k + 1.0} | ({float(np.floor(k)), float(np.ceil(k))} if abs(k - round(k)) > 1e-9 else set())
+    if (e_k - e_t) / scale < EQUIVALENT_CHI2 and (short or k not in (1.0, 2.0)):
+        return None  # the library's orders 1 and 2 are tried on every revolute without that check (as in the gate),
+        # but over a range shorter than BOUNDED_RESOLUTION allows, the data must show a periodic error, not a trend
+    gear = {float(np.floor(k)), float(np.ceil(k))} if abs(k - round(k)) > 1e-9 else set()
+    if short:  # every integer order up to one beyond the resolution: the set must be bounded by an order that fails
+        res = why["resolution_cycles_per_revolution"]
+        rivals = {float(o) for o in range(1, int(np.ceil(k + res)) + 1)} | gear
+    else:
+        rivals = {k - 1.0, k + 1.0} | gear
     fits = sorted({k} | {o for o in rivals if o >= 0.5 and o != k
                          and (e_k - field.harmonic(col, qv, o)) / scale < EQUIVALENT_CHI2})
     peak = why.get("peak_cycles_per_revolution")
-    if len(fits) != 2 or peak is None or not fits[0] - 0.5 <= peak <= fits[1] + 0.5:
+    if len(fits) < 2 or (not short and len(fits) != 2) or (short and max(rivals) in fits) or peak is None \
+            or not fits[0] - 0.5 <= peak <= fits[-1] + 0.5:
         return None
     return [float(o) for o in fits]
