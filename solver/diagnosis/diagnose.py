@@ -124,7 +124,7 @@ class Diagnosis:
         moving during the campaign (``stand-motion`` in its set: no measurement of the file separates them), or a
         named effect's parameters lie outside its physical prior in their pattern (``verdict.outside_prior``: a
         ``leg-thermal`` with the change on some legs only, :mod:`.leg_pattern`), or a named periodic error's order
-        is one of two that the joint's range cannot tell apart (``verdict.order_not_established``), or a named
+        is one of two or more that the joint's range cannot tell apart (``verdict.order_not_established``), or a named
         effect was taken below the selection's 5 % bar because the structure tests locate it (``verdict.below_guard``,
         :mod:`.located`), or an ``unexplained`` answer's structure tests locate a library effect on a joint that was
         not taken (``verdict.library_effect_seen``), or an ``understated noise`` answer's strongest structure test
