@@ -25,7 +25,8 @@ import numpy as np
 from hyperstat.solver.diagnosis.gap import gap_test, noise_statement
 from hyperstat.solver.diagnosis.where import describe_where, targets_words
 
-__all__ = ["OUTCOMES", "verdict", "format_outcome", "set_words", "BLACK_BOX_NOTHING", "NEAR_STRUCTURE_FACTOR", "near_structure"]
+__all__ = ["OUTCOMES", "verdict", "format_outcome", "set_words", "BLACK_BOX_NOTHING", "NEAR_STRUCTURE_FACTOR", "near_structure",
+           "worst_noise_factor", "row_type_words"]
 
 OUTCOMES = ("no significant gap", "explained", "partly explained", "unexplained", "understated noise",
             "over-fitting", "inputs wrong")
@@ -119,6 +120,38 @@ def near_structure(structure: dict) -> dict | None:
             "family_wise_p": float(min(1.0, p * structure.get("n_tests", 1)))}
 
 
+def worst_noise_factor(test: dict) -> float:
+    """The larger noise factor of a gap test's identification and validation rows (dimensionless).
+
+    A 6-D gap test also holds ``row_types`` (the position and orientation rows tested apart), which is no set of
+    rows with one factor of its own: it is not read.
+
+    >>> worst_noise_factor({"identification": {"noise_factor": 1.3}, "validation": {"noise_factor": 1.6},
+    ...                     "row_types": {"identification": {}, "significant": False}, "threshold": 5e-4})
+    1.6
+    """
+    return max(test[k]["noise_factor"] for k in ("identification", "validation") if k in test)
+
+
+def row_type_words(test: dict) -> str:
+    """For a 6-D gap test significant only in one kind of rows, which rows and their p-values (else ``""``).
+
+    >>> t = {"identification": {"p_value": 0.21}, "significant_by": "row types",
+    ...      "row_types": {"positions": {"validation": {"p_value": 0.89}},
+    ...                    "orientations": {"identification": {"p_value": 0.49}, "validation": {"p_value": 1.3e-4}},
+    ...                    "threshold": 2.5e-4, "significant": True}}
+    >>> row_type_words(t)
+    ' (the orientation rows alone: validation p = 0.00013, threshold 0.00025)'
+    """
+    kinds = test.get("row_types") or {}
+    if test.get("significant_by") != "row types" or not kinds.get("significant"):
+        return ""
+    parts = [f"the {kind[:-1]} rows alone: {rows} p = {entry[rows]['p_value']:.2g}"
+             for kind in ("positions", "orientations") for rows in ("identification", "validation")
+             if rows in (entry := kinds.get(kind, {})) and entry[rows]["p_value"] < kinds["threshold"]]
+    return f" ({'; '.join(parts)}, threshold {kinds['threshold']:.2g})" if parts else ""
+
+
 def verdict(data, validation, significant: bool, test: dict, final, selected: list, structure: dict, rest: dict | None,
             ceiling: dict, noise: float | None, share, sets: list, rejected: list, cannot_size: list,
             overfit: dict | None, wrong_inputs: dict | None) -> tuple[str, dict]:
@@ -166,10 +199,11 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
         out["where"] = describe_where(rest["best"], structure["revolute_spectra"]) if rest["structured"] else None
         out["remaining_structure"] = {k: rest[k] for k in ("best", "structured", "isotropy", "isotropic",
                                                            "threshold", "n_tests")}
-        factor = max(v["noise_factor"] for k, v in after.items() if isinstance(v, dict))
+        factor = worst_noise_factor(after)
         out["evidence"] = (f"a gap remains after adding {' + '.join(selected)}: "
                            + ", ".join(f"{k} p = {after[k]['p_value']:.2g}" for k in ("identification", "validation")
                                        if k in after)
+                           + row_type_words(after)
                            + (f"; validation RMS {1000 * val['rms']:.1f} µm against a noise RMS {1000 * noise:.1f} µm "
                               f"({1000 * remaining:.1f} µm above it in quadrature)" if remaining is not None else ""))
         if ambiguous:
@@ -200,6 +234,17 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
     if overfit is not None:
         out["overfitting"] = overfit
         out["evidence"] = overfit["evidence"] + tail
+        held = test.get("validation")
+        if held is not None and held["p_value"] < test["threshold"]:
+            # the validation gap test already inflates the noise by the fitted model's own uncertainty (1 + rank/3K):
+            # an excess beyond it is more than over-fitting predicts, and a missing effect is not excluded
+            out["effect_not_excluded"] = {"validation_p_value": held["p_value"], "threshold": test["threshold"],
+                                          "variance_inflation": held.get("variance_inflation")}
+            out["evidence"] += (f"; confidence low: the held-out excess is more than the fitted model's own "
+                                f"uncertainty accounts for (validation p = {held['p_value']:.2g} with the noise "
+                                f"inflated {held.get('variance_inflation', 1.0):.2f} x, threshold "
+                                f"{test['threshold']:.1g}), so a missing effect is not excluded: with more poses "
+                                f"(or fewer parameters) diagnose again")
         return "over-fitting", out
     if not structure["structured"] and structure["isotropic"] and homogeneous and bb_share < BLACK_BOX_NOTHING:
         out["noise_consistent"] = noise_statement(data, factor)

@@ -128,12 +128,14 @@ class Diagnosis:
         effect was taken below the selection's 5 % bar because the structure tests locate it (``verdict.below_guard``,
         :mod:`.located`), or an ``unexplained`` answer's structure tests locate a library effect on a joint that was
         not taken (``verdict.library_effect_seen``), or an ``understated noise`` answer's strongest structure test
-        falls short of its threshold by less than 10x (``verdict.near_structure``, :func:`.answer.near_structure`);
-        ``"high"`` otherwise."""
+        falls short of its threshold by less than 10x (``verdict.near_structure``, :func:`.answer.near_structure`),
+        or an ``over-fitting`` answer's held-out excess is beyond what the fitted model's own uncertainty accounts
+        for (``verdict.effect_not_excluded``: a missing effect is not excluded); ``"high"`` otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
                 or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
                 or self.verdict.get("order_not_established") or self.verdict.get("below_guard") \
-                or self.verdict.get("library_effect_seen") or self.verdict.get("near_structure"):
+                or self.verdict.get("library_effect_seen") or self.verdict.get("near_structure") \
+                or self.verdict.get("effect_not_excluded"):
             return "low"
         return "high"
 
