@@ -104,7 +104,8 @@ def write_outputs(out: Path, only: list | None, sizes: bool, corpus: bool = Fals
             if proc.returncode != 0:
                 raise SystemExit(f"{name} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
             for f in files:
-                text = (work / f).read_text().replace(str(work), "<work>")
+                # the temporary folder and the checkout's own path (two checkouts compared) are not answers
+                text = (work / f).read_text().replace(str(work), "<work>").replace(str(ROOT), "<root>")
                 (out / f.replace("/", "-")).write_text(text)
             print(f"{name}: {', '.join(files)}", flush=True)
 
