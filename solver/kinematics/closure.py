@@ -113,9 +113,9 @@ class AssemblyResult:
     residual: np.ndarray
     converged: np.ndarray
     certificate: BranchCertificate | None = None
-    #: the kinematic state at ``q`` (frames, residual, output pose; no Jacobians) that :meth:`Kinematics.assemble`
-    #: evaluated for ``residual``: the same arrays ``evaluate(q, xi, jacobians=False)`` gives (``None`` elsewhere)
-    state: "KinematicState | None" = None
+    #: the output poses (K, 4, 4) at ``q`` that :meth:`Kinematics.assemble` evaluated with ``residual``: the same
+    #: values ``evaluate(q, xi, jacobians=False).output_pose`` gives, a copy (``None`` elsewhere): no frame is kept
+    output_pose: np.ndarray | None = None
 
 
 class _LazyElementFrames(Mapping):
@@ -690,7 +690,7 @@ class Kinematics:
         if len(self.mechanism.closures) == 0 or len(passive) == 0:
             st = self.evaluate(q, xi, jacobians=False)
             res = self.residual_norm(st.residual)
-            return AssemblyResult(q, res, res <= tol * self.length_scale, state=st)
+            return AssemblyResult(q, res, res <= tol * self.length_scale, output_pose=np.array(st.output_pose))
         types = np.array([self.mechanism.joints[i].type for i in passive])
         step_cap = np.where(types == "R", max_step, max_step * self.length_scale)
         active = np.ones(q.shape[0], dtype=bool)
@@ -721,7 +721,7 @@ class Kinematics:
             active[idx[done]] = False
         st = self.evaluate(q, xi, jacobians=False, _elements=every)
         res = self.residual_norm(st.residual)
-        return AssemblyResult(q, res, res <= 1e-7 * self.length_scale, state=st)
+        return AssemblyResult(q, res, res <= 1e-7 * self.length_scale, output_pose=np.array(st.output_pose))
 
     def scaled_rows(self, jac: np.ndarray) -> np.ndarray:
         """Jacobian with rotation rows multiplied by the length scale."""

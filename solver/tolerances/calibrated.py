@@ -152,7 +152,7 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     def assembled(q0: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         # the assembled configurations and their output poses (the assembly's last evaluation at them)
         res = kin.assemble(q0, xi)
-        return res.q, res.state.output_pose
+        return res.q, res.output_pose
 
     # the true machines' measurements
     qc = np.tile(q_cal, (n_m, 1))
