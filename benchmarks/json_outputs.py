@@ -63,10 +63,10 @@ def _commands(work: Path, data: Path, sizes: bool, corpus: bool = False) -> dict
         out[f"analyze-{name}"] = (["analyze", t / f"{name}.py", "--json", work / f"analyze-{name}.json"],
                                   [f"analyze-{name}.json"])
     # the searched worst cases, allocations, bounds and drawings of more mechanisms (issue 39: the values stage)
-    for name in ("slider_crank", "planar_3rrr"):
+    for name in ("slider_crank", "planar_3rrr", "triflex_ii", "scara", "five_bar"):
         out[f"report-{name}"] = (["report", t / f"{name}.py", "--out", work / f"report-{name}", "--date", "2026-01-01",
                                   "--json-only"], [f"report-{name}/report.json"])
-    for name in ("slider_crank", "tripteor_x7", "planar_3rrr"):
+    for name in ("slider_crank", "tripteor_x7", "planar_3rrr", "triflex_ii", "scara", "five_bar"):
         out[f"accuracy-{name}"] = (["accuracy", t / f"{name}.py", "--json", work / f"accuracy-{name}.json"],
                                    [f"accuracy-{name}.json"])
     if corpus:  # the revolute Delta of the corpus (47 assembly conditions): minutes of CPU
@@ -104,7 +104,8 @@ def write_outputs(out: Path, only: list | None, sizes: bool, corpus: bool = Fals
             if proc.returncode != 0:
                 raise SystemExit(f"{name} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
             for f in files:
-                text = (work / f).read_text().replace(str(work), "<work>")
+                # the temporary folder and the checkout's own path (two checkouts compared) are not answers
+                text = (work / f).read_text().replace(str(work), "<work>").replace(str(ROOT), "<root>")
                 (out / f.replace("/", "-")).write_text(text)
             print(f"{name}: {', '.join(files)}", flush=True)
 
@@ -157,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, help="folder for the JSON outputs")
     ap.add_argument("--only", action="append", help="one command of the list (repeatable)")
+    ap.add_argument("--values", action="store_true",
+                    help="only the commands whose JSON the tolerance values stage writes (accuracy, report)")
     ap.add_argument("--with-100k", action="store_true", help="also the 100,000-configuration accuracy")
     ap.add_argument("--with-corpus", action="store_true", help="also the report and accuracy of the corpus' delta_r")
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("A", "B"), help="compare two output folders")
@@ -165,7 +168,11 @@ def main(argv: list[str] | None = None) -> int:
         return compare(*args.compare)
     if not args.out:
         ap.error("--out or --compare is required")
-    write_outputs(args.out, args.only, args.with_100k, args.with_corpus)
+    only = args.only
+    if args.values:
+        only = (only or []) + [n for n in _commands(Path("w"), Path("d"), args.with_100k, args.with_corpus)
+                               if n.startswith(("accuracy", "report"))]
+    write_outputs(args.out, only, args.with_100k, args.with_corpus)
     return 0
 
 

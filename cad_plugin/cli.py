@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 from hyperstat.solver import cli as solver_cli
@@ -219,7 +220,9 @@ def _cmd_report(args) -> int:
                                       lambda: sample_workspace(mech, 200, seed=0, kinematics=kin))
             if len(workspace) == 0:
                 workspace = result.configurations
-            cached_values(args, tolerances, mech, kin, workspace, assign_values, on_miss=start_pages,
+            # the values with calibration on the second core, beside the searches (the same values)
+            cached_values(args, tolerances, mech, kin, workspace, partial(assign_values, background=True),
+                          on_miss=start_pages,
                           position_accuracy=args.position_accuracy, orientation_accuracy=args.orientation_accuracy,
                           assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
             accuracy = report_section(mech, result, kin)

@@ -113,6 +113,9 @@ class AssemblyResult:
     residual: np.ndarray
     converged: np.ndarray
     certificate: BranchCertificate | None = None
+    #: the output poses (K, 4, 4) at ``q`` that :meth:`Kinematics.assemble` evaluated with ``residual``: the same
+    #: values ``evaluate(q, xi, jacobians=False).output_pose`` gives, a copy (``None`` elsewhere): no frame is kept
+    output_pose: np.ndarray | None = None
 
 
 class _LazyElementFrames(Mapping):
@@ -227,13 +230,15 @@ class Kinematics:
                 raise ValueError(f"xi must have 1 or {k} rows (one per configuration), got {xi.shape[0]}.")
         return q, xi
 
-    def element_matrices(self, xi: np.ndarray | None = None) -> dict:
+    def element_matrices(self, xi: np.ndarray | None = None, keys=None) -> dict:
         """Matrix ``D(xi)`` of every element for one defect vector (rad / mm), shape (4, 4).
 
         Parameters
         ----------
         xi : ndarray, (n_xi,), optional
             Defects; the nominal geometry if omitted.
+        keys : iterable of (chain, element), optional
+            Only these elements (default: all).
 
         Returns
         -------
@@ -243,7 +248,8 @@ class Kinematics:
         _, xi2 = self._broadcast(np.zeros((1, self.n_q)), xi)
         if xi2.shape[0] != 1:
             raise ValueError("element_matrices takes one defect vector.")
-        return {key: self._element_matrix(info, xi2)[0][0] for key, info in self._elements.items()}
+        elements = self._elements if keys is None else {key: self._elements[key] for key in keys}
+        return {key: self._element_matrix(info, xi2)[0][0] for key, info in elements.items()}
 
     def plan(self, xi: np.ndarray | None = None) -> FramePlan:
         """The lean batched forward model (:class:`hyperstat.solver.kinematics.fastfk.FramePlan`) for one geometry.
@@ -362,8 +368,12 @@ class Kinematics:
         return make_transform(rot, info["p0"] + dp), extra
 
     # ------------------------------------------------------------------ evaluation
-    def _walk(self, q: np.ndarray, xi: np.ndarray) -> tuple[dict, dict, dict, dict, dict]:
-        """Element-by-element forward pass: frames, closing ends, parents, L frames, extras."""
+    def _walk(self, q: np.ndarray, xi: np.ndarray, elements: tuple | None = None) -> tuple[dict, dict, dict, dict, dict]:
+        """Element-by-element forward pass: frames, closing ends, parents, L frames, extras.
+
+        ``elements``: :meth:`_all_element_matrices` of ``xi`` computed before (an assembly's iterations keep their
+        defects), or ``None`` to compute them here.
+        """
         m = self.mechanism
         k = q.shape[0]
         frames: dict[str, np.ndarray] = {m.base: np.broadcast_to(np.eye(4), (k, 4, 4))}
@@ -371,7 +381,7 @@ class Kinematics:
         parents: dict[tuple[int, int], np.ndarray] = {}
         lframes: dict[tuple[int, int], np.ndarray] = {}
         extras: dict[tuple[int, int], dict] = {}
-        mats, mat_extras = self._all_element_matrices(xi)
+        mats, mat_extras = self._all_element_matrices(xi) if elements is None else elements
         for ci in self._order:
             chain = m.chains[ci]
             t = frames[chain.start]
@@ -504,7 +514,7 @@ class Kinematics:
         return tw_q
 
     def evaluate(
-        self, q: np.ndarray, xi: np.ndarray | None = None, jacobians: bool | str = True
+        self, q: np.ndarray, xi: np.ndarray | None = None, jacobians: bool | str = True, _elements: tuple | None = None
     ) -> KinematicState:
         """Frames, closure residuals and (optionally) Jacobians at configurations ``q``.
 
@@ -517,6 +527,9 @@ class Kinematics:
         jacobians : bool or "joints"
             Also compute ``dr/dxi``, ``dr/dq`` and the output Jacobians; ``"joints"``
             computes only ``dr/dq`` (what assembly needs).
+        _elements : tuple, optional
+            Internal: the element matrices of ``xi`` (one defect vector per configuration) computed before,
+            used where the element-by-element pass runs (:meth:`assemble`'s iterations keep their defects).
 
         Returns
         -------
@@ -542,7 +555,7 @@ class Kinematics:
             fast_full = (run.joint_twists, self._plan_defect_twists(plan, xi[0], run.parents))
             lframes = _LazyElementFrames(self, q, xi)
         else:
-            frames, closing_end, parents, lframes, extras = self._walk(q, xi)
+            frames, closing_end, parents, lframes, extras = self._walk(q, xi, _elements)
 
         closures = m.closures
         residual = np.zeros((k, 6 * len(closures)))
@@ -677,16 +690,23 @@ class Kinematics:
         if len(self.mechanism.closures) == 0 or len(passive) == 0:
             st = self.evaluate(q, xi, jacobians=False)
             res = self.residual_norm(st.residual)
-            return AssemblyResult(q, res, res <= tol * self.length_scale)
+            return AssemblyResult(q, res, res <= tol * self.length_scale, output_pose=np.array(st.output_pose))
         types = np.array([self.mechanism.joints[i].type for i in passive])
         step_cap = np.where(types == "R", max_step, max_step * self.length_scale)
         active = np.ones(q.shape[0], dtype=bool)
         prev = np.full(q.shape[0], np.inf)
+        # one defect vector per configuration (simulated machines): the element matrices depend on the defects
+        # only, so they are computed once for every iteration (the same arithmetic row by row: the same bits)
+        every = None
+        if xi is not None and np.ndim(xi) == 2 and len(xi) == len(q) > 1:
+            xi = np.asarray(xi, dtype=float)
+            every = self._all_element_matrices(xi)
         for _ in range(max_iter):
             idx = np.nonzero(active)[0]
             if idx.size == 0:
                 break
-            st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), "joints")
+            st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), "joints",
+                               _elements=_element_rows(every, idx, len(q)))
             r = self.scaled(st.residual)
             b = self.scaled_rows(st.closure_q[:, :, passive])
             dq = -batched_lstsq(b, r[..., None])[..., 0]
@@ -699,9 +719,9 @@ class Kinematics:
             done = (stepn < tol) | (rn < 1e-13 * self.length_scale) | stalled
             prev[idx] = rn
             active[idx[done]] = False
-        st = self.evaluate(q, xi, jacobians=False)
+        st = self.evaluate(q, xi, jacobians=False, _elements=every)
         res = self.residual_norm(st.residual)
-        return AssemblyResult(q, res, res <= 1e-7 * self.length_scale)
+        return AssemblyResult(q, res, res <= 1e-7 * self.length_scale, output_pose=np.array(st.output_pose))
 
     def scaled_rows(self, jac: np.ndarray) -> np.ndarray:
         """Jacobian with rotation rows multiplied by the length scale."""
@@ -822,6 +842,15 @@ class Kinematics:
         return AssemblyResult(q, res, converged, cert)
 
 
+def _element_rows(elements: tuple | None, idx: np.ndarray, k: int) -> tuple | None:
+    """The rows ``idx`` of :meth:`Kinematics._all_element_matrices`' output for ``k`` configurations (all: as is)."""
+    if elements is None or len(idx) == k:
+        return elements
+    mats, extras = elements
+    return ({key: d[idx] for key, d in mats.items()},
+            {key: {name: v[idx] for name, v in e.items()} for key, e in extras.items()})
+
+
 #: a loop's members are taken as column runs (:func:`_member_runs`) when at most this share of the
 #: (loop, column) weights is non-zero (the hexapod's defects: 31 %; the Triflex-II's: 63 %, dense)
 SPARSE_MEMBERS = 0.5
@@ -858,8 +887,12 @@ def _loop_rows(tw_t: np.ndarray, p: np.ndarray, weights: np.ndarray, out: np.nda
     """
     w0, w1, w2 = tw_t[:, 0], tw_t[:, 1], tw_t[:, 2]  # (K, m)
     px, py, pz = p[:, 0, None], p[:, 1, None], p[:, 2, None]  # (K, 1)
-    out[:, :3] = tw_t[:, :3]
-    np.subtract(tw_t[:, 3], py * w2 - pz * w1, out=out[:, 3])
-    np.subtract(tw_t[:, 4], pz * w0 - px * w2, out=out[:, 4])
-    np.subtract(tw_t[:, 5], px * w1 - py * w0, out=out[:, 5])
-    out *= weights[None, None, :]
+    # computed in a contiguous block, written once into ``out`` (a strided view of a large array: each pass over
+    # it costs more than the arithmetic); the same products, differences and weights as before, bit for bit
+    block = np.empty(out.shape)
+    block[:, :3] = tw_t[:, :3]
+    np.subtract(tw_t[:, 3], py * w2 - pz * w1, out=block[:, 3])
+    np.subtract(tw_t[:, 4], pz * w0 - px * w2, out=block[:, 4])
+    np.subtract(tw_t[:, 5], px * w1 - py * w0, out=block[:, 5])
+    block *= weights[None, None, :]
+    out[...] = block

@@ -70,9 +70,12 @@ def _targets(decl) -> np.ndarray:
     return np.asarray(decl.targets_mm, dtype=float)
 
 
-def _measure(kin: Kinematics, q: np.ndarray, xi: np.ndarray, decl) -> tuple[np.ndarray, np.ndarray | None]:
-    """Measured positions (K, 3 n_t) of every target (mm), and the output rotations (K, 3, 3) for ``poses``."""
-    pose = kin.evaluate(q, xi, jacobians=False).output_pose
+def _measure(kin: Kinematics, q: np.ndarray, xi: np.ndarray, decl,
+             pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Measured positions (K, 3 n_t) of every target (mm), and the output rotations (K, 3, 3) for ``poses``.
+
+    ``pose``: the output poses at ``q`` (K, 4, 4) when already evaluated (an assembly's last state)."""
+    pose = kin.evaluate(q, xi, jacobians=False).output_pose if pose is None else pose
     points = np.concatenate([pose[:, :3, :3] @ t + pose[:, :3, 3] for t in _targets(decl)], axis=1)
     return points, (pose[:, :3, :3] if decl.measurement_kind == "poses" else None)
 
@@ -146,14 +149,16 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     n_s = basis.shape[1]
     act = np.asarray(m.actuated)
 
-    def assembled(q0: np.ndarray, xi: np.ndarray) -> np.ndarray:
-        return kin.assemble(q0, xi).q
+    def assembled(q0: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        # the assembled configurations and their output poses (the assembly's last evaluation at them)
+        res = kin.assemble(q0, xi)
+        return res.q, res.output_pose
 
     # the true machines' measurements
     qc = np.tile(q_cal, (n_m, 1))
     xc = np.repeat(xi_true, k_c, axis=0)
-    qe = assembled(qc, xc)
-    y = _measure(kin, qe, xc, decl)
+    qe, pose_e = assembled(qc, xc)
+    y = _measure(kin, qe, xc, decl, pose_e)
     # Gauss-Newton over (admissible coordinates, nuisances); the nuisances enter linearly (tracker frame as a
     # small rigid motion, offsets in the output frame), so their columns are those of the analysis' design.  The
     # fit runs over the combinations the measurements see on the nominal machine (the identifiable subspace, as
@@ -171,13 +176,13 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         x = coef @ seen.T
         xi_est = (basis @ x[:, :n_s].T).T * pscale[None, :]
         xe = np.repeat(xi_est, k_c, axis=0)
-        qe = assembled(qe, xe)
+        qe, pose_e = assembled(qe, xe)
         st = kin.evaluate(qe, xe, jacobians=True)
         k_xi, _ = output_twist_maps(kin, st)
         meas_xi, nuisance, _ = _measurement_maps(decl, st, k_xi, ls, pscale)
         jac = (meas_xi @ basis).reshape(n_m, k_c, -1, n_s).reshape(n_m, -1, n_s)
         nj = nuisance.reshape(n_m, k_c * nuisance.shape[1], -1)
-        resid = _misfit(y, _measure(kin, qe, xe, decl), ls).reshape(n_m, -1) - np.einsum("krn,kn->kr", nj, x[:, n_s:])
+        resid = _misfit(y, _measure(kin, qe, xe, decl, pose_e), ls).reshape(n_m, -1) - np.einsum("krn,kn->kr", nj, x[:, n_s:])
         full = np.concatenate([jac, nj], axis=2) @ seen
         coef += batched_lstsq(full, resid[..., None], damping=1e-14)[..., 0]
     xi_est = (basis @ (coef @ seen.T)[:, :n_s].T).T * pscale[None, :]
@@ -193,9 +198,8 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     tscale = _task_scale(decl, ls)
     todo = np.arange(len(qt))
     for it in range(CHORD_STEPS + iterations):
-        qt[todo] = assembled(qt[todo], xt[todo])
+        qt[todo], pose = assembled(qt[todo], xt[todo])
         if it < CHORD_STEPS:
-            pose = kin.evaluate(qt[todo], xt[todo], jacobians=False).output_pose
             rhs = -np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal[todo]))
             done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
             da = np.einsum("kar,kr->ka", chord[todo], rhs)
@@ -210,12 +214,10 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         todo = todo[~done]
         if not len(todo):
             break
-    qt = assembled(qt, xt)
-    pose = kin.evaluate(qt, xt, False).output_pose
+    qt, pose = assembled(qt, xt)
     reached = np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal))
     reached = np.linalg.norm(reached * tscale[None, :], axis=1) <= 1e-9
-    qt = assembled(qt, np.repeat(xi_true, k_t, axis=0))
-    true_pose = kin.evaluate(qt, np.repeat(xi_true, k_t, axis=0), jacobians=False).output_pose
+    qt, true_pose = assembled(qt, np.repeat(xi_true, k_t, axis=0))
     err = np.einsum("krs,ks->kr", task_rows(decl.task, true_pose), _pose_error(true_pose, goal))
     pos = np.linalg.norm(err[:, n_rot:], axis=1).reshape(n_m, k_t)
     rot = np.linalg.norm(err[:, :n_rot], axis=1).reshape(n_m, k_t)

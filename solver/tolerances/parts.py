@@ -411,7 +411,7 @@ def node_displacements(part: Part, kin, h: float = 1e-6) -> dict:
                 todo.append(nb)
 
     def poses(xi: np.ndarray) -> dict:
-        mats = kin.element_matrices(xi) if np.any(xi) else None
+        mats = kin.element_matrices(xi, keys) if np.any(xi) else None  # the part's own elements only
         out = {}
         for n, steps in path.items():
             t = part.nodes[part.root].copy()

@@ -137,7 +137,8 @@ def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | N
 def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, configurations: np.ndarray,
                   position_accuracy: float | None = None, orientation_accuracy: float | None = None,
                   assembly: bool = True, assembly_configurations: np.ndarray | None = None, refine: bool = True,
-                  workspace=None, task_maps_at: tuple | None = None, calibrate: bool = True) -> Classification:
+                  workspace=None, task_maps_at: tuple | None = None, calibrate: bool = True,
+                  background: bool = False) -> Classification:
     """Fill ``value``, ``value_source`` and ``contribution`` of every tolerance of ``cl`` (in place).
 
     Parameters
@@ -170,13 +171,36 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         Also the compensable tolerances' values with calibration
         (:func:`hyperstat.solver.tolerances.calibrated.calibrated_values`, simulated), and the share of the
         calibrated budget kept for their second-order residual.
+    background : bool
+        Compute the values with calibration in a forked child (:class:`hyperstat.solver.forked.Forked`) while
+        the assembly conditions and the bounds are searched here: the same values, on the second core (the
+        report's wall clock; not the CPU).
     """
     return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                          assembly_configurations, refine, workspace, calibrate, task_maps_at)
+                          assembly_configurations, refine, workspace, calibrate, task_maps_at, background)
+
+
+def _with_calibration(cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve) -> dict:
+    """The values with calibration (in place) and their evidence; returned with every tolerance's two fields (what a
+    forked child hands back)."""
+    from hyperstat.solver.tolerances.calibrated import calibrated_values
+
+    # on the fixed workspace checkpoints (the same whatever the command's sample: one value per tolerance in
+    # report, accuracy and montecarlo)
+    q_fixed = workspace_checkpoints(mechanism, kin, workspace)[0]
+    q_fixed = q_fixed if len(q_fixed) else q
+    evidence = calibrated_values(cl, mechanism, kin, q_fixed, spec_p, spec_o, workspace, share=reserve)
+    if evidence:
+        from hyperstat.solver.tolerances.calibrated_together import loss_together
+
+        evidence["together"] = loss_together(cl, mechanism, kin, q_fixed, workspace)
+    return {"evidence": evidence,
+            "items": [[t.value_with_calibration, t.value_with_calibration_limit] for t in cl.items]}
 
 
 def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                   assembly_configurations, refine, workspace, calibrate, task_maps_at=None) -> Classification:
+                   assembly_configurations, refine, workspace, calibrate, task_maps_at=None,
+                   background: bool = False) -> Classification:
     """Body of :func:`assign_values` (BLAS single-threaded by the caller)."""
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
@@ -307,6 +331,36 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         if t.cls == "non-influent":
             t.value = None
             t.value_source = "not limited by accuracy (moves nothing the task uses)"
+    # the values with calibration depend on the allocation only: computed beside the assembly conditions and the
+    # bounds when asked (the same function of the same state: the same values)
+    calibrating = None
+    if calibrate and influential and background:
+        from hyperstat.solver.forked import Forked
+
+        calibrating = Forked(_with_calibration, cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
+    try:
+        qa = _assembly_and_bounds(cl, mechanism, kin, q, assembly, assembly_configurations, workspace, info,
+                                  influential, dirs if influential else None, is_len if influential else None,
+                                  spec_p, spec_o)
+    except BaseException:
+        if calibrating is not None:
+            calibrating.cancel()
+        raise
+    if calibrate and influential:
+        done = calibrating.result() if calibrating is not None else \
+            _with_calibration(cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
+        for t, (value, limit) in zip(cl.items, done["items"]):
+            t.value_with_calibration, t.value_with_calibration_limit = value, limit
+        info["with_calibration"] = done["evidence"]
+    info.update(_drawing_values(cl, mechanism, kin, qa, workspace))
+    cl.allocation = info
+    return cl
+
+
+def _assembly_and_bounds(cl, mechanism, kin, q, assembly, assembly_configurations, workspace, info, influential, dirs,
+                         is_len, spec_p, spec_o):
+    """The assembly conditions' values and the bounds of the allocations (in place); the assembly configurations."""
+    decl = cl.declaration
     qa = None
     if assembly:
         from hyperstat.solver.tolerances.clearance import assembly_tolerances
@@ -353,22 +407,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
                                        f"({100 * (rv / v['value'] - 1):.0f} % looser)")
     if influential:
         _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o)
-    if calibrate and influential:
-        from hyperstat.solver.tolerances.calibrated import calibrated_values
-
-        # on the fixed workspace checkpoints (the same whatever the command's sample: one value per tolerance in
-        # report, accuracy and montecarlo)
-        q_fixed = workspace_checkpoints(mechanism, kin, workspace)[0]
-        q_fixed = q_fixed if len(q_fixed) else q
-        info["with_calibration"] = calibrated_values(cl, mechanism, kin, q_fixed, spec_p, spec_o, workspace,
-                                                     share=reserve)
-        if info["with_calibration"]:
-            from hyperstat.solver.tolerances.calibrated_together import loss_together
-
-            info["with_calibration"]["together"] = loss_together(cl, mechanism, kin, q_fixed, workspace)
-    info.update(_drawing_values(cl, mechanism, kin, qa, workspace))
-    cl.allocation = info
-    return cl
+    return qa
 
 
 def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o) -> None:

@@ -115,3 +115,20 @@ def _task_error(kin, decl, q, xi, goal) -> np.ndarray:
     position = np.linalg.norm(pose[:, :3, 3] - goal[:, :3, 3], axis=1)
     tilt = np.arccos(np.clip(np.sum(pose[:, :3, 2] * goal[:, :3, 2], axis=1), -1.0, 1.0))
     return np.stack([position, tilt], axis=1)
+
+
+def test_the_values_with_calibration_computed_by_a_forked_child_are_the_in_process_ones(tripteor):
+    """``hyperstat report`` computes them in a forked child beside the searches (issue 39): the same numbers, bit for
+    bit, and the same evidence as the fixture's in-process ``assign_values``."""
+    from hyperstat.solver.forked import Forked
+    from hyperstat.solver.tolerances.values import _with_calibration
+
+    mech, kin, result, cl = tripteor
+    decl = cl.declaration
+    job = Forked(_with_calibration, cl, mech, kin, None, decl.position_mm, decl.orientation_rad, None,
+                 cl.allocation["second_order_share"])
+    assert job._pid is not None
+    done = job.result()
+    assert done["items"] == [[t.value_with_calibration, t.value_with_calibration_limit] for t in cl.items]
+    assert done["evidence"] == cl.allocation["with_calibration"]
+    assert any(v is not None for v, _ in done["items"])

@@ -1,0 +1,125 @@
+"""A stage computed by a forked child while the caller goes on with the next (the machine's second core).
+
+Units: none.
+
+The values stage of a report runs on one core for seconds while the second core has little to do
+(``hyperstat report``'s own children, the diagnosis and the part pages, wait for most of it).  A
+stage that does not depend on what the caller computes next is started with :class:`Forked`: the
+child sees a snapshot of the caller's memory, computes ``fn(*args)`` and hands the result back through
+a pipe as JSON (:func:`hyperstat.solver.cache.encode`: floats and arrays bit for bit, never a pickle,
+whose loading runs code).  The child's arithmetic is the caller's, so the result is the one the
+caller would have computed.  Without a child (``fork=False``, ``HYPERSTAT_NO_FORK``, off Linux: fork
+without exec is unsafe with macOS' system libraries, Windows has none) or when the child fails,
+:meth:`Forked.result` computes ``fn(*args)`` in-process, so an error is raised exactly as without it.
+
+(The report's pictures use :mod:`hyperstat.cad_plugin.background`; this module is the solver's own,
+which never imports the CAD side.)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from typing import Any, Callable
+
+__all__ = ["Forked"]
+
+
+def _after_fork() -> None:
+    """In the child: the parent's thread pools have no threads here; new ones are made on first use."""
+    from hyperstat.solver.kinematics import continuation, fastfk
+
+    fastfk._POOL = None  # noqa: SLF001
+    continuation._BLOCK_POOL = None  # noqa: SLF001
+
+
+class Forked:
+    """``fn(*args)`` started in a forked child now; :meth:`result` waits for it (or computes it in-process).
+
+    Parameters
+    ----------
+    fn : callable
+        A function of the state at the time of the call; its result made of what
+        :func:`hyperstat.solver.cache.encode` carries (numbers, str, None, lists, tuples, dicts, arrays).
+    *args
+        Its arguments.
+    fork : bool
+        ``False``: no child, :meth:`result` computes in-process.
+
+    Examples
+    --------
+    >>> Forked(sum, [1, 2, 3.5]).result()
+    6.5
+    >>> Forked(lambda: {"a": (1, None)}, fork=False).result()
+    {'a': (1, None)}
+    """
+
+    def __init__(self, fn: Callable, *args: Any, fork: bool = True) -> None:
+        self._fn, self._args = fn, args
+        self._pid = self._read = None
+        if not fork or os.environ.get("HYPERSTAT_NO_FORK") or not sys.platform.startswith("linux"):
+            return
+        for stream in (sys.stdout, sys.stderr):  # nothing buffered may be written twice
+            try:
+                stream.flush()
+            except (AttributeError, ValueError):
+                pass
+        read, write = os.pipe()
+        try:
+            pid = os.fork()
+        except OSError:  # no process left: computed in-process later
+            os.close(read)
+            os.close(write)
+            return
+        if pid == 0:  # the child: compute, write, leave without running the parent's exit handlers
+            code = 1
+            try:
+                os.close(read)
+                from hyperstat.solver.cache import encode
+
+                _after_fork()
+                data = json.dumps(encode(fn(*args))).encode()
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(write, view):]
+                code = 0
+            except BaseException:  # noqa: BLE001 - the parent computes it again and raises there
+                pass
+            finally:
+                os._exit(code)
+        os.close(write)
+        self._pid, self._read = pid, read
+
+    def result(self) -> Any:
+        """The child's result; ``fn(*args)`` computed here if there is no child or it failed."""
+        if self._pid is not None:
+            chunks = []
+            try:
+                for chunk in iter(lambda: os.read(self._read, 1 << 20), b""):  # read all before waiting: a full
+                    chunks.append(chunk)                                       # pipe would block the child
+            finally:
+                os.close(self._read)
+                _, status = os.waitpid(self._pid, 0)
+                self._pid = self._read = None
+            if os.waitstatus_to_exitcode(status) == 0 and chunks:
+                from hyperstat.solver.cache import decode
+
+                try:
+                    return decode(json.loads(b"".join(chunks)))
+                except ValueError:
+                    pass
+        return self._fn(*self._args)
+
+    def cancel(self) -> None:
+        """Stop the child (the caller failed and will not ask for the result)."""
+        if self._pid is not None:
+            import signal
+
+            try:
+                os.kill(self._pid, signal.SIGKILL)
+            except OSError:
+                pass
+            os.close(self._read)
+            os.waitpid(self._pid, 0)
+            self._pid = self._read = None

@@ -1,0 +1,58 @@
+"""A stage computed by a forked child (:mod:`hyperstat.solver.forked`): the caller's result, or the caller computes it.
+
+Units: none.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from hyperstat.solver.forked import Forked
+
+
+def _state(x: np.ndarray) -> dict:
+    return {"sum": float(np.sum(x)), "array": x * np.pi, (1, "a"): (None, [np.float64(0.1)]), "pid": os.getpid()}
+
+
+def test_the_child_computes_the_callers_result_bit_for_bit():
+    x = np.random.default_rng(3).normal(size=(7, 5))
+    job = Forked(_state, x)
+    assert job._pid is not None  # a child was started (Linux, HYPERSTAT_NO_FORK unset)
+    got = job.result()
+    want = _state(x)
+    assert got["pid"] != want["pid"]  # computed in the child
+    assert got["sum"] == want["sum"] and got[(1, "a")] == want[(1, "a")]
+    assert got["array"].tobytes() == want["array"].tobytes() and got["array"].shape == (7, 5)
+
+
+def _fails_in_the_child(parent: int) -> int:
+    if os.getpid() != parent:
+        raise RuntimeError("child")
+    return 42
+
+
+def test_a_failed_child_leaves_the_work_to_the_caller():
+    assert Forked(_fails_in_the_child, os.getpid()).result() == 42
+
+
+def test_an_error_is_raised_by_the_caller_as_without_a_child():
+    with pytest.raises(ZeroDivisionError):
+        Forked(lambda: 1 / 0).result()
+
+
+def test_without_fork_the_caller_computes(monkeypatch):
+    monkeypatch.setenv("HYPERSTAT_NO_FORK", "1")
+    job = Forked(os.getpid)
+    assert job._pid is None and job.result() == os.getpid()
+
+
+def test_a_cancelled_child_is_reaped():
+    job = Forked(lambda: [0] * 10)
+    pid = job._pid
+    job.cancel()
+    assert job._pid is None
+    with pytest.raises(ChildProcessError):
+        os.waitpid(pid, os.WNOHANG)
