@@ -422,7 +422,11 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
             q, cert = _closed_form_chunk(kin, form, qa, ws, pool)
         ok = cert.certified
         good = int(ok.sum())
-        np.compress(ok, q, axis=0, out=out[count:count + good])  # the rows of q[ok], without that copy
+        at = count
+        for b in range(0, len(q), CLOSED_FORM_BLOCK):  # the rows of q[ok] a block at a time (no copy of them all;
+            rows = q[b:b + CLOSED_FORM_BLOCK][ok[b:b + CLOSED_FORM_BLOCK]]  # numpy.compress(out=) is 30 x slower)
+            out[at:at + len(rows)] = rows
+            at += len(rows)
         if certificate:
             certs.append(cert)
         else:  # the reasons only (issue 39: the certificates of 317,000 rejected draws held 23 MiB at 1,000,000)
