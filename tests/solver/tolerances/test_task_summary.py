@@ -150,7 +150,7 @@ def test_the_corrector_rows_merged_in_place_are_those_of_the_concatenation(trifl
                         functools.partial(closed_form.assemble_closed_form, cond_tol=0.3))
     ws = workspace_of(mech)
     lo, hi = ws.actuated_box(mech)
-    draws = lo + (hi - lo) * np.random.default_rng(3).random((300, len(lo)))
+    draws = lo + (hi - lo) * np.random.default_rng(3).random((200, len(lo)))
     form = closed_form.closed_form_of(mech, kin)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -159,7 +159,7 @@ def test_the_corrector_rows_merged_in_place_are_those_of_the_concatenation(trifl
         idx, keep = np.nonzero(generic)[0], np.nonzero(~generic)[0]
         first = q0[c0.certified][:accuracy.SAMPLING_POOL]
         qg, cg = continue_nearest(kin, draws[idx], None, mech.home, inside=ws.inside, pool=first)
-    assert 20 < len(idx) < len(draws) - 20  # both kinds of rows are there
+    assert 10 < len(idx) < len(draws) - 10  # both kinds of rows are there
     q0[idx] = qg
     expected = BranchCertificate.concatenate([c0.take(keep), cg]).take(np.argsort(np.r_[keep, idx], kind="stable"))
     np.testing.assert_array_equal(q, q0)
@@ -168,6 +168,7 @@ def test_the_corrector_rows_merged_in_place_are_those_of_the_concatenation(trifl
         a, b = getattr(cert, name), getattr(expected, name)
         assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
     assert cert.reason == expected.reason
+    monkeypatch.undo()  # the sampler as it runs (no draw to the corrector: cheap), with and without certificates
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         kept, _, every = sample_workspace(mech, 300, seed=3, kinematics=kin, closed_form=True, certificate=True)
