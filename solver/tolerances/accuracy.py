@@ -345,7 +345,7 @@ SAMPLING_CHUNK = 200_000
 SAMPLING_POOL = 8192
 #: draws per call of the closed form inside a chunk (memory: its arrays for 200,000 draws at once peaked at
 #: 180 MiB; each draw is assembled alone, so the configurations do not depend on it)
-CLOSED_FORM_BLOCK = 16_384
+CLOSED_FORM_BLOCK = 4096
 #: draws from which a declared closed form assembles the sample (:func:`sample_workspace`)
 CLOSED_FORM_FROM = 20_000
 
@@ -413,6 +413,7 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
     # the kept configurations are written into one buffer of the draws' size: only the rows written become
     # resident memory, and the sample is not copied again at the end (a concatenation of the chunks held it twice)
     out, count, certs, pool = np.empty((n, kin.n_q)), 0, [], None
+    rejected: dict = {}  # why draws were left out -> how many, in order of first appearance (the warning's words)
     for start in range(0, n, SAMPLING_CHUNK):  # bounded memory: a chunk of draws at a time
         qa = lo + (hi - lo) * rng.random((min(SAMPLING_CHUNK, n - start), len(lo)))
         if form is None:
@@ -421,13 +422,22 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
             q, cert = _closed_form_chunk(kin, form, qa, ws, pool)
         ok = cert.certified
         good = int(ok.sum())
-        out[count:count + good] = q[ok]
-        certs.append(cert if certificate else cert.take(~ok))
+        at = count
+        for b in range(0, len(q), CLOSED_FORM_BLOCK):  # the rows of q[ok] a block at a time (no copy of them all;
+            rows = q[b:b + CLOSED_FORM_BLOCK][ok[b:b + CLOSED_FORM_BLOCK]]  # numpy.compress(out=) is 30 x slower)
+            out[at:at + len(rows)] = rows
+            at += len(rows)
+        if certificate:
+            certs.append(cert)
+        else:  # the reasons only (issue 39: the certificates of 317,000 rejected draws held 23 MiB at 1,000,000)
+            for reason, kept in zip(cert.reason, ok):
+                if not kept:
+                    rejected[reason] = rejected.get(reason, 0) + 1
         pool = out[count:count + min(good, SAMPLING_POOL)].copy()  # the next chunk also starts from these
         count += good
         del q, cert, qa
     q = out[:count]
-    every = BranchCertificate.concatenate(certs)
+    every = BranchCertificate.concatenate(certs) if certificate else _rejected(rejected)
     if len(q) < n:
         warnings.warn(f"workspace sampling of '{mechanism.name}': {every.summary(total=n)} They were left out.",
                       stacklevel=2)
@@ -436,31 +446,57 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
     return q
 
 
+def _rejected(counts: dict):
+    """A certificate of uncertified draws with these reasons and counts (what its ``summary`` reads), in order."""
+    from hyperstat.solver.kinematics.continuation import BranchCertificate
+
+    total = sum(counts.values())
+    z = np.zeros(total)
+    return BranchCertificate(np.zeros(total, dtype=bool), [r for r, c in counts.items() for _ in range(c)], z, z, z, z,
+                             np.zeros(total, dtype=int), np.zeros(total, dtype=int), z, z)
+
+
 def _closed_form_chunk(kin: Kinematics, form, qa: np.ndarray, ws: Workspace, pool: np.ndarray | None):
     """A chunk of draws through the declared closed form; the draws it leaves (within reach, not closing or
     ill-conditioned) through the certified continuation, from home and the configurations just certified."""
     from hyperstat.solver.kinematics.closed_form import assemble_closed_form
     from hyperstat.solver.kinematics.continuation import BranchCertificate, continue_nearest
 
-    blocks = [assemble_closed_form(kin, form, qa[b:b + CLOSED_FORM_BLOCK], ws.inside)
-              for b in range(0, len(qa), CLOSED_FORM_BLOCK)]
-    if len(blocks) == 1:
-        q, cert, generic = blocks[0]
-    else:
-        q = np.concatenate([b[0] for b in blocks])
-        cert = BranchCertificate.concatenate([b[1] for b in blocks])
-        generic = np.concatenate([b[2] for b in blocks])
-    del blocks
+    q = None  # the blocks' configurations written into one array of the chunk (not a list of them and a copy)
+    certs, generic = [], np.empty(len(qa), dtype=bool)
+    for b in range(0, len(qa), CLOSED_FORM_BLOCK):
+        qb, cb, gb = assemble_closed_form(kin, form, qa[b:b + CLOSED_FORM_BLOCK], ws.inside)
+        if q is None:
+            q = np.empty((len(qa), qb.shape[1]))
+        q[b:b + len(qb)] = qb
+        generic[b:b + len(qb)] = gb
+        certs.append(cb)
+        del qb, cb, gb
+    cert = certs[0] if len(certs) == 1 else BranchCertificate.concatenate(certs)
+    del certs
     if generic.any():
-        seeds = [p for p in (pool, q[cert.certified][:SAMPLING_POOL]) if p is not None and len(p)]
+        first = np.nonzero(cert.certified)[0][:SAMPLING_POOL]  # the first certified rows (no copy of them all)
+        seeds = [p for p in (pool, q[first]) if p is not None and len(p)]
         idx = np.nonzero(generic)[0]
         qg, cg = continue_nearest(kin, qa[idx], None, kin.mechanism.home, inside=ws.inside,
                                   pool=np.concatenate(seeds) if seeds else None)
         q[idx] = qg
-        keep = np.nonzero(~generic)[0]
-        merged = BranchCertificate.concatenate([cert.take(keep), cg])
-        cert = merged.take(np.argsort(np.r_[keep, idx], kind="stable"))
+        _replace_rows(cert, idx, cg)
     return q, cert
+
+
+def _replace_rows(cert, idx: np.ndarray, part) -> None:
+    """Rows ``idx`` of a certificate replaced by those of ``part``, in place (what concatenating the other rows and
+    ``part`` and putting them back in order gives, without three copies of a chunk's certificate)."""
+    for name in ("certified", "min_condition", "min_sigma", "max_contraction", "max_branch_ratio", "steps", "rejected",
+                 "path_length", "end_condition"):
+        mine, theirs = getattr(cert, name), getattr(part, name)
+        if np.result_type(mine, theirs) != mine.dtype:  # as the concatenation would: the wider type
+            mine = mine.astype(np.result_type(mine, theirs))
+            setattr(cert, name, mine)
+        mine[idx] = theirs
+    for i, r in zip(idx, part.reason):
+        cert.reason[i] = r
 
 
 def grid_slice(mechanism: Mechanism, axes: tuple, fixed: dict | None = None, n: int = 41,

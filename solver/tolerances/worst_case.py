@@ -644,13 +644,22 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
 
     out: dict = {}
     paths, owner, sense, origin = [], [], [], []
-    z_act = pool_q.columns(m.actuated, space.scale[m.actuated])
-    spread_box = np.ptp(z_act, axis=0) if len(z_act) else np.zeros(len(m.actuated))
+    scale_act = space.scale[m.actuated]
+    spread_box = pool_q.extent(m.actuated, scale_act)  # the pool's extent in z, without a copy of its columns
     spread_box = np.where(spread_box > 0, spread_box, 1.0)
-    # the kind of every configuration of the pool (a label starts with its kind), as masks over the pool
-    distinct, label_kind = pool_q.kinds()
-    in_category = {c: np.array([lb.startswith(c) for lb in distinct], dtype=bool)[label_kind]
-                   for c in ("sample", "corner", "edge", "face", "dead centre")}
+
+    def z_act(i) -> np.ndarray:
+        """Row ``i`` of the pool's actuated columns in z (the same division as a whole column's)."""
+        return pool_q.row(i)[m.actuated] / scale_act
+
+    def of_category(order: np.ndarray, category: str) -> np.ndarray:
+        """The rows of ``order`` whose label starts with ``category``, in order (the sample's rows are all
+        'sample'; no mask over the pool: issue 39)."""
+        n_s = len(pool_q.sample)
+        if category == "sample":
+            return order[order < n_s]
+        rest = order[order >= n_s]
+        return rest[pool_q.extra_kind(category)[rest - n_s]]
     for name in names:
         v = pooled(name)
         if v is None or len(v) == 0:
@@ -675,10 +684,11 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
             for category in ("sample", "corner", "edge", "face", "dead centre"):  # the best separate ones of each kind
                 limit = starts if category == "sample" else (1 if category == "dead centre" else structured)
                 taken = 0
-                for i in order[in_category[category][order]]:  # the configurations of this kind, best first
+                for i in of_category(order, category):  # the configurations of this kind, best first
                     if taken == limit or not np.isfinite(sv[i]):
                         break
-                    if all(np.linalg.norm((z_act[i] - z_act[j]) / spread_box) > 0.05 for j in chosen):
+                    z_i = z_act(i)
+                    if all(np.linalg.norm((z_i - z_act(j)) / spread_box) > 0.05 for j in chosen):
                         chosen.append(int(i))
                         taken += 1
             for i in chosen:
@@ -720,21 +730,36 @@ class _Pool:
         i = int(i)
         return "sample" if i < len(self.sample) else self.extra_labels[i - len(self.sample)]
 
-    def kinds(self) -> tuple[dict, np.ndarray]:
-        """The distinct labels in order of first appearance (label -> number) and every row's number."""
-        labels = (["sample"] if len(self.sample) else []) + self.extra_labels
-        distinct = {lb: i for i, lb in enumerate(dict.fromkeys(labels))}
-        kind = np.empty(len(self), dtype=int)
-        kind[:len(self.sample)] = distinct.get("sample", 0)
-        kind[len(self.sample):] = [distinct[lb] for lb in self.extra_labels]
-        return distinct, kind
-
     def __len__(self) -> int:
         return len(self.sample) + len(self.extra)
 
     def __getitem__(self, i) -> np.ndarray:
         i = int(i)
         return (self.sample[i] if i < len(self.sample) else self.extra[i - len(self.sample)]).copy()
+
+    def row(self, i) -> np.ndarray:
+        """Row ``i`` (a view, not a copy)."""
+        i = int(i)
+        return self.sample[i] if i < len(self.sample) else self.extra[i - len(self.sample)]
+
+    def extra_kind(self, category: str) -> np.ndarray:
+        """Whether each candidate's label starts with ``category`` (bool per candidate)."""
+        return np.array([lb.startswith(category) for lb in self.extra_labels], dtype=bool)
+
+    def extent(self, cols, scale: np.ndarray) -> np.ndarray:
+        """``numpy.ptp`` over every row of ``columns(cols, scale)``, column by column without that copy: the largest
+        and smallest of ``q / s`` are those of ``q`` divided by ``s > 0`` (a correctly rounded division is monotonic)."""
+        if not len(self):
+            return np.zeros(len(cols))
+        if not np.all(scale > 0):
+            return np.ptp(self.columns(cols, scale), axis=0)
+        parts = [p for p in (self.sample, self.extra) if len(p)]
+        out = np.empty(len(cols))
+        for k, (c, s) in enumerate(zip(cols, scale)):
+            highs, lows = [float(np.max(p[:, c])) for p in parts], [float(np.min(p[:, c])) for p in parts]
+            nan = any(math.isnan(h) for h in highs)  # numpy's max and ptp propagate NaN
+            out[k] = float("nan") if nan else max(highs) / s - min(lows) / s
+        return out
 
     def columns(self, cols, scale: np.ndarray) -> np.ndarray:
         """The columns ``cols`` of every row divided by ``scale``, (len, len(cols)), filled in place."""

@@ -131,3 +131,48 @@ def test_the_closed_form_sampler_in_blocks_gives_the_same_sample(triflex, monkey
     act = chunks[:, mech.actuated]
     at = [int(np.nonzero(np.all(draws == a, axis=1))[0][0]) for a in act]
     assert at == sorted(at) and len(set(at)) == len(at) and len(at) > 400
+
+
+def test_the_corrector_rows_merged_in_place_are_those_of_the_concatenation(triflex, monkeypatch):
+    """The draws the closed form leaves to the certified corrector are put back in place (issue 39: no three copies
+    of a chunk's certificate): the configurations and every certificate field as the concatenation of the other rows
+    and the corrector's, put back in draw order (computed here from the two solvers directly); the warning without
+    certificates (the reasons counted) reads as the certificates' own summary."""
+    import functools
+
+    import hyperstat.solver.kinematics.closed_form as closed_form
+    from hyperstat.solver.kinematics.continuation import BranchCertificate, continue_nearest
+    from hyperstat.solver.tolerances.workspace import workspace_of
+
+    mech, kin = triflex[0], triflex[1]
+    # a high conditioning threshold sends many reachable draws to the corrector
+    monkeypatch.setattr(closed_form, "assemble_closed_form",
+                        functools.partial(closed_form.assemble_closed_form, cond_tol=0.3))
+    ws = workspace_of(mech)
+    lo, hi = ws.actuated_box(mech)
+    draws = lo + (hi - lo) * np.random.default_rng(3).random((200, len(lo)))
+    form = closed_form.closed_form_of(mech, kin)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        q, cert = accuracy._closed_form_chunk(kin, form, draws, ws, None)
+        q0, c0, generic = closed_form.assemble_closed_form(kin, form, draws, ws.inside)
+        idx, keep = np.nonzero(generic)[0], np.nonzero(~generic)[0]
+        first = q0[c0.certified][:accuracy.SAMPLING_POOL]
+        qg, cg = continue_nearest(kin, draws[idx], None, mech.home, inside=ws.inside, pool=first)
+    assert 10 < len(idx) < len(draws) - 10  # both kinds of rows are there
+    q0[idx] = qg
+    expected = BranchCertificate.concatenate([c0.take(keep), cg]).take(np.argsort(np.r_[keep, idx], kind="stable"))
+    np.testing.assert_array_equal(q, q0)
+    for name in ("certified", "min_condition", "min_sigma", "max_contraction", "max_branch_ratio", "steps", "rejected",
+                 "path_length", "end_condition"):
+        a, b = getattr(cert, name), getattr(expected, name)
+        assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
+    assert cert.reason == expected.reason
+    monkeypatch.undo()  # the sampler as it runs (no draw to the corrector: cheap), with and without certificates
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        kept, _, every = sample_workspace(mech, 300, seed=3, kinematics=kin, closed_form=True, certificate=True)
+        alone = sample_workspace(mech, 300, seed=3, kinematics=kin, closed_form=True)
+    np.testing.assert_array_equal(kept, alone)
+    texts = [str(w.message) for w in caught if "workspace sampling" in str(w.message)]
+    assert len(texts) == 2 and texts[0] == texts[1] and every.summary(total=300) in texts[1]

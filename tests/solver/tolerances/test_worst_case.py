@@ -214,3 +214,25 @@ def test_template_loader_passes_the_workspace_through_and_rejects_a_bad_one(tmp_
     bad.write_text(source + "\n\ndef workspace(p):\n    return [1, 2]\n")
     with pytest.raises(TemplateError, match=r"workspace\(\) must return"):
         build_template(bad)
+
+
+def test_the_pools_extent_is_numpys_ptp_of_the_scaled_columns():
+    """The searches' box extent read column by column (issue 39: no (K, n_a) copy of the sample) is ``numpy.ptp`` of
+    the scaled columns bit for bit: the largest and smallest of q / s are those of q divided by s > 0; NaN propagates;
+    a scale that is not positive takes numpy's own path."""
+    from hyperstat.solver.tolerances.worst_case import _Pool
+
+    rng = np.random.default_rng(7)
+    for trial in range(200):
+        sample = rng.normal(size=(int(rng.integers(1, 60)), 5)) * 10.0 ** rng.integers(-6, 6, size=5)
+        extra = rng.normal(size=(int(rng.integers(0, 4)), 5)) * 1e3
+        if trial % 7 == 0:
+            sample[rng.integers(len(sample)), rng.integers(5)] = np.nan
+        cols = np.array([0, 2, 4])
+        scale = rng.uniform(1e-3, 1e3, size=3) if trial % 11 else np.array([1.0, -2.0, 3.0])
+        pool = _Pool(sample, extra, ["corner"] * len(extra))
+        expected = np.ptp(pool.columns(cols, scale), axis=0)
+        np.testing.assert_array_equal(pool.extent(cols, scale), expected)
+        for i in (0, len(pool) - 1):
+            np.testing.assert_array_equal(pool.row(i)[cols] / scale, pool.columns(cols, scale)[i])
+    assert _Pool(np.zeros((0, 5)), np.zeros((0, 5)), []).extent(np.array([0, 1]), np.ones(2)).tolist() == [0.0, 0.0]
