@@ -108,6 +108,7 @@ class Job:
         self.finished = False
         self._status = None
         self._ticker = None
+        self.percent = 0  # the share of the stage's estimated duration at the last tick (%)
 
     # ------------------------------------------------------------------ public
     def start(self) -> bool:
@@ -144,6 +145,7 @@ class Job:
         seconds, measured = self.estimate
         text = estimates.progress_text(self.title, self.stage, self.step, elapsed, seconds, measured)
         percent = int(min(95.0, 100.0 * elapsed / max(seconds, 1e-3)))
+        self.percent = percent
         if self._status is not None:
             self._status.update(text, percent)
         if self.progress is not None:

@@ -67,14 +67,21 @@ def _close() -> None:
 
 
 def _progress_widgets(layout):
-    """A busy progress bar with a label (hidden until a job runs) at the bottom of a panel."""
+    """A progress bar with a label (hidden until a job runs) at the bottom of a panel.
+
+    The bar shows the share of the stage's estimated duration, as the status bar's does, set at each of the
+    job's ticks: not Qt's busy indicator, whose animation repaints the window tens of times a second, which
+    on a display without a GPU (software OpenGL: a virtual machine, a remote desktop, Xvfb) took a third of a
+    core from the ``hyperstat`` command the job waits for.
+    """
     from PySide import QtGui
 
     label = QtGui.QLabel()
     label.setWordWrap(True)
     label.setObjectName("HyperstatPanelProgressText")
     bar = QtGui.QProgressBar()
-    bar.setRange(0, 0)
+    bar.setRange(0, 100)
+    bar.setValue(0)
     bar.setObjectName("HyperstatPanelProgress")
     for w in (label, bar):
         w.hide()
@@ -98,12 +105,19 @@ class _JobPanel:
         self.progress_label.setVisible(busy)
         self.progress_bar.setVisible(busy)
 
+    def _progress(self, text: str) -> None:
+        """The job's tick: its text, and its share of the stage's estimate on the bar."""
+        self.progress_label.setText(text)
+        if self.job is not None:
+            self.progress_bar.setValue(self.job.percent)
+
     def _run(self, steps, on_done) -> None:
         from .jobs import Job
 
         self._busy(True)
+        self.progress_bar.setValue(0)
         self.job = Job(self.title, steps, on_done=lambda value: self._finished(on_done, value),
-                       on_error=self._failed, progress=self.progress_label.setText, on_cancel=self._cancelled)
+                       on_error=self._failed, progress=self._progress, on_cancel=self._cancelled)
         if not self.job.start():
             self.job = None
             self._busy(False)

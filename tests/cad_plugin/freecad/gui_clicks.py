@@ -43,8 +43,27 @@ def _write():
         json.dump(REPORT, fh, indent=1, sort_keys=True, default=str)
 
 
+def _cpu():
+    """CPU seconds of this FreeCAD process so far: its main thread, and the rest (Mesa's llvmpipe threads draw)."""
+    main = other = 0.0
+    tick = os.sysconf("SC_CLK_TCK")
+    for task in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{task}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        seconds = (int(fields[11]) + int(fields[12])) / tick
+        if task == str(os.getpid()):
+            main += seconds
+        else:
+            other += seconds
+    return main, other
+
+
 def _event(text):
-    REPORT["events"].append(f"{time.monotonic() - T0:7.1f} s {REPORT['stage']}: {text}")
+    main, other = _cpu()
+    REPORT["events"].append(f"{time.monotonic() - T0:7.1f} s cpu {main:6.1f}+{other:5.1f} s {REPORT['stage']}: {text}")
     _write()
 
 
@@ -284,6 +303,7 @@ def run():
         REPORT["workbench"] = FreeCADGui.activeWorkbench().name()
         doc = FreeCAD.newDocument("clicks")
         REPORT["undo_mode"] = doc.UndoMode
+        _event("started")
 
         # ---------------------------------------------------------------- insert (and analyse)
         REPORT["stage"] = "insert"
