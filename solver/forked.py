@@ -23,7 +23,9 @@ import os
 import sys
 from typing import Any, Callable
 
-__all__ = ["Forked"]
+__all__ = ["Forked", "HUNG_AFTER"]
+
+HUNG_AFTER = 600.0  #: seconds without a byte from the child after which :meth:`Forked.result` kills it (s)
 
 
 def _after_fork() -> None:
@@ -91,18 +93,29 @@ class Forked:
         os.close(write)
         self._pid, self._read = pid, read
 
-    def result(self) -> Any:
-        """The child's result; ``fn(*args)`` computed here if there is no child or it failed."""
+    def result(self, timeout: float = HUNG_AFTER) -> Any:
+        """The child's result; ``fn(*args)`` computed here if there is no child, it failed, or it sent nothing for
+        ``timeout`` seconds (a hung child is killed: the caller never waits forever)."""
         if self._pid is not None:
-            chunks = []
+            import select
+            import signal
+
+            chunks, hung = [], False
             try:
-                for chunk in iter(lambda: os.read(self._read, 1 << 20), b""):  # read all before waiting: a full
-                    chunks.append(chunk)                                       # pipe would block the child
+                while True:  # read all before waiting: a full pipe would block the child
+                    if not select.select([self._read], [], [], timeout)[0]:
+                        hung = True
+                        os.kill(self._pid, signal.SIGKILL)
+                        break
+                    chunk = os.read(self._read, 1 << 20)
+                    if not chunk:
+                        break
+                    chunks.append(chunk)
             finally:
                 os.close(self._read)
                 _, status = os.waitpid(self._pid, 0)
                 self._pid = self._read = None
-            if os.waitstatus_to_exitcode(status) == 0 and chunks:
+            if not hung and os.waitstatus_to_exitcode(status) == 0 and chunks:
                 from hyperstat.solver.cache import decode
 
                 try:

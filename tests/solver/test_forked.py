@@ -56,3 +56,20 @@ def test_a_cancelled_child_is_reaped():
     assert job._pid is None
     with pytest.raises(ChildProcessError):
         os.waitpid(pid, os.WNOHANG)
+
+
+def _hangs_in_the_child(parent: int) -> int:
+    if os.getpid() != parent:
+        import time
+
+        time.sleep(60)
+        return -1  # what a child that is waited for (not killed) would hand back
+    return 7
+
+
+def test_a_hung_child_is_killed_and_the_caller_computes():
+    job = Forked(_hangs_in_the_child, os.getpid())
+    pid = job._pid
+    assert job.result(timeout=0.5) == 7
+    with pytest.raises(ChildProcessError):  # killed and reaped, not left running
+        os.waitpid(pid, os.WNOHANG)
