@@ -47,16 +47,22 @@ def _wait(stat, predicate, what, timeout=30.0):
     raise RuntimeError(f"timed out waiting for {what}")
 
 
+SETTLED_FOR = 0.2  #: seconds the joints must stay still (s): five polls 10 ms apart can all fall in one stall of the
+# servo thread on a loaded machine, and a move read there was 2.9e-5 rad short of its target (a suite run at load 5)
+
+
 def _settle(stat, timeout=10.0):
-    """Wait until the joints stop: in position, no velocity, positions within 1e-9 over five polls (10 ms apart)."""
-    t0, last, same = time.time(), None, 0
+    """Wait until the joints stop: in position, no velocity, positions within 1e-9 over five polls (10 ms apart)
+    and for :data:`SETTLED_FOR` seconds of wall time."""
+    t0, last, same, since = time.time(), None, 0, None
     while time.time() - t0 < timeout:
         time.sleep(0.01)
         stat.poll()
         now = tuple(stat.joint_actual_position)
         still = last is not None and max(abs(a - b) for a, b in zip(now, last)) < 1e-9
         same = same + 1 if (still and stat.inpos and stat.current_vel == 0.0) else 0
-        if same >= 5:
+        since = (since or time.time()) if same else None
+        if same >= 5 and time.time() - since >= SETTLED_FOR:
             return
         last = now
     raise RuntimeError(f"timed out waiting for the joints to stop (in position {stat.inpos}, velocity "
