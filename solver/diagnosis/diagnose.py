@@ -44,9 +44,10 @@ from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_W
                                                     equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.confirmation import CONFIRM_P, validation_confirms
 from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting, weighted_validation
+from hyperstat.solver.diagnosis.held_out import held_out_choice, held_out_words, nested_f_test
 from hyperstat.solver.diagnosis.leg_pattern import (LEG_OFFSET, LEG_OFFSET_WORDS, leg_offset_family,
                                                     leg_thermal_pattern, prismatic_legs)
-from hyperstat.solver.diagnosis.periodic import (aliased_orders, periodic_gate, refined_order, screw_order,
+from hyperstat.solver.diagnosis.periodic import (aliased_orders, smooth_orders, periodic_gate, refined_order, screw_order,
                                                  screw_period, spectral_candidates)
 from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Screen, UnitActuators, atom_key,
                                                   black_box_ceiling, cv_rms, folds, plugin_guard, region_blocks,
@@ -130,12 +131,14 @@ class Diagnosis:
         not taken (``verdict.library_effect_seen``), or an ``understated noise`` answer's strongest structure test
         falls short of its threshold by less than 10x (``verdict.near_structure``, :func:`.answer.near_structure`),
         or an ``over-fitting`` answer's held-out excess is beyond what the fitted model's own uncertainty accounts
-        for (``verdict.effect_not_excluded``: a missing effect is not excluded); ``"high"`` otherwise."""
+        for (``verdict.effect_not_excluded``: a missing effect is not excluded), or the named effect was chosen on the
+        held-out poses because the identification poses were too few (``verdict.held_out_choice``,
+        :mod:`.held_out`); ``"high"`` otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
                 or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
                 or self.verdict.get("order_not_established") or self.verdict.get("below_guard") \
                 or self.verdict.get("library_effect_seen") or self.verdict.get("near_structure") \
-                or self.verdict.get("effect_not_excluded"):
+                or self.verdict.get("effect_not_excluded") or self.verdict.get("held_out_choice"):
             return "low"
         return "high"
 
@@ -351,6 +354,10 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     _shrink(run)
     step("verdict")
     diag = _answer(run)
+    if diag.outcome == "over-fitting" and diag.verdict.get("effect_not_excluded") and validation is not None \
+            and getattr(run, "pool", None):
+        step("held-out choice")  # too few poses to choose on them: the held-out poses choose (:mod:`.held_out`)
+        diag = _held_out_answer(run) or diag
     checks = targets_to_check(data, validation) if per_target else []
     if checks:
         step("per target")
@@ -483,6 +490,15 @@ def _select(run: _Run, max_effects: int) -> None:
             if orders is not None:
                 run.aliased[key] = {**why, "orders": orders}
                 return None
+        if why is not None and why.get("alias") is not None and why.get("joint"):
+            # a smooth trend of the joint fits as well: a curved error of that joint over the range it moved, which
+            # the low periodic orders all read; taken with those orders as its set, low confidence, and the answer
+            # says a smooth error outside the library fits as well
+            a = run.data.joints.index(why["joint"])
+            orders = smooth_orders(why, field or run.plain["field"], run.act_jac[:, :, a], run.rows.q[:, a])
+            if orders is not None:
+                run.aliased[key] = {**why, "orders": orders, "trend": True}
+                return None
         if why is not None:
             why = {**why, "effect": name, "candidate": key}
         return why
@@ -611,12 +627,99 @@ def _add_atom(run: _Run, name: str, joint: str) -> str | None:
     return key
 
 
-def _shrink(run: _Run) -> None:
-    """Step 4: the nonlinear fit with the selected effects, their estimates, how far the gap shrinks."""
+def _pooled(data: MeasurementSet, validation: MeasurementSet) -> MeasurementSet | None:
+    """The identification and the held-out rows as one set (the held-out poses renamed ``held-out <pose>``), or None
+    when the two files do not have the same joints, targets, metadata columns and row kinds."""
+    if list(validation.joints) != list(data.joints) or list(validation.target_names) != list(data.target_names) \
+            or set(validation.metadata) != set(data.metadata) or (validation.rotation is None) != (data.rotation is None):
+        return None
+    both = MeasurementSet(
+        list(data.pose) + [f"held-out {p}" for p in validation.pose], list(data.joints),
+        np.concatenate([data.q, validation.q]), np.concatenate([data.position, validation.position]),
+        None if data.rotation is None else np.concatenate([data.rotation, validation.rotation]),
+        {k: np.concatenate([np.asarray(v), np.asarray(validation.metadata[k])]) for k, v in data.metadata.items()},
+        data.noise, data.tracker, data.target, data.mechanism, data.source,
+        np.concatenate([np.asarray(data.target_index), np.asarray(validation.target_index)]),
+        list(data.target_names), dict(data.target_priors),
+        list(data.pose_id) + [f"held-out {p}" for p in validation.pose_id], data.rotation_noise)
+    return both
+
+
+def _pooled_fit(run: _Run, pooled: MeasurementSet, effects: tuple) -> dict | None:
+    """A fit of the geometry (and ``effects``) on the pooled rows: its chi-square, degrees of freedom and rank (None:
+    no converged fit within the effects' physical domains, or more unknowns than equations)."""
+    try:
+        with plugin_guard(effects[0].name if effects else "rigid", "fit"):
+            fit = identify(run.mechanism, run.analysis, pooled, None, effects=effects, kinematics=run.kin,
+                           outlier_probe=False)
+    except DataError:
+        return None
+    if not fit.converged:
+        return None
+    for eff, sl in zip(fit.model.effects, fit.model._effect_slices):
+        std = np.array([p["std"] if p["std"] is not None else np.inf for p in fit.parameters[sl]])
+        if eff.plausibility(fit.theta[sl], std) is not None:
+            return None
+    test = gap_test(fit, pooled, None)["identification"]
+    return {"chi2": test["chi2"], "dof": test["dof"], "rank": fit.rank}
+
+
+def _held_out_answer(run: _Run) -> Diagnosis | None:
+    """An ``over-fitting`` answer whose held-out excess a missing effect may explain: the identification and the
+    held-out poses are pooled, every candidate of the pool not refused at screening is fitted with the geometry on
+    them, and an F-test of each against the rigid fit chooses at the family-wise 1 % (:mod:`.held_out`); the chosen
+    one is named with the others that fit alike, confidence low (:func:`.held_out.held_out_words`).  None when no
+    candidate passes, or the two files cannot be pooled."""
+    pooled = _pooled(run.data, run.validation)
+    rigid = _pooled_fit(run, pooled, ()) if pooled is not None else None
+    if rigid is None:
+        return None
+    keys = [k for k, c in run.pool.items() if c["effect"] is not None and not c["entry"].get("note")
+            and not c["entry"].get("rejected")]
+    trials = []
+    for key in keys:
+        fit = _pooled_fit(run, pooled, (run.pool[key]["effect"],))
+        trials.append(None if fit is None else nested_f_test(key, rigid, fit))
+    choice = held_out_choice(trials)
+    if choice is None:
+        return None
+    name, joint = split_key(choice["chosen"])
+    cand = run.pool[choice["chosen"]]
+    run.selected, run.effects[name] = [name], cand["effect"]
+    run.selected_columns = {name: cand["columns"]}
+    run.effect_joints = {name: [joint]} if joint else {}
+    run.order_sets, run.below_guard = {}, []
+    _shrink(run, confirm=False)
+    if not run.selected:  # the nonlinear fit refused it after all (its domain, or a worse validation RMS)
+        return None
+    diag = _answer(run)
+    if diag.outcome not in ("explained", "partly explained") or "evidence" not in diag.verdict:
+        return None
+    alike = list(dict.fromkeys(split_key(k)[0] for k in choice["alike"] if split_key(k)[0] != name))
+    if alike:
+        s = next((st for st in diag.equivalence_sets if st["effect"] == name), None)
+        if s is None:
+            s = {"effect": name, "members": [name], "separating_measurement": "", "evidence": []}
+            diag.equivalence_sets.append(s)
+        s["members"] += [a for a in alike if a not in s["members"]]
+        way = "more poses spread over the workspace (all the poses fit them alike)"
+        s["separating_measurement"] = "; ".join(w for w in (s["separating_measurement"], way) if w)
+        diag.verdict["evidence"] += f"; all the poses fit {', '.join(alike)} alike"
+    diag.verdict["held_out_choice"] = {k: choice[k] for k in ("chosen", "alike", "threshold", "tried", "confirmed")}
+    diag.verdict["held_out_choice"].update(f=choice["best"]["f"], p_value=choice["best"]["p_value"],
+                                           poses_pooled=pooled.n_poses)
+    diag.verdict["evidence"] += held_out_words(choice, run.rigid.rank, 3 * len(run.screen.w), pooled.n_poses)
+    return diag
+
+
+def _shrink(run: _Run, confirm: bool | None = None) -> None:
+    """Step 4: the nonlinear fit with the selected effects, their estimates, how far the gap shrinks (``confirm``:
+    whether the held-out poses must confirm them; default: when the rigid residuals show no structure)."""
     rigid, screen, columns = run.rigid, run.screen, run.columns
+    confirm = not run.structure["structured"] if confirm is None else confirm
     run.final, run.selected = _nonlinear_fit(run.mechanism, run.analysis, run.kin, run.data, run.validation,
                                              run.selected, run.effects, rigid.validation, run.rejected, run.ranking,
-                                             rigid, confirm=not run.structure["structured"])
+                                             rigid, confirm=confirm)
     current_cv = run.base_cv
     if run.selected:
         chosen = run.selected_columns
@@ -699,10 +802,18 @@ def _answer(run: _Run) -> Diagnosis:
     if unsettled and outcome in ("explained", "partly explained") and "evidence" in words:
         words["order_not_established"] = [{k: u[k] for k in ("effect", "joint", "orders", "range_rad")}
                                           for u in unsettled]
+        for u in unsettled:
+            words["order_not_established"][unsettled.index(u)]["smooth_trend_fits"] = bool(u.get("trend"))
         words["evidence"] += "".join(
             f"; confidence low: a periodic error of joint {u['joint']} fits, but over the {u['range_rad']:.2g} rad it "
-            f"moved {_cycles_words(u['orders'])} per revolution fit alike; moving joint {u['joint']} over more than "
-            f"{_separating_range(u['orders']):.2g} rad would tell them apart"
+            f"moved {_cycles_words(u['orders'])} per revolution fit alike"
+            + (f", and so does a smooth (quadratic) error of joint {u['joint']} that no library effect describes: "
+               f"what is established is a curved error of joint {u['joint']} over that range, and its compensation "
+               f"holds within that range only" if u.get("trend") else "")
+            + f"; moving joint {u['joint']} over more than {_separating_range(u['orders']):.2g} rad would tell them "
+              f"apart" + (f" (more than a revolution: if joint {u['joint']}'s travel is shorter, no pose design can, "
+                          f"and a bench measurement of its transmission error would)"
+                          if _separating_range(u["orders"]) > 2.0 * np.pi else "")
             for u in unsettled)
     if run.significant and outcome in ("explained", "partly explained") and "evidence" in words \
             and getattr(run, "below_guard", None):
@@ -860,7 +971,9 @@ def _separating_range(orders: list) -> float:
     """The range of a joint (rad) over which the closest two of ``orders`` (cycles per revolution) differ by one
     cycle."""
     gaps = np.diff(sorted(orders))
-    return float(2.0 * np.pi / max(float(np.min(gaps)), 1e-12)) if len(gaps) else float("inf")
+    if not len(gaps):  # one order against a smooth trend: one whole period of it
+        return float(2.0 * np.pi / orders[0]) if len(orders) else float("inf")
+    return float(2.0 * np.pi / max(float(np.min(gaps)), 1e-12))
 
 
 def _order_sets(run: _Run, selected: list, sets: list) -> None:

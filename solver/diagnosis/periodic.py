@@ -31,7 +31,7 @@ from hyperstat.solver.diagnosis.effects import harmonic_name, harmonic_order
 from hyperstat.solver.diagnosis.where import SPECTRUM_ORDERS, ResidualField
 
 __all__ = ["spectral_candidates", "screw_period", "screw_order", "periodic_gate", "refined_order", "simplest_order",
-           "aliased_orders", "BOUNDED_RESOLUTION",
+           "aliased_orders", "smooth_orders", "BOUNDED_RESOLUTION",
            "EQUIVALENT_CHI2"]
 
 BOUNDED_RESOLUTION = 3.0  #: cycles per revolution: below it a joint's range bounds an order to its neighbours
@@ -380,3 +380,49 @@ def aliased_orders(why: dict, field: ResidualField, col: np.ndarray, qv: np.ndar
             or not fits[0] - 0.5 <= peak <= fits[-1] + 0.5:
         return None
     return [float(o) for o in fits]
+
+
+def smooth_orders(why: dict, field: ResidualField, col: np.ndarray, qv: np.ndarray) -> list | None:
+    """The periodic orders that fit a joint's error which a smooth trend of the joint fits as well, or None.
+
+    Over a range shorter than one period of the low orders, a joint's error that is a curve of the joint (a
+    quadratic trend fits it as well as the candidate's order: :func:`aliased_orders` returns None) is still
+    a located error of that joint, and each low periodic order is the library's reading of it.  The orders
+    compared are the candidate's (``why["order"]``), every integer order up to one beyond the resolution
+    ``2 pi / range`` and, for a gear stage's order, the integers around it; those within
+    :data:`EQUIVALENT_CHI2` of the best of them are returned, provided the highest order tried does not
+    fit (the set is bounded by the data) and the candidate's own order is among them.  The answer then
+    names the set, says a smooth error outside the library fits as well, and has low confidence.
+
+    >>> rng = np.random.default_rng(2)
+    >>> q = rng.uniform(-0.8, 0.8, 300)  # 1.6 rad: orders closer than 3.9 cycles per revolution alias
+    >>> col = np.tile(np.eye(3)[None, :, 0], (300, 1))
+    >>> offset = col.reshape(900, 1) / np.sqrt(300)  # the joint's offset, projected off as in a diagnosis
+    >>> resid = 0.01 * np.sin(2.0 * q + 1.0)[:, None] * np.eye(3)[0] + rng.normal(0, 3e-3, (300, 3))
+    >>> field = ResidualField(resid, np.full(300, 333.0), offset)
+    >>> why = {"order": 2.0, "alias": 1.0, "resolution_cycles_per_revolution": 2 * np.pi / 1.6}
+    >>> aliased_orders(why, field, col, q) is None  # a trend of the joint fits as well: not periodic-looking
+    True
+    >>> orders = smooth_orders(why, field, col, q)
+    >>> 2.0 in orders and 5.0 not in orders  # the truth among the low orders, the highest tried refused
+    True
+    >>> flat = ResidualField(rng.normal(0, 3e-3, (300, 3)), np.full(300, 333.0), offset)
+    >>> smooth_orders(why, flat, col, q) is None  # nothing there: every order fits alike, the set is unbounded
+    True
+    """
+    k, res = why.get("order"), why.get("resolution_cycles_per_revolution")
+    if k is None or res is None:
+        return None
+    scale = field.scale()
+    x = (qv - qv.mean()) / max(float(np.std(qv)), 1e-300)
+    e_t = field.fit(col[:, :, None] * np.column_stack([x, x**2])[:, None, :])[4]
+    if (field.harmonic(col, qv, k) - e_t) / scale >= EQUIVALENT_CHI2:
+        return None  # periodic-looking: aliased_orders' case, not this one
+    gear = {float(np.floor(k)), float(np.ceil(k))} if abs(k - round(k)) > 1e-9 else set()
+    rivals = sorted({float(o) for o in range(1, int(np.ceil(k + res)) + 1)} | gear | {float(k)})
+    explained = {o: field.harmonic(col, qv, o) for o in rivals}
+    best = max(explained.values())
+    fits = [o for o in rivals if (best - explained[o]) / scale < EQUIVALENT_CHI2]
+    if k not in fits or rivals[-1] in fits:
+        return None
+    return fits
