@@ -145,7 +145,9 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured
     Over-fitting when
 
     * the fit has fewer than 2 equations per parameter (:data:`FEW_EQUATIONS`): no test can
-      then tell a missing effect from the fit's own noise;
+      then tell a missing effect from the fit's own noise, unless the poses fitted already show
+      the excess (their chi-square significant, and the held-out factor within
+      :data:`OVERFIT_RATIO` of theirs: an understated noise shows on both);
     * the validation noise factor is at least :data:`OVERFIT_RATIO` times the
       identification's, and either the F-test of the two variances is below 1e-3 or the fit
       spends more than a quarter of its equations on parameters (where the variance
@@ -190,7 +192,12 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured
         f_nominal = fv * nominal["rms"] / max(rigid.validation["rms"], 1e-300)  # the nominal model's held-out factor
         estimation = fi**2 * load / max(1.0 - load, 1e-3)  # what fitting rank parameters adds to the squared factor
         worse = fv**2 > NOMINAL_MARGIN**2 * (f_nominal**2 + estimation)
-    few = load > 1.0 / FEW_EQUATIONS
+    # fewer than FEW_EQUATIONS per parameter: over-fitting, unless the poses fitted already show the excess the held-out
+    # ones do (the in-sample chi-square significant and the held-out factor within OVERFIT_RATIO of it): a noise
+    # understated by 2 x shows on both, and is no over-fitting (the later steps tell noise from a structured gap)
+    seen_in_sample = test["identification"].get("p_value", 1.0) < test.get("threshold", P_THRESHOLD) \
+        and fv < OVERFIT_RATIO * fi
+    few = load > 1.0 / FEW_EQUATIONS and not seen_in_sample
     ratio = fv >= OVERFIT_RATIO * fi and (p < P_THRESHOLD or load > 0.25) and not structured
     if not (few or ratio or worse):
         return None

@@ -678,6 +678,12 @@ def read_urdf(path: str | Path, tip: str | None = None, name: str | None = None)
                                    {j.name: j.home for j in mech.joints if hasattr(j, "home")}, path)
     if masses:
         metadata["masses"] = masses
+        # the bodies as the model file will carry them (joint frames only, no geometry) must pass the check every
+        # command that reads that file makes: a link's mass can pass against its own geometry and its body fail
+        from hyperstat.solver.kinematics.masses import check_declared_masses
+
+        check_declared_masses(mech, f"{path} (the <inertial> masses, summed per moving body as the model file "
+                                    f"carries them)", DataError)
     if unknown:  # a moving body without a mass: unknown, so no masses at all (never massless)
         metadata["masses_unknown"] = unknown
     return mech

@@ -75,3 +75,16 @@ def test_an_over_fitting_answer_whose_held_out_excess_is_beyond_the_fit_s_uncert
     assert "a missing effect is not excluded" in words["evidence"]
     outcome, words = answer(0.01)  # within what the fit's own uncertainty allows: over-fitting stands alone
     assert outcome == "over-fitting" and "effect_not_excluded" not in words
+
+
+def test_few_equations_with_the_excess_already_in_sample_is_not_over_fitting() -> None:
+    """Fewer than 2 equations per parameter (51 for 90) and a noise understated about 2.3 x: the poses fitted show a
+    factor of 2.3 (chi-square far above its 39 dof) and the held-out ones 2.5, within 1.3 x of it.  The excess is
+    seen on the poses fitted, which over-fitting cannot make: the later steps judge it (noise or a structured gap).
+    The same fit with nothing in sample (factor 1.0, p = 0.4) stays over-fitting."""
+    test = {"identification": {"noise_factor": 2.3, "dof": 39, "p_value": 1e-12},
+            "validation": {"noise_factor": 2.5, "dof": 36}, "threshold": 5e-4}
+    rigid = SimpleNamespace(rank=51, nominal=None, validation={"rms": 0.05})
+    assert overfitting(test, rigid, 90) is None
+    quiet = {**test, "identification": {"noise_factor": 1.0, "dof": 39, "p_value": 0.4}}
+    assert overfitting(quiet, rigid, 90)["parameters_per_equation"] > 0.5

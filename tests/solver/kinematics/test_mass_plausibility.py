@@ -70,14 +70,22 @@ def test_implausible_urdf_masses_are_refused(tmp_path, what, text, needle):
 
 
 def test_the_bound_of_the_thousandfold_shoulder(tmp_path):
-    """The shoulder link spans 0.15 m (j1 to j2); with a fifth of the 1.15 m reach on every side, its ball of
-    copper holds 1065 kg: 8000 kg is refused, 1000 kg (just inside) is accepted."""
-    bound = _copper_ball(0.5 * 0.15 + 0.2 * 1.15)
-    assert 1000.0 < bound < 8000.0 and round(bound) == 1065
-    (tmp_path / "ok.urdf").write_text(urdf(mass=lambda n, m: 1000.0 if n == "shoulder" else m))
+    """The shoulder link spans 0.15 m (j1 to j2).  Against the URDF's 1.15 m reach (from the root) its ball of copper
+    holds 1065 kg; in the model file import-robot writes, its body spans the same 0.15 m but the reach runs from j1
+    (0.95 m), so the ball holds 698 kg, and every command reading that file refuses more.  import-robot applies both
+    (before, it wrote a 1000 kg shoulder that identify then refused): 1000 kg is refused with the body's bound, 650 kg
+    is accepted and its file reads back."""
+    from hyperstat.solver.kinematics.modelfile import load_model
+
+    link_bound = _copper_ball(0.5 * 0.15 + 0.2 * 1.15)
+    body_bound = _copper_ball(0.5 * 0.15 + 0.2 * (1.15 - 0.2))
+    assert round(link_bound) == 1065 and round(body_bound) == 698
+    (tmp_path / "ok.urdf").write_text(urdf(mass=lambda n, m: 650.0 if n == "shoulder" else m))
     assert run_cli(["import-robot", tmp_path / "ok.urdf", "--out", tmp_path / "ok.json", "--quiet"])[0] == 0
-    (tmp_path / "no.urdf").write_text(urdf(mass=lambda n, m: 1100.0 if n == "shoulder" else m))
-    assert_refused(["import-robot", tmp_path / "no.urdf", "--out", tmp_path / "no.json"], "at most 1065 kg")
+    assert load_model(tmp_path / "ok.json").metadata["masses"]["j1"]["mass"] == 650.0
+    (tmp_path / "no.urdf").write_text(urdf(mass=lambda n, m: 1000.0 if n == "shoulder" else m))
+    assert_refused(["import-robot", tmp_path / "no.urdf", "--out", tmp_path / "no.json"], "at most 698 kg",
+                   outputs=[tmp_path / "no.json"])
 
 
 def test_a_moving_link_without_inertial_is_unknown_never_massless(tmp_path):
@@ -153,3 +161,23 @@ def test_real_urdfs_pass():
     masses = mech.metadata["masses"]
     assert len(masses) == len(mech.actuated) and all(m["mass"] > 0 for m in masses.values())
     assert "masses_unknown" not in mech.metadata
+
+
+def test_import_refuses_what_the_model_file_it_writes_would_be_refused_for(tmp_path):
+    """A link's centre of mass inside its own (long) geometry passes the link's check, but its body in the model file
+    spans the joint frames only (j2 to j3, 0.4 m, plus a fifth of the 1.15 m reach): 1.5 m out is refused there, so
+    every command reading that file refused it.  import-robot now refuses it itself, and writes no file (a blind
+    generator's gantry URDF was accepted by import-robot and then refused by identify)."""
+    long_upper = '<visual><origin xyz="1.2 0 0"/><geometry><box size="2.4 0.1 0.1"/></geometry></visual>'
+    extra = lambda n: long_upper if n == "upper" else ""  # noqa: E731
+    reach = 0.2 + 0.15 + 0.4 + 0.35 + 0.05  # m
+    assert 1.5 > 0.4 + 0.2 * reach  # beyond the body's extent in the model file
+    (tmp_path / "far.urdf").write_text(urdf(com=lambda n, c: "1.5 0 0" if n == "upper" else c, extra=extra))
+    assert_refused(["import-robot", tmp_path / "far.urdf", "--out", tmp_path / "far.json"],
+                   "metadata.masses['j2']", outputs=[tmp_path / "far.json"])
+    (tmp_path / "near.urdf").write_text(urdf(com=lambda n, c: "0.3 0 0" if n == "upper" else c, extra=extra))
+    code, _, _ = run_cli(["import-robot", tmp_path / "near.urdf", "--out", tmp_path / "near.json", "--quiet"])
+    assert code == 0
+    from hyperstat.solver.kinematics.modelfile import load_model  # the written file reads back
+
+    assert load_model(tmp_path / "near.json").metadata["masses"]["j2"]["mass"] == 6.0
