@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -60,15 +59,20 @@ def command_cache(args: argparse.Namespace) -> Cache:
 
 
 def model_identity(args: argparse.Namespace, mechanism) -> dict:
-    """The model as a key: the SHA-256 of its model-file text and of the bytes of the source it was read from."""
+    """The model as a key: the SHA-256 of its canonical model-file text (:func:`dumps_model`), and nothing of how it
+    was obtained.
+
+    Every cached stage is computed from the :class:`Mechanism` alone, whose model-file text holds all of it (geometry,
+    defects, ranges, workspace, metadata; ``-p`` overrides are in the built geometry), so a template, the model file
+    ``hyperstat build`` writes of it (FreeCAD's Analyse reads that one) and a copy elsewhere are one key: the same
+    values are computed once.  A changed file, parameter or model is another text, hence another key.  (The whole
+    documents of ``accuracy`` and ``montecarlo`` name their source: their options, also in their key, hold its path.)
+    """
     ident = getattr(args, "_model_identity", None)
     if ident is None:
         from hyperstat.solver.kinematics.modelfile import dumps_model
 
-        source = getattr(args, "source", None)
-        ident = {"model": hashlib.sha256(dumps_model(mechanism).encode()).hexdigest(),
-                 "source": file_digest(source) if source and Path(source).is_file() else None,
-                 "parameters": list(getattr(args, "param", None) or [])}
+        ident = {"model": hashlib.sha256(dumps_model(mechanism).encode()).hexdigest()}
         args._model_identity = ident
     return ident
 

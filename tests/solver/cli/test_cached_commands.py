@@ -64,6 +64,27 @@ def test_a_changed_option_or_model_is_computed_again(tmp_path, cache_dir, slider
     assert len(_entries(cache_dir, "sample")) == 3  # seed 3, then the edited model: each its own sample
 
 
+def test_a_template_and_its_built_model_are_one_key_and_a_changed_parameter_another(tmp_path, cache_dir):
+    """The key is the model's content, not how it was obtained: the model file ``hyperstat build`` writes of a
+    template (FreeCAD's Analyse reads that one) reads the template's sample and values, and answers as an uncached
+    run of it; a template parameter changed with ``-p`` is another model, computed again."""
+    source = TEMPLATES / "slider_crank.py"
+    model = tmp_path / "sc.skel.json"
+    code, _, err = run_cli(["build", source, "--model", model, "--quiet"])
+    assert code == 0, err
+    first = json.loads(_montecarlo(source, tmp_path / "a.json"))
+    assert len(_entries(cache_dir, "sample")) == len(_entries(cache_dir, "values")) == 1
+    built = _montecarlo(model, tmp_path / "b.json")
+    assert len(_entries(cache_dir, "sample")) == len(_entries(cache_dir, "values")) == 1  # read, not computed
+    assert len(_entries(cache_dir, "montecarlo")) == 2  # a document names its source: one per source
+    assert built == _montecarlo(model, tmp_path / "c.json", "--no-cache")
+    assert {k: v for k, v in json.loads(built).items() if k != "source"} == \
+           {k: v for k, v in first.items() if k != "source"}
+    longer = _montecarlo(source, tmp_path / "d.json", "-p", "L2=130")
+    assert len(_entries(cache_dir, "sample")) == len(_entries(cache_dir, "values")) == 2
+    assert json.loads(longer)["drawn_values"] != first["drawn_values"]
+
+
 def test_the_values_stage_restores_what_it_computed(cache_dir, slider_crank, slider_crank_analysis):
     """The changes :func:`assign_values` makes to a classification, stored and applied to a fresh one, give the
     same classification (every tolerance's value, source, evidence, drawing, the allocation, the warnings)."""
