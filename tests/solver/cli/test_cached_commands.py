@@ -85,6 +85,39 @@ def test_a_template_and_its_built_model_are_one_key_and_a_changed_parameter_anot
     assert json.loads(longer)["drawn_values"] != first["drawn_values"]
 
 
+def _same(a, b, where: str = "mechanism") -> list:
+    """Where two objects differ, attribute by attribute (arrays by their values, callables not compared)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return [] if np.shape(a) == np.shape(b) and np.array_equal(a, b) else [where]
+    if type(a) is not type(b):
+        return [f"{where}: {type(a).__name__} / {type(b).__name__}"]
+    if isinstance(a, dict):
+        if set(a) != set(b):
+            return [f"{where}: keys {sorted(map(str, set(a) ^ set(b)))}"]
+        return [d for k in a for d in _same(a[k], b[k], f"{where}[{k!r}]")]
+    if isinstance(a, (list, tuple)):
+        if len(a) != len(b):
+            return [f"{where}: length"]
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _same(x, y, f"{where}[{i}]")]
+    if hasattr(a, "__dict__") and not callable(a):
+        return _same(vars(a), vars(b), where)
+    if callable(a) or a == b or (a != a and b != b):
+        return []
+    return [f"{where}: {a!r} / {b!r}"]
+
+
+def test_the_model_file_holds_every_attribute_the_stages_read(tmp_path):
+    """Why the key can be the model-file text alone: the mechanism of every shipped template and the one read back
+    from its model file are equal in every attribute (joints, elements, defects, ranges, metadata...)."""
+    from hyperstat.cad_plugin.templates import build_template, list_templates
+    from hyperstat.solver.kinematics.modelfile import load_model
+
+    for template in list_templates():
+        mech = build_template(template).mechanism()
+        again = load_model(save_model(mech, tmp_path / f"{template.stem}.json"))
+        assert _same(mech, again) == [], template.stem
+
+
 def test_the_values_stage_restores_what_it_computed(cache_dir, slider_crank, slider_crank_analysis):
     """The changes :func:`assign_values` makes to a classification, stored and applied to a fresh one, give the
     same classification (every tolerance's value, source, evidence, drawing, the allocation, the warnings)."""
