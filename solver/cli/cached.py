@@ -10,7 +10,8 @@ What is cached, and what its key holds besides the version of the code (:func:`h
 * ``values``: what :func:`hyperstat.solver.tolerances.values.assign_values` writes into a classification
   (the values, their sources and evidence, the allocation, the calibrated values, the drawing values, the
   warnings); the model, the classification it starts from, the configurations (their bytes) and every
-  option of the call.  The classification is recomputed (it is cheap) and the stored changes are applied
+  option of the call that changes its answer (given or left at its default alike: ``report`` and ``accuracy``
+  on the same sample share the entry).  The classification is recomputed (it is cheap) and the stored changes are applied
   to it, tolerance by tolerance, after checking that the tolerances are the same;
 * ``diagnosis-selection``: the effects the diagnosis selects and the violated defect it names, which
   ``export-controller --diagnose`` adds to the controller file; the model, the analysis' configurations and
@@ -164,6 +165,28 @@ def _changes(before: dict, after: dict, obj) -> dict | None:
     return out
 
 
+#: options of :func:`~hyperstat.solver.tolerances.values.assign_values` that do not change its answer: ``task_maps_at``
+#: (the task rows at the configurations, handed over when ``accuracy`` has them from its own Jacobians; computed from
+#: the model and the configurations, both in the key, otherwise)
+_NOT_IN_KEY = ("task_maps_at",)
+#: the defaults of the options of ``assign_values`` a caller may give or leave out (the same call either way)
+_DEFAULTS = {"assembly": True, "refine": True, "workspace": None, "calibrate": True}
+
+
+def _answer_options(options: dict) -> dict:
+    """The options of a values call that its answer depends on, given the same way by every command: without
+    :data:`_NOT_IN_KEY` and without an option at its default, so that ``report`` and ``accuracy`` on the same
+    sample, spec and analysis are one key.
+
+    >>> _answer_options({"assembly": True, "workspace": None, "task_maps_at": (1,), "position_accuracy": 0.05})
+    {'position_accuracy': 0.05}
+    >>> _answer_options({"assembly": False, "calibrate": True})
+    {'assembly': False}
+    """
+    return {name: v for name, v in options.items() if name not in _NOT_IN_KEY
+            and not (name in _DEFAULTS and (v is _DEFAULTS[name] or (isinstance(v, bool) and v == _DEFAULTS[name])))}
+
+
 def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: np.ndarray,
                   assign: Callable, on_miss: Callable | None = None, **options) -> Any:
     """``assign(cl, mechanism, kin, configurations, **options)`` (:func:`assign_values`), its changes cached.
@@ -184,7 +207,7 @@ def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: 
     ids = [t.id for t in cl.items]
     from hyperstat.solver.tolerances.task_summary import TaskSummary
 
-    keyed = {name: v.as_tuple() if isinstance(v, TaskSummary) else v for name, v in options.items()}
+    keyed = {name: v.as_tuple() if isinstance(v, TaskSummary) else v for name, v in _answer_options(options).items()}
     opts = {name: (_digest(v) if isinstance(v, (np.ndarray, tuple)) and name != "workspace" else
                    _workspace_key(v) if name == "workspace" else v) for name, v in sorted(keyed.items())}
     k = key("values", model_identity(args, mechanism), _digest(_keyed(before_cl)),

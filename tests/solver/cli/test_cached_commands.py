@@ -85,6 +85,37 @@ def test_a_template_and_its_built_model_are_one_key_and_a_changed_parameter_anot
     assert json.loads(longer)["drawn_values"] != first["drawn_values"]
 
 
+def test_report_and_accuracy_on_the_same_sample_read_one_values_entry(tmp_path, cache_dir):
+    """``accuracy`` on the report's sample (200 configurations, seed 0) and spec computes the same values (bit for bit,
+    the corpus runs both): one entry, read by the second command, which answers as its uncached run; another spec is
+    computed again."""
+    import inspect
+
+    from hyperstat.solver.cli.cached import _DEFAULTS
+    from hyperstat.solver.tolerances.values import assign_values
+
+    signature = inspect.signature(assign_values).parameters
+    assert all(signature[name].default is value for name, value in _DEFAULTS.items())
+    source = TEMPLATES / "slider_crank.py"
+    code, _, err = run_cli(["report", source, "--out", tmp_path / "rep", "--json-only", "--quiet"])
+    assert code == 0, err
+    assert len(_entries(cache_dir, "values")) == 1
+
+    def accuracy(name, *extra):
+        code, _, err = run_cli(["accuracy", source, "--workspace-configurations", "200", "--no-refine", "--json",
+                                tmp_path / name, "--quiet", *extra])
+        assert code == 0, err
+        return (tmp_path / name).read_text()
+
+    cached = accuracy("a.json")
+    assert len(_entries(cache_dir, "values")) == 1  # the report's entry, read
+    assert cached == accuracy("b.json", "--no-cache")
+    report = json.loads((tmp_path / "rep" / "report.json").read_text())["tolerances"]["items"]
+    assert [t["value"] for t in json.loads(cached)["tolerances"]["items"]] == [t["value"] for t in report]
+    accuracy("c.json", "--position-accuracy", "0.04")
+    assert len(_entries(cache_dir, "values")) == 2
+
+
 def _same(a, b, where: str = "mechanism") -> list:
     """Where two objects differ, attribute by attribute (arrays by their values, callables not compared)."""
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
