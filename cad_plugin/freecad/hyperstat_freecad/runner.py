@@ -251,8 +251,10 @@ def run_together(arguments_list: list[list[str]], timeout: float = DEFAULT_TIMEO
     cores), and return their outputs in order (blocking; the GUI uses :mod:`.jobs`).
 
     Every process is waited for; then the first failure in the order given is raised, as :func:`run_cli` raises it.
+    As in the GUI (:mod:`.jobs`), an optional sub-command is not first looked up in ``hyperstat --help`` (a process
+    start before the runs): a command line without it is named by :func:`interpret` from argparse's answer.
     """
-    prepared = [prepare_command(arguments) for arguments in arguments_list]
+    prepared = [prepare_command(arguments, check_optional=False) for arguments in arguments_list]
     started = time.monotonic()
     procs = []
     try:

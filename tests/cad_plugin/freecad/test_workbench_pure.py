@@ -100,6 +100,7 @@ case "$1" in
   wait) i=0; while [ ! -e "$2" ]; do i=$((i+1)); [ $i -gt 600 ] && { echo "hyperstat: error: $2 never came." >&2; exit 2; }; sleep 0.05; done; echo "saw $2";;
   touch) touch "$2"; echo "made $2";;
   fail) echo "hyperstat: error: $2 is not a model file." >&2; exit 2;;
+  *) echo "usage: hyperstat ..." >&2; echo "hyperstat: error: argument command: invalid choice: '$1' (choose from 'wait', 'touch', 'fail')" >&2; exit 2;;
 esac
 """
 
@@ -115,7 +116,7 @@ def test_runs_together_start_at_once_and_answer_in_order(tmp_path, monkeypatch):
     sys.path.insert(0, str(WORKBENCH))
     try:
         from hyperstat_freecad.operations import Call, Together, drive
-        from hyperstat_freecad.runner import HyperstatWorkbenchError, run_together
+        from hyperstat_freecad.runner import CommandMissing, HyperstatWorkbenchError, run_together
     finally:
         sys.path.pop(0)
     flag = tmp_path / "flag"
@@ -131,3 +132,5 @@ def test_runs_together_start_at_once_and_answer_in_order(tmp_path, monkeypatch):
     with pytest.raises(HyperstatWorkbenchError, match=r"^B is not a model file\.$"):
         run_together([["touch", str(tmp_path / "x")], ["fail", "b"], ["fail", "c"]])
     assert (tmp_path / "x").exists()  # the other runs ran to their end
+    with pytest.raises(CommandMissing, match="has no 'report' command"):  # an older command line, named
+        run_together([["touch", str(tmp_path / "y")], ["report", "model.json"]])
