@@ -10,7 +10,8 @@ What is cached, and what its key holds besides the version of the code (:func:`h
 * ``values``: what :func:`hyperstat.solver.tolerances.values.assign_values` writes into a classification
   (the values, their sources and evidence, the allocation, the calibrated values, the drawing values, the
   warnings); the model, the classification it starts from, the configurations (their bytes) and every
-  option of the call.  The classification is recomputed (it is cheap) and the stored changes are applied
+  option of the call that changes its answer (given or left at its default alike: ``report`` and ``accuracy``
+  on the same sample share the entry).  The classification is recomputed (it is cheap) and the stored changes are applied
   to it, tolerance by tolerance, after checking that the tolerances are the same;
 * ``diagnosis-selection``: the effects the diagnosis selects and the violated defect it names, which
   ``export-controller --diagnose`` adds to the controller file; the model, the analysis' configurations and
@@ -29,7 +30,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -60,15 +60,20 @@ def command_cache(args: argparse.Namespace) -> Cache:
 
 
 def model_identity(args: argparse.Namespace, mechanism) -> dict:
-    """The model as a key: the SHA-256 of its model-file text and of the bytes of the source it was read from."""
+    """The model as a key: the SHA-256 of its canonical model-file text (:func:`dumps_model`), and nothing of how it
+    was obtained.
+
+    Every cached stage is computed from the :class:`Mechanism` alone, whose model-file text holds all of it (geometry,
+    defects, ranges, workspace, metadata; ``-p`` overrides are in the built geometry), so a template, the model file
+    ``hyperstat build`` writes of it (FreeCAD's Analyse reads that one) and a copy elsewhere are one key: the same
+    values are computed once.  A changed file, parameter or model is another text, hence another key.  (The whole
+    documents of ``accuracy`` and ``montecarlo`` name their source: their options, also in their key, hold its path.)
+    """
     ident = getattr(args, "_model_identity", None)
     if ident is None:
         from hyperstat.solver.kinematics.modelfile import dumps_model
 
-        source = getattr(args, "source", None)
-        ident = {"model": hashlib.sha256(dumps_model(mechanism).encode()).hexdigest(),
-                 "source": file_digest(source) if source and Path(source).is_file() else None,
-                 "parameters": list(getattr(args, "param", None) or [])}
+        ident = {"model": hashlib.sha256(dumps_model(mechanism).encode()).hexdigest()}
         args._model_identity = ident
     return ident
 
@@ -160,6 +165,28 @@ def _changes(before: dict, after: dict, obj) -> dict | None:
     return out
 
 
+#: options of :func:`~hyperstat.solver.tolerances.values.assign_values` that do not change its answer: ``task_maps_at``
+#: (the task rows at the configurations, handed over when ``accuracy`` has them from its own Jacobians; computed from
+#: the model and the configurations, both in the key, otherwise)
+_NOT_IN_KEY = ("task_maps_at",)
+#: the defaults of the options of ``assign_values`` a caller may give or leave out (the same call either way)
+_DEFAULTS = {"assembly": True, "refine": True, "workspace": None, "calibrate": True}
+
+
+def _answer_options(options: dict) -> dict:
+    """The options of a values call that its answer depends on, given the same way by every command: without
+    :data:`_NOT_IN_KEY` and without an option at its default, so that ``report`` and ``accuracy`` on the same
+    sample, spec and analysis are one key.
+
+    >>> _answer_options({"assembly": True, "workspace": None, "task_maps_at": (1,), "position_accuracy": 0.05})
+    {'position_accuracy': 0.05}
+    >>> _answer_options({"assembly": False, "calibrate": True})
+    {'assembly': False}
+    """
+    return {name: v for name, v in options.items() if name not in _NOT_IN_KEY
+            and not (name in _DEFAULTS and (v is _DEFAULTS[name] or (isinstance(v, bool) and v == _DEFAULTS[name])))}
+
+
 def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: np.ndarray,
                   assign: Callable, on_miss: Callable | None = None, **options) -> Any:
     """``assign(cl, mechanism, kin, configurations, **options)`` (:func:`assign_values`), its changes cached.
@@ -180,7 +207,7 @@ def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: 
     ids = [t.id for t in cl.items]
     from hyperstat.solver.tolerances.task_summary import TaskSummary
 
-    keyed = {name: v.as_tuple() if isinstance(v, TaskSummary) else v for name, v in options.items()}
+    keyed = {name: v.as_tuple() if isinstance(v, TaskSummary) else v for name, v in _answer_options(options).items()}
     opts = {name: (_digest(v) if isinstance(v, (np.ndarray, tuple)) and name != "workspace" else
                    _workspace_key(v) if name == "workspace" else v) for name, v in sorted(keyed.items())}
     k = key("values", model_identity(args, mechanism), _digest(_keyed(before_cl)),

@@ -4,7 +4,8 @@ Units: none (the steps work in mm and rad).
 
 An action of :mod:`.operations` is a generator that yields a :class:`~.operations.Call`
 for each run of ``hyperstat`` and touches the document only after the last one.  A
-:class:`Job` starts each call as a ``QProcess`` and returns to Qt's event loop: FreeCAD
+:class:`Job` starts each call as a ``QProcess`` (the calls of a :class:`~.operations.Together` at once, one
+process each) and returns to Qt's event loop: FreeCAD
 stays responsive (the 3D view turns, the tree scrolls), a progress bar in the status
 bar (and in the task panel that started the job) names the stage, counts the seconds
 and says how long the stage usually takes (:mod:`.estimates`: the last runs of that
@@ -71,6 +72,15 @@ class _StatusProgress:
         self.widget.deleteLater()
 
 
+class _Run:
+    """One process of a stage: its call, command line and ``QProcess``; its outcome once ended (result or error)."""
+
+    def __init__(self, call, command: list, process):
+        self.call, self.command, self.process = call, command, process
+        self.ended = False
+        self.outcome = None
+
+
 class Job:
     """Drive a step generator with one ``QProcess`` per call (see the module docstring).
 
@@ -98,6 +108,7 @@ class Job:
         self.on_error = on_error
         self.progress = progress
         self.process = None
+        self._runs: list = []
         self.stage = ""
         self.step = 0
         self.call = None
@@ -130,12 +141,14 @@ class Job:
         return True
 
     def cancel(self) -> None:
-        """Stop the running process; nothing is written to the document."""
+        """Stop the running process(es); nothing is written to the document."""
         if self.finished:
             return
         self.cancelled = True
-        if self.process is not None:
-            self.process.kill()  # _finished runs next and closes the job
+        running = [run.process for run in self._runs if not run.ended]
+        if running:
+            for proc in running:
+                proc.kill()  # _finished runs next and closes the job
         else:
             self._close()
 
@@ -167,57 +180,87 @@ class Job:
         self._launch(call)
 
     def _launch(self, call) -> None:
+        """Start the process of a :class:`~.operations.Call`, or one per call of a :class:`~.operations.Together`
+        (their results go back to the steps together, in order, when all have ended)."""
         from PySide import QtCore
 
         self.stage = call.label
         self.step += 1
         self.call = call
         self.stage_started = time.monotonic()
-        self.estimate = estimates.expected(call.arguments[0], getattr(call, "subject", ""))
+        calls = list(getattr(call, "calls", None) or [call])
+        # runs started together take as long as the longest of them
+        self.estimate = max((estimates.expected(c.arguments[0], getattr(c, "subject", "")) for c in calls),
+                            key=lambda e: e[0])
         self._tick()
         try:
-            command, env = prepare_command(call.arguments, check_optional=False)
+            prepared = [prepare_command(c.arguments, check_optional=False) for c in calls]
         except Exception as exc:  # noqa: BLE001
             self._advance(lambda: self.steps.throw(exc))
             return
-        proc = QtCore.QProcess()
-        qenv = QtCore.QProcessEnvironment()
-        for key, value in env.items():
-            qenv.insert(key, value)
-        proc.setProcessEnvironment(qenv)
-        # PySide2 may pick the one-argument overload of finished: read the status from the process
-        proc.finished.connect(lambda *args, p=proc, c=command: self._finished(p, c, p.exitCode(), p.exitStatus()))
-        proc.errorOccurred.connect(lambda error, p=proc, c=command: self._error(p, c, error))
-        self.process = proc
-        self._command = command
+        self._runs = [_Run(c, command, QtCore.QProcess()) for c, (command, _) in zip(calls, prepared)]
         self._timeout = QtCore.QTimer()
         self._timeout.setSingleShot(True)
-        self._timeout.timeout.connect(proc.kill)
+        self._timeout.timeout.connect(self._kill_all)
         self._timeout.start(int(DEFAULT_TIMEOUT_S * 1000))
-        self._log(f"hyperstat: starting '{' '.join(command)}'\n")
-        proc.start(command[0], command[1:])
+        for run, (command, env) in zip(self._runs, prepared):
+            proc = run.process
+            qenv = QtCore.QProcessEnvironment()
+            for key, value in env.items():
+                qenv.insert(key, value)
+            proc.setProcessEnvironment(qenv)
+            # PySide2 may pick the one-argument overload of finished: read the status from the process
+            proc.finished.connect(lambda *args, r=run: self._finished(r))
+            proc.errorOccurred.connect(lambda error, r=run: self._error(r, error))
+        self.process = self._runs[0].process
+        for run in self._runs:
+            self._log(f"hyperstat: starting '{' '.join(run.command)}'\n")
+            run.process.start(run.command[0], run.command[1:])
 
-    def _error(self, proc, command, error) -> None:
+    def _kill_all(self) -> None:
+        for run in self._runs:
+            if not run.ended:
+                run.process.kill()
+
+    def _error(self, run, error) -> None:
         from PySide import QtCore
 
-        if error == QtCore.QProcess.FailedToStart and proc is self.process:
-            self.process = None
-            exc = HyperstatWorkbenchError(f"{command[0]} could not be started ({proc.errorString()}).")
-            self._advance(lambda: self.steps.throw(exc))
+        if error == QtCore.QProcess.FailedToStart and not run.ended:
+            run.ended = True
+            run.outcome = HyperstatWorkbenchError(
+                f"{run.command[0]} could not be started ({run.process.errorString()}).")
+            self._all_ended()
 
-    def _finished(self, proc, command, code, status) -> None:
+    def _finished(self, run) -> None:
         from PySide import QtCore
 
-        if proc is not self.process:
+        if run.ended:
             return
-        self._timeout.stop()
-        self.process = None
+        run.ended = True
+        proc, command = run.process, run.command
+        code, status = proc.exitCode(), proc.exitStatus()
         stdout = bytes(proc.readAllStandardOutput()).decode("utf-8", "replace")
         stderr = bytes(proc.readAllStandardError()).decode("utf-8", "replace")
         took = time.monotonic() - self.stage_started
         self._log(f"hyperstat: '{' '.join(command)}' exit {code} after {took:.1f} s\n")
-        if code == 0 and status == QtCore.QProcess.NormalExit and not self.cancelled and self.call is not None:
-            estimates.record(self.call.arguments[0], getattr(self.call, "subject", ""), took)
+        if code == 0 and status == QtCore.QProcess.NormalExit and not self.cancelled:
+            estimates.record(run.call.arguments[0], getattr(run.call, "subject", ""), took)
+        try:
+            if status != QtCore.QProcess.NormalExit:  # killed by the timeout, or crashed
+                raise HyperstatWorkbenchError(
+                    f"'hyperstat {command[1] if len(command) > 1 else ''}' was stopped or crashed "
+                    f"(after {time.monotonic() - self.started:.0f} s).")
+            run.outcome = interpret(command, code, stdout, stderr)
+        except Exception as exc:  # noqa: BLE001 - handed to the steps, which record and re-raise it
+            run.outcome = exc
+        self._all_ended()
+
+    def _all_ended(self) -> None:
+        """When every run of the stage has ended: the steps get the result(s), or the first failure in order."""
+        if not all(run.ended for run in self._runs):
+            return
+        self._timeout.stop()
+        self.process = None
         if self.cancelled:
             self.steps.close()
             self._close()
@@ -225,16 +268,13 @@ class Job:
             if self.on_cancel is not None:
                 self.on_cancel()
             return
-        try:
-            if status != QtCore.QProcess.NormalExit:  # killed by the timeout, or crashed
-                raise HyperstatWorkbenchError(
-                    f"'hyperstat {command[1] if len(command) > 1 else ''}' was stopped or crashed "
-                    f"(after {time.monotonic() - self.started:.0f} s).")
-            result = interpret(command, code, stdout, stderr)
-        except Exception as exc:  # noqa: BLE001 - handed to the steps, which record and re-raise it
-            self._advance(lambda: self.steps.throw(exc))
+        failures = [run.outcome for run in self._runs if isinstance(run.outcome, Exception)]
+        if failures:
+            self._advance(lambda: self.steps.throw(failures[0]))
             return
-        self._advance(lambda: self.steps.send(result))
+        results = tuple(run.outcome for run in self._runs)
+        together = getattr(self.call, "calls", None) is not None
+        self._advance(lambda: self.steps.send(results if together else results[0]))
 
     def _fail(self, exc, to_steps: bool) -> None:
         self._close()

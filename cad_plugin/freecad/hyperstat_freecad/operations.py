@@ -40,11 +40,12 @@ from . import geometry
 from .feature import SkeletonFeature, is_skeleton
 from .parameters import (add_parameter_properties, bind_spreadsheet, cli_overrides, current_parameters, expression_of,
                          parameter_specs, set_parameter)
-from .runner import CliResult, HyperstatWorkbenchError, list_templates, run_cli, templates_dir
+from .runner import CliResult, HyperstatWorkbenchError, list_templates, run_cli, run_together, templates_dir
 from .classes import parameter_classes, tolerance_counts
 
 __all__ = [
     "Call",
+    "Together",
     "drive",
     "transaction",
     "resolve_template",
@@ -85,6 +86,19 @@ class Call:
     subject: str = ""
 
 
+@dataclass
+class Together:
+    """Runs of the command line that do not depend on each other, requested by a step generator at once: they are
+    started together (one process each, on as many cores) and the generator receives their results as a tuple, in
+    order, once all have ended; the first failure in that order is thrown into it."""
+
+    calls: tuple
+
+    @property
+    def label(self) -> str:
+        return " and ".join(c.label for c in self.calls)
+
+
 def drive(steps):
     """Run a step generator synchronously (each :class:`Call` with :func:`~.runner.run_cli`); return its value.
 
@@ -94,7 +108,8 @@ def drive(steps):
         call = next(steps)
         while True:
             try:
-                result = run_cli(call.arguments)
+                result = run_together([c.arguments for c in call.calls]) if isinstance(call, Together) else \
+                    run_cli(call.arguments)
             except Exception as exc:  # noqa: BLE001 - handed to the generator, which re-raises
                 call = steps.throw(exc)
             else:
@@ -196,13 +211,14 @@ def _build_call(template: str, values: dict[str, float], folder: Path, name: str
 
 
 def _analysis_calls(model: Path, folder: Path, configurations: int, seed: int, name: str):
-    """Steps of an analysis: the classes (``hyperstat analyze``), then the tolerance values of the report
-    (``hyperstat report``, the same command as *Export the tolerance report*); returns both JSON texts."""
+    """Steps of an analysis: the classes (``hyperstat analyze``) and the tolerance values of the report
+    (``hyperstat report``, the same command as *Export the tolerance report*), run together (neither reads the
+    other's file: the classes take the time of the values, on the second core); returns both JSON texts."""
     sample = ["--configurations", str(configurations), "--seed", str(seed)]
-    yield Call(["analyze", str(model), "--json", str(folder / "analysis.json"), *sample, "--quiet"],
-               "tolerance classes (hyperstat analyze)", name)
-    yield Call(["report", str(model), "--out", str(folder / "report"), *sample, "--json-only", "--quiet"],
-               "tolerance values (hyperstat report)", name)
+    yield Together((Call(["analyze", str(model), "--json", str(folder / "analysis.json"), *sample, "--quiet"],
+                         "tolerance classes (hyperstat analyze)", name),
+                    Call(["report", str(model), "--out", str(folder / "report"), *sample, "--json-only", "--quiet"],
+                         "tolerance values (hyperstat report)", name)))
     return ((folder / "analysis.json").read_text(encoding="utf-8"),
             (folder / "report" / "report.json").read_text(encoding="utf-8"))
 

@@ -29,6 +29,7 @@ import re
 import shutil
 import subprocess
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,6 +43,7 @@ __all__ = [
     "templates_dir",
     "list_templates",
     "run_cli",
+    "run_together",
     "available_commands",
     "OPTIONAL_COMMANDS",
     "prepare_command",
@@ -242,3 +244,49 @@ def run_cli(arguments: list[str], timeout: float = DEFAULT_TIMEOUT_S, cwd: str |
         raise HyperstatWorkbenchError(f"{command[0]} could not be started ({exc.strerror or exc}).") from None
     _log(f"hyperstat: '{' '.join(command)}' exit {proc.returncode} in {time.monotonic() - started:.1f} s\n")
     return interpret(command, proc.returncode, proc.stdout, proc.stderr)
+
+
+def run_together(arguments_list: list[list[str]], timeout: float = DEFAULT_TIMEOUT_S) -> tuple[CliResult, ...]:
+    """Run several ``hyperstat`` commands that do not depend on each other at once, one process each (on as many
+    cores), and return their outputs in order (blocking; the GUI uses :mod:`.jobs`).
+
+    Every process is waited for; then the first failure in the order given is raised, as :func:`run_cli` raises it.
+    As in the GUI (:mod:`.jobs`), an optional sub-command is not first looked up in ``hyperstat --help`` (a process
+    start before the runs): a command line without it is named by :func:`interpret` from argparse's answer.
+    """
+    prepared = [prepare_command(arguments, check_optional=False) for arguments in arguments_list]
+    started = time.monotonic()
+    procs = []
+    try:
+        for command, env in prepared:
+            procs.append(subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env))
+    except OSError as exc:
+        for proc in procs:
+            proc.kill()
+            proc.wait()
+        raise HyperstatWorkbenchError(f"{prepared[len(procs)][0][0]} could not be started ({exc.strerror or exc}).") \
+            from None
+
+    def wait(proc):
+        try:
+            return proc.communicate(timeout=max(1.0, timeout - (time.monotonic() - started)))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+            return None
+
+    with ThreadPoolExecutor(len(procs)) as pool:  # each process' pipes read as it writes them
+        outputs = list(pool.map(wait, procs))
+    results, failure = [], None
+    for (command, _), proc, out in zip(prepared, procs, outputs):
+        sub = command[1] if len(command) > 1 else ""
+        _log(f"hyperstat: '{' '.join(command)}' exit {proc.returncode} in {time.monotonic() - started:.1f} s\n")
+        try:
+            if out is None:
+                raise HyperstatWorkbenchError(f"'hyperstat {sub}' did not finish within {timeout:g} s and was stopped.")
+            results.append(interpret(command, proc.returncode, *out))
+        except HyperstatWorkbenchError as exc:
+            failure = failure or exc
+    if failure is not None:
+        raise failure
+    return tuple(results)

@@ -92,3 +92,45 @@ def test_root_starts_freecad_as_the_docs_say():
         assert flag in (ROOT / doc).read_text(encoding="utf-8") and "root" in (ROOT / doc).read_text(encoding="utf-8")
     gui = (ROOT / "tests" / "cad_plugin" / "freecad" / "test_gui_clicks.py").read_text(encoding="utf-8")
     assert '"QTWEBENGINE_CHROMIUM_FLAGS": "--no-sandbox"' in gui
+
+
+FAKE_CLI = """#!/bin/sh
+# a stand-in for the hyperstat command line: 'wait FILE' ends when 'touch FILE' has run (so only if both run at once)
+case "$1" in
+  wait) i=0; while [ ! -e "$2" ]; do i=$((i+1)); [ $i -gt 600 ] && { echo "hyperstat: error: $2 never came." >&2; exit 2; }; sleep 0.05; done; echo "saw $2";;
+  touch) touch "$2"; echo "made $2";;
+  fail) echo "hyperstat: error: $2 is not a model file." >&2; exit 2;;
+  *) echo "usage: hyperstat ..." >&2; echo "hyperstat: error: argument command: invalid choice: '$1' (choose from 'wait', 'touch', 'fail')" >&2; exit 2;;
+esac
+"""
+
+
+def test_runs_together_start_at_once_and_answer_in_order(tmp_path, monkeypatch):
+    """The Analyse's two commands (``analyze`` and ``report``) run at once (:class:`Together`): a run that waits for a
+    file the other writes ends (30 s at most); the outputs come back in the order given, through :func:`drive` too; a
+    failure is the command's own sentence, the first in order when several fail, raised once all have ended."""
+    cli = tmp_path / "hyperstat"
+    cli.write_text(FAKE_CLI)
+    cli.chmod(0o755)
+    monkeypatch.setenv("HYPERSTAT_CLI", str(cli))
+    sys.path.insert(0, str(WORKBENCH))
+    try:
+        from hyperstat_freecad.operations import Call, Together, drive
+        from hyperstat_freecad.runner import CommandMissing, HyperstatWorkbenchError, run_together
+    finally:
+        sys.path.pop(0)
+    flag = tmp_path / "flag"
+    waited, made = run_together([["wait", str(flag)], ["touch", str(flag)]])
+    assert (waited.stdout, made.stdout) == (f"saw {flag}\n", f"made {flag}\n")
+
+    def steps():
+        first = yield Together((Call(["wait", str(tmp_path / "again")], "waits"),
+                                Call(["touch", str(tmp_path / "again")], "writes")))
+        return [r.stdout for r in first]
+
+    assert drive(steps()) == [f"saw {tmp_path / 'again'}\n", f"made {tmp_path / 'again'}\n"]
+    with pytest.raises(HyperstatWorkbenchError, match=r"^B is not a model file\.$"):
+        run_together([["touch", str(tmp_path / "x")], ["fail", "b"], ["fail", "c"]])
+    assert (tmp_path / "x").exists()  # the other runs ran to their end
+    with pytest.raises(CommandMissing, match="has no 'report' command"):  # an older command line, named
+        run_together([["touch", str(tmp_path / "y")], ["report", "model.json"]])

@@ -64,6 +64,91 @@ def test_a_changed_option_or_model_is_computed_again(tmp_path, cache_dir, slider
     assert len(_entries(cache_dir, "sample")) == 3  # seed 3, then the edited model: each its own sample
 
 
+def test_a_template_and_its_built_model_are_one_key_and_a_changed_parameter_another(tmp_path, cache_dir):
+    """The key is the model's content, not how it was obtained: the model file ``hyperstat build`` writes of a
+    template (FreeCAD's Analyse reads that one) reads the template's sample and values, and answers as an uncached
+    run of it; a template parameter changed with ``-p`` is another model, computed again."""
+    source = TEMPLATES / "slider_crank.py"
+    model = tmp_path / "sc.skel.json"
+    code, _, err = run_cli(["build", source, "--model", model, "--quiet"])
+    assert code == 0, err
+    first = json.loads(_montecarlo(source, tmp_path / "a.json"))
+    assert len(_entries(cache_dir, "sample")) == len(_entries(cache_dir, "values")) == 1
+    built = _montecarlo(model, tmp_path / "b.json")
+    assert len(_entries(cache_dir, "sample")) == len(_entries(cache_dir, "values")) == 1  # read, not computed
+    assert len(_entries(cache_dir, "montecarlo")) == 2  # a document names its source: one per source
+    assert built == _montecarlo(model, tmp_path / "c.json", "--no-cache")
+    assert {k: v for k, v in json.loads(built).items() if k != "source"} == \
+           {k: v for k, v in first.items() if k != "source"}
+    longer = _montecarlo(source, tmp_path / "d.json", "-p", "L2=130")
+    assert len(_entries(cache_dir, "sample")) == len(_entries(cache_dir, "values")) == 2
+    assert json.loads(longer)["drawn_values"] != first["drawn_values"]
+
+
+def test_report_and_accuracy_on_the_same_sample_read_one_values_entry(tmp_path, cache_dir):
+    """``accuracy`` on the report's sample (200 configurations, seed 0) and spec computes the same values (bit for bit,
+    the corpus runs both): one entry, read by the second command, which answers as its uncached run; another spec is
+    computed again."""
+    import inspect
+
+    from hyperstat.solver.cli.cached import _DEFAULTS
+    from hyperstat.solver.tolerances.values import assign_values
+
+    signature = inspect.signature(assign_values).parameters
+    assert all(signature[name].default is value for name, value in _DEFAULTS.items())
+    source = TEMPLATES / "slider_crank.py"
+    code, _, err = run_cli(["report", source, "--out", tmp_path / "rep", "--json-only", "--quiet"])
+    assert code == 0, err
+    assert len(_entries(cache_dir, "values")) == 1
+
+    def accuracy(name, *extra):
+        code, _, err = run_cli(["accuracy", source, "--workspace-configurations", "200", "--no-refine", "--json",
+                                tmp_path / name, "--quiet", *extra])
+        assert code == 0, err
+        return (tmp_path / name).read_text()
+
+    cached = accuracy("a.json")
+    assert len(_entries(cache_dir, "values")) == 1  # the report's entry, read
+    assert cached == accuracy("b.json", "--no-cache")
+    report = json.loads((tmp_path / "rep" / "report.json").read_text())["tolerances"]["items"]
+    assert [t["value"] for t in json.loads(cached)["tolerances"]["items"]] == [t["value"] for t in report]
+    accuracy("c.json", "--position-accuracy", "0.04")
+    assert len(_entries(cache_dir, "values")) == 2
+
+
+def _same(a, b, where: str = "mechanism") -> list:
+    """Where two objects differ, attribute by attribute (arrays by their values, callables not compared)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return [] if np.shape(a) == np.shape(b) and np.array_equal(a, b) else [where]
+    if type(a) is not type(b):
+        return [f"{where}: {type(a).__name__} / {type(b).__name__}"]
+    if isinstance(a, dict):
+        if set(a) != set(b):
+            return [f"{where}: keys {sorted(map(str, set(a) ^ set(b)))}"]
+        return [d for k in a for d in _same(a[k], b[k], f"{where}[{k!r}]")]
+    if isinstance(a, (list, tuple)):
+        if len(a) != len(b):
+            return [f"{where}: length"]
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _same(x, y, f"{where}[{i}]")]
+    if hasattr(a, "__dict__") and not callable(a):
+        return _same(vars(a), vars(b), where)
+    if callable(a) or a == b or (a != a and b != b):
+        return []
+    return [f"{where}: {a!r} / {b!r}"]
+
+
+def test_the_model_file_holds_every_attribute_the_stages_read(tmp_path):
+    """Why the key can be the model-file text alone: the mechanism of every shipped template and the one read back
+    from its model file are equal in every attribute (joints, elements, defects, ranges, metadata...)."""
+    from hyperstat.cad_plugin.templates import build_template, list_templates
+    from hyperstat.solver.kinematics.modelfile import load_model
+
+    for template in list_templates():
+        mech = build_template(template).mechanism()
+        again = load_model(save_model(mech, tmp_path / f"{template.stem}.json"))
+        assert _same(mech, again) == [], template.stem
+
+
 def test_the_values_stage_restores_what_it_computed(cache_dir, slider_crank, slider_crank_analysis):
     """The changes :func:`assign_values` makes to a classification, stored and applied to a fresh one, give the
     same classification (every tolerance's value, source, evidence, drawing, the allocation, the warnings)."""

@@ -25,7 +25,7 @@ def classified(name: str, values: bool = False, assembly: bool = True):
     With ``values``, the values as ``hyperstat report`` computes them: a workspace sample of 200 (seed 0),
     the analysis' first configurations for the assembly conditions.  With the assembly conditions (the report's
     call), they are the report's own: its entry in the session's cache of results (``tests/conftest.py``), under
-    the key ``hyperstat report TEMPLATE`` stores them (the same model, source file, sample and options), computed
+    the key ``hyperstat report TEMPLATE`` stores them (the same model, sample and options), computed
     by whichever process of the session gets there first (a report, or this) and read, to the bit, by the others.
     """
     path = TEMPLATES / f"{name}.py"
