@@ -80,8 +80,11 @@ def main(argv: list[str] | None = None, parser: argparse.ArgumentParser | None =
     import signal
     import threading
 
+    from hyperstat.solver.allocator import keep_freed_memory
+
     parser = parser or build_parser()
     args = parser.parse_args(argv)
+    keep_freed_memory()  # large arrays reuse freed pages: less system CPU (hyperstat.solver.allocator)
     previous = None
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
