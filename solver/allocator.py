@@ -7,7 +7,9 @@ serves every block above its mmap threshold (at most 32 MiB) with a fresh ``mmap
 is then zero-filled again by the kernel, page by page (a page fault each 4 KiB).  On the hexapod's
 ``accuracy`` that was 2.2-2.7 s of *system* CPU out of 19-20 s.  :func:`keep_freed_memory` tells glibc
 (``mallopt``) to serve large blocks from its heap and to keep what is freed there, so the next array reuses
-pages that are already mapped: the same computations, the same bits, less system time.
+pages that are already mapped: the same computations, the same bits, less system time.  It is set by the
+``hyperstat`` command only (its process ends with the command), not when the Python API (``hyperstat.report``)
+runs a command inside a user's own process.
 
 The peak resident memory can grow where a freed block is too small for the next one (measured: +23 MiB on the
 hexapod's 720 MiB); the heap's untouched top pad costs address space, not memory.  ``HYPERSTAT_KEEP_MEMORY=0``
