@@ -40,10 +40,13 @@ _done = False
 def keep_freed_memory() -> bool:
     """Set glibc's allocator to keep freed memory for reuse (once per process); whether it was set.
 
+    The ``hyperstat`` command calls it first thing (``tests/solver/test_allocator.py`` runs it in a child: the
+    setting stays with the process that made it).
+
     Examples
     --------
-    >>> isinstance(keep_freed_memory(), bool)
-    True
+    >>> MMAP_THRESHOLD // 2**20, TRIM_THRESHOLD // 2**20, TOP_PAD // 2**20  # MiB
+    (1024, 4096, 256)
     """
     global _done
     if _done:
