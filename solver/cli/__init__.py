@@ -80,8 +80,12 @@ def main(argv: list[str] | None = None, parser: argparse.ArgumentParser | None =
     import signal
     import threading
 
+    from hyperstat.solver.allocator import keep_freed_memory
+
     parser = parser or build_parser()
     args = parser.parse_args(argv)
+    if argv is None:  # the process's own command line (not the Python API's call): large arrays reuse freed pages
+        keep_freed_memory()  # less system CPU (hyperstat.solver.allocator)
     previous = None
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)

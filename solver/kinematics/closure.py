@@ -664,6 +664,7 @@ class Kinematics:
         tol: float = 1e-9,
         max_iter: int = 40,
         max_step: float = 0.3,
+        _elements: tuple | None = None,
     ) -> AssemblyResult:
         """Solve the passive joints by Gauss-Newton (least squares when over-constrained).
 
@@ -680,6 +681,9 @@ class Kinematics:
         max_step : float
             Largest revolute step per iteration (rad); prismatic steps are scaled alike
             by the length scale.
+        _elements : tuple, optional
+            Internal: the element matrices of ``xi`` (one defect vector per configuration,
+            :meth:`_all_element_matrices`) computed before, when the same machines are assembled again.
 
         Returns
         -------
@@ -700,7 +704,7 @@ class Kinematics:
         every = None
         if xi is not None and np.ndim(xi) == 2 and len(xi) == len(q) > 1:
             xi = np.asarray(xi, dtype=float)
-            every = self._all_element_matrices(xi)
+            every = self._all_element_matrices(xi) if _elements is None else _elements
         for _ in range(max_iter):
             idx = np.nonzero(active)[0]
             if idx.size == 0:

@@ -38,7 +38,7 @@ import math
 
 import numpy as np
 
-from hyperstat.solver.kinematics.closure import Kinematics
+from hyperstat.solver.kinematics.closure import Kinematics, _element_rows
 from hyperstat.solver.kinematics.continuation import batched_lstsq
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import output_twist_maps
@@ -149,9 +149,10 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     n_s = basis.shape[1]
     act = np.asarray(m.actuated)
 
-    def assembled(q0: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        # the assembled configurations and their output poses (the assembly's last evaluation at them)
-        res = kin.assemble(q0, xi)
+    def assembled(q0: np.ndarray, xi: np.ndarray, elements: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+        # the assembled configurations and their output poses (the assembly's last evaluation at them); ``elements``:
+        # the element matrices of ``xi`` when the same machines were assembled before (computed once: the same bits)
+        res = kin.assemble(q0, xi, _elements=elements)
         return res.q, res.output_pose
 
     # the true machines' measurements
@@ -176,8 +177,9 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         x = coef @ seen.T
         xi_est = (basis @ x[:, :n_s].T).T * pscale[None, :]
         xe = np.repeat(xi_est, k_c, axis=0)
-        qe, pose_e = assembled(qe, xe)
-        st = kin.evaluate(qe, xe, jacobians=True)
+        elements_e = kin._all_element_matrices(xe) if len(xe) > 1 else None  # for the assembly and the Jacobians
+        qe, pose_e = assembled(qe, xe, elements_e)
+        st = kin.evaluate(qe, xe, jacobians=True, _elements=elements_e)
         k_xi, _ = output_twist_maps(kin, st)
         meas_xi, nuisance, _ = _measurement_maps(decl, st, k_xi, ls, pscale)
         jac = (meas_xi @ basis).reshape(n_m, k_c, -1, n_s).reshape(n_m, -1, n_s)
@@ -194,17 +196,18 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     goal = np.tile(setup["goal"], (n_m, 1, 1))
     qt = np.tile(q_task, (n_m, 1))
     xt = np.repeat(xi_est, k_t, axis=0)
+    elements_t = kin._all_element_matrices(xt) if len(xt) > 1 else None  # the fitted models', for every step below
     cap = 0.05 * kin.joint_scale[act]
     tscale = _task_scale(decl, ls)
     todo = np.arange(len(qt))
     for it in range(CHORD_STEPS + iterations):
-        qt[todo], pose = assembled(qt[todo], xt[todo])
+        qt[todo], pose = assembled(qt[todo], xt[todo], _element_rows(elements_t, todo, len(qt)))
         if it < CHORD_STEPS:
             rhs = -np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal[todo]))
             done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
             da = np.einsum("kar,kr->ka", chord[todo], rhs)
         else:  # Newton with the fitted model's map
-            st = kin.evaluate(qt[todo], xt[todo], jacobians=True)
+            st = kin.evaluate(qt[todo], xt[todo], jacobians=True, _elements=_element_rows(elements_t, todo, len(qt)))
             sel = task_rows(decl.task, st.output_pose)
             rhs = -np.einsum("krs,ks->kr", sel, _pose_error(st.output_pose, goal[todo]))
             done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
@@ -214,7 +217,7 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         todo = todo[~done]
         if not len(todo):
             break
-    qt, pose = assembled(qt, xt)
+    qt, pose = assembled(qt, xt, elements_t)
     reached = np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal))
     reached = np.linalg.norm(reached * tscale[None, :], axis=1) <= 1e-9
     qt, true_pose = assembled(qt, np.repeat(xi_true, k_t, axis=0))

@@ -68,3 +68,21 @@ def test_non_closing_home_is_a_clear_error():
     m2 = dataclasses.replace(m, chains=(m.chains[0], dataclasses.replace(ch, elements=(moved,) + ch.elements[1:])))
     with pytest.raises(AssemblyError, match=r"does not close at its home configuration: loop 'b -> F' misses by 5 mm"):
         Kinematics(m2).check_home()
+
+
+def test_an_assembly_given_its_machines_element_matrices_is_the_same_bit_for_bit(slider_crank, slider_crank_analysis):
+    """``assemble(_elements=...)`` (the simulated calibrations compute each machine's element matrices once): the
+    same configurations and poses as an assembly that computes them, for all rows and for a subset of them."""
+    from hyperstat.solver.kinematics.closure import _element_rows
+
+    kin = Kinematics(slider_crank)
+    q0 = kin.solve(np.linspace(-2.5, 2.5, 9)[:, None]).q
+    basis = slider_crank_analysis.admissible_basis  # admissible defects (dimensionless): the machines close
+    xi = (np.random.default_rng(5).normal(0.0, 1e-4, (len(q0), basis.shape[1])) @ basis.T) * kin.parameter_scale
+    elements = kin._all_element_matrices(xi)
+    alone, given = kin.assemble(q0, xi), kin.assemble(q0, xi, _elements=elements)
+    assert alone.converged.all() and np.abs(xi).max() > 1e-3  # machines that close, with defects of 1e-4 and more
+    assert np.array_equal(alone.q, given.q) and np.array_equal(alone.output_pose, given.output_pose)
+    rows = np.array([1, 4, 6])
+    part = kin.assemble(q0[rows], xi[rows], _elements=_element_rows(elements, rows, len(q0)))
+    assert np.array_equal(part.q, kin.assemble(q0[rows], xi[rows]).q)
