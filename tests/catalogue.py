@@ -545,7 +545,8 @@ Tests: `tests/solver/export/test_calibration_gate.py`, `tests/solver/calibration
 
 **Masses** (`solver/kinematics/masses.py`): a URDF `<inertial>` declared twice or with a value that
 is not finite, a mass beyond a ball of solid copper around its link, a centre of mass outside its link
-widened by a fifth of the chain's reach (`import-robot`); the same for `metadata.masses`, and a moving
+widened by a fifth of the chain's reach (`import-robot`, per link and then per body as the model file it writes
+carries them); the same for `metadata.masses`, and a moving
 joint of a serial chain left out of it; a material density outside 100-22590 kg/m^3 (`sk.material`).
 Tests: `tests/solver/kinematics/test_mass_plausibility.py`.
 

@@ -317,8 +317,10 @@ def _candidate_names(data, candidates) -> list:
 
 
 def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_blocks, seed, max_effects,
-              progress, per_target=True) -> Diagnosis:
-    """Body of :func:`diagnose` (BLAS single-threaded by the caller): the steps in order."""
+              progress, per_target=True, pooled_choice=True) -> Diagnosis:
+    """Body of :func:`diagnose` (BLAS single-threaded by the caller): the steps in order.  ``pooled_choice`` false
+    (each target alone, for the per-target check): an over-fitting answer is not followed by the pooled choice of an
+    effect (:func:`_held_out_answer`), which is the whole file's decision and costs a fit per candidate."""
     t0 = time.perf_counter()
     step = progress or (lambda _name: None)
     names = _candidate_names(data, candidates)
@@ -354,8 +356,8 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     _shrink(run)
     step("verdict")
     diag = _answer(run)
-    if diag.outcome == "over-fitting" and diag.verdict.get("effect_not_excluded") and validation is not None \
-            and getattr(run, "pool", None):
+    if pooled_choice and diag.outcome == "over-fitting" and diag.verdict.get("effect_not_excluded") \
+            and validation is not None and getattr(run, "pool", None):
         step("held-out choice")  # too few poses to choose on them: the held-out poses choose (:mod:`.held_out`)
         diag = _held_out_answer(run) or diag
     checks = targets_to_check(data, validation) if per_target else []
@@ -363,7 +365,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
         step("per target")
         diag.per_target = per_target_check(
             lambda d, v: _diagnose(mechanism, analysis, d, v, candidates, run.kin, n_blocks, seed, max_effects, None,
-                                   per_target=False), checks)
+                                   per_target=False, pooled_choice=False), checks)
         whole = {"outcome": diag.outcome, "named_effects": diag.named_effects,
                  "equivalence_sets": diag.equivalence_sets, "effect_joints": diag.effect_joints}
         diag.targets_agree, diag.targets_evidence = targets_agree(whole, diag.per_target)
