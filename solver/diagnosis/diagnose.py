@@ -133,12 +133,14 @@ class Diagnosis:
         or an ``over-fitting`` answer's held-out excess is beyond what the fitted model's own uncertainty accounts
         for (``verdict.effect_not_excluded``: a missing effect is not excluded), or the named effect was chosen on the
         held-out poses because the identification poses were too few (``verdict.held_out_choice``,
-        :mod:`.held_out`); ``"high"`` otherwise."""
+        :mod:`.held_out`), or an ``understated noise`` answer's isotropy test passes by less than 10x
+        (``verdict.near_anisotropy``, :func:`.answer.near_anisotropy`); ``"high"`` otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
                 or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
                 or self.verdict.get("order_not_established") or self.verdict.get("below_guard") \
                 or self.verdict.get("library_effect_seen") or self.verdict.get("near_structure") \
-                or self.verdict.get("effect_not_excluded") or self.verdict.get("held_out_choice"):
+                or self.verdict.get("effect_not_excluded") or self.verdict.get("held_out_choice") \
+                or self.verdict.get("near_anisotropy"):
             return "low"
         return "high"
 
