@@ -52,7 +52,7 @@ from hyperstat.solver.kinematics.joint_map import ANGLE_UNITS, LENGTH_UNITS, Joi
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.plausibility import plausible_angle, plausible_in, plausible_length
 
-__all__ = ["MeasurementSet", "NoiseModel", "read_measurements", "write_measurements", "parse_measurements",
+__all__ = ["MeasurementSet", "joined", "NoiseModel", "read_measurements", "write_measurements", "parse_measurements",
            "parse_noise",
            "METADATA_COLUMNS"]
 
@@ -175,6 +175,31 @@ class MeasurementSet:
             np.asarray(self.target_index)[idx], list(self.target_names), dict(self.target_priors),
             [self.pose_id[i] for i in idx], self.rotation_noise,
         )
+
+
+def joined(first: MeasurementSet, second: MeasurementSet, prefix: str = "held-out ") -> MeasurementSet | None:
+    """The rows of ``first`` then those of ``second`` as one set (the second's poses renamed ``prefix + pose`` so
+    that no pose name is shared), with the first's noise model, tracker and targets; None when the two sets do not
+    have the same joints, targets, metadata columns and row kinds (3-D or 6-D).
+
+    >>> a = MeasurementSet(["P1"], ["1"], np.zeros((1, 1)), np.zeros((1, 3)))
+    >>> both = joined(a, MeasurementSet(["P1"], ["1"], np.ones((1, 1)), np.ones((1, 3))))
+    >>> both.pose, both.q.ravel().tolist()
+    (['P1', 'held-out P1'], [0.0, 1.0])
+    """
+    if list(second.joints) != list(first.joints) or list(second.target_names) != list(first.target_names) \
+            or set(second.metadata) != set(first.metadata) or (second.rotation is None) != (first.rotation is None):
+        return None
+    return MeasurementSet(
+        list(first.pose) + [prefix + str(p) for p in second.pose], list(first.joints),
+        np.concatenate([first.q, second.q]), np.concatenate([first.position, second.position]),
+        None if first.rotation is None else np.concatenate([first.rotation, second.rotation]),
+        {k: np.concatenate([np.asarray(v), np.asarray(second.metadata[k])]) for k, v in first.metadata.items()},
+        first.noise, first.tracker, first.target, first.mechanism, first.source,
+        np.concatenate([np.asarray(first.target_index), np.asarray(second.target_index)]),
+        list(first.target_names), dict(first.target_priors),
+        list(first.pose_id) + [prefix + str(p) for p in second.pose_id], first.rotation_noise,
+    )
 
 
 def _declaration(key: str) -> bool:

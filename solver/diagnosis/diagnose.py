@@ -34,7 +34,7 @@ import numpy as np
 
 from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.calibration.identify import IdentificationResult, MeasurementModel, identify
-from hyperstat.solver.calibration.measurements import MeasurementSet
+from hyperstat.solver.calibration.measurements import MeasurementSet, joined
 from hyperstat.solver.diagnosis.answer import OUTCOMES, format_outcome, verdict
 from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MASS_FIELD, MASS_FIELD_SHORT, applicable_effects,
                                                 available_effects, gravity_source, harmonic_name, harmonic_order,
@@ -631,24 +631,6 @@ def _add_atom(run: _Run, name: str, joint: str) -> str | None:
     return key
 
 
-def _pooled(data: MeasurementSet, validation: MeasurementSet) -> MeasurementSet | None:
-    """The identification and the held-out rows as one set (the held-out poses renamed ``held-out <pose>``), or None
-    when the two files do not have the same joints, targets, metadata columns and row kinds."""
-    if list(validation.joints) != list(data.joints) or list(validation.target_names) != list(data.target_names) \
-            or set(validation.metadata) != set(data.metadata) or (validation.rotation is None) != (data.rotation is None):
-        return None
-    both = MeasurementSet(
-        list(data.pose) + [f"held-out {p}" for p in validation.pose], list(data.joints),
-        np.concatenate([data.q, validation.q]), np.concatenate([data.position, validation.position]),
-        None if data.rotation is None else np.concatenate([data.rotation, validation.rotation]),
-        {k: np.concatenate([np.asarray(v), np.asarray(validation.metadata[k])]) for k, v in data.metadata.items()},
-        data.noise, data.tracker, data.target, data.mechanism, data.source,
-        np.concatenate([np.asarray(data.target_index), np.asarray(validation.target_index)]),
-        list(data.target_names), dict(data.target_priors),
-        list(data.pose_id) + [f"held-out {p}" for p in validation.pose_id], data.rotation_noise)
-    return both
-
-
 def _pooled_fit(run: _Run, pooled: MeasurementSet, effects: tuple) -> dict | None:
     """A fit of the geometry (and ``effects``) on the pooled rows: its chi-square, degrees of freedom and rank (None:
     no converged fit within the effects' physical domains, or more unknowns than equations)."""
@@ -658,12 +640,8 @@ def _pooled_fit(run: _Run, pooled: MeasurementSet, effects: tuple) -> dict | Non
                            outlier_probe=False)
     except DataError:
         return None
-    if not fit.converged:
+    if not fit.converged or _implausible(fit) is not None:
         return None
-    for eff, sl in zip(fit.model.effects, fit.model._effect_slices):
-        std = np.array([p["std"] if p["std"] is not None else np.inf for p in fit.parameters[sl]])
-        if eff.plausibility(fit.theta[sl], std) is not None:
-            return None
     test = gap_test(fit, pooled, None)["identification"]
     return {"chi2": test["chi2"], "dof": test["dof"], "rank": fit.rank}
 
@@ -674,7 +652,7 @@ def _held_out_answer(run: _Run) -> Diagnosis | None:
     them, and an F-test of each against the rigid fit chooses at the family-wise 1 % (:mod:`.held_out`); the chosen
     one is named with the others that fit alike, confidence low (:func:`.held_out.held_out_words`).  None when no
     candidate passes, or the two files cannot be pooled."""
-    pooled = _pooled(run.data, run.validation)
+    pooled = joined(run.data, run.validation)
     rigid = _pooled_fit(run, pooled, ()) if pooled is not None else None
     if rigid is None:
         return None
@@ -1035,6 +1013,16 @@ def _leg_thermal_words(run: _Run, words: dict, sets: list, others: list) -> None
                              f"; {LEG_OFFSET_WORDS} would tell them apart"))
 
 
+def _implausible(fit: IdentificationResult) -> tuple | None:
+    """The first effect of a fit whose estimates leave its physical domain or prior: ``(name, why)``, or None."""
+    for eff, sl in zip(fit.model.effects, fit.model._effect_slices):
+        std = np.array([p["std"] if p["std"] is not None else np.inf for p in fit.parameters[sl]])
+        why = eff.plausibility(fit.theta[sl], std)
+        if why is not None:
+            return eff.name, why
+    return None
+
+
 def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, effects: dict, before: dict | None,
                    rejected: list, ranking: list, rigid: IdentificationResult, confirm: bool = False) -> tuple:
     """Identify the selected effects with the geometry (full nonlinear fit); an effect whose estimate leaves its
@@ -1058,14 +1046,9 @@ def _nonlinear_fit(mechanism, analysis, kin, data, validation, selected: list, e
                                 model=model, outlier_probe=False)
                 if warm.converged:
                     final = warm
-        dropped = None
-        for eff, sl in zip(final.model.effects, final.model._effect_slices):
-            est = final.theta[sl]
-            std = np.array([p["std"] if p["std"] is not None else np.inf for p in final.parameters[sl]])
-            why = eff.plausibility(est, std)
-            if why is not None:
-                dropped = (eff.name, "nonlinear fit", why)
-                break
+        dropped = _implausible(final)
+        if dropped is not None:
+            dropped = (dropped[0], "nonlinear fit", dropped[1])
         if dropped is None and before is not None and final.validation is not None \
                 and final.validation["rms"] > before["rms"]:
             dropped = (selected[-1], "validation",
