@@ -43,7 +43,7 @@ from hyperstat.solver.diagnosis.effects import (GRAVITY_EFFECTS, LinkBending, MA
 from hyperstat.solver.diagnosis.equivalence import (STAND_MOTION, STAND_MOTION_WORDS, bending_alternatives,
                                                     equivalence_sets, gravity_family, stand_motion_family)
 from hyperstat.solver.diagnosis.confirmation import CONFIRM_P, validation_confirms
-from hyperstat.solver.diagnosis.gap import gap_test, inputs_wrong, overfitting, weighted_validation
+from hyperstat.solver.diagnosis.gap import FEW_EQUATIONS, gap_test, inputs_wrong, overfitting, weighted_validation
 from hyperstat.solver.diagnosis.held_out import held_out_choice, held_out_words, nested_f_test
 from hyperstat.solver.diagnosis.leg_pattern import (LEG_OFFSET, LEG_OFFSET_WORDS, leg_offset_family,
                                                     leg_thermal_pattern, prismatic_legs)
@@ -134,13 +134,16 @@ class Diagnosis:
         for (``verdict.effect_not_excluded``: a missing effect is not excluded), or the named effect was chosen on the
         held-out poses because the identification poses were too few (``verdict.held_out_choice``,
         :mod:`.held_out`), or an ``understated noise`` answer's isotropy test passes by less than 10x
-        (``verdict.near_anisotropy``, :func:`.answer.near_anisotropy`); ``"high"`` otherwise."""
+        (``verdict.near_anisotropy``, :func:`.answer.near_anisotropy`), or a ``no significant gap`` answer's gap or
+        structure test passes by less than 10x (``verdict.near_gap``, :func:`.answer.near_gap`), or the pooled
+        choice found an effect it could not fit or answer (``verdict.held_out_found``); ``"high"`` otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
                 or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
                 or self.verdict.get("order_not_established") or self.verdict.get("below_guard") \
                 or self.verdict.get("library_effect_seen") or self.verdict.get("near_structure") \
                 or self.verdict.get("effect_not_excluded") or self.verdict.get("held_out_choice") \
-                or self.verdict.get("near_anisotropy"):
+                or self.verdict.get("near_anisotropy") or self.verdict.get("near_gap") \
+                or self.verdict.get("held_out_found"):
             return "low"
         return "high"
 
@@ -341,6 +344,7 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
                          run.rigid, None, time.perf_counter() - t0, outcome, words, [], [], run.cannot_size, {})
     step("where")
     _rows_and_screen(run)
+    run.weak = bool(pooled_choice and validation is not None and run.rigid.rank * FEW_EQUATIONS > 3 * len(run.screen.w))
     options = {}
     if candidates is None:  # the periodic orders the spectrum shows join the candidates
         for name, spec in spectral_candidates(run.plain, run.rows, run.act_jac).items():
@@ -358,10 +362,16 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     _shrink(run)
     step("verdict")
     diag = _answer(run)
-    if pooled_choice and diag.outcome == "over-fitting" and diag.verdict.get("effect_not_excluded") \
-            and validation is not None and getattr(run, "pool", None):
-        step("held-out choice")  # too few poses to choose on them: the held-out poses choose (:mod:`.held_out`)
-        diag = _held_out_answer(run) or diag
+    # too few identification poses: the gap tests are weak (the held-out poses' predictions are uncertain, the
+    # identification residuals bent around a missing effect), and the identification poses cannot choose; all the
+    # poses pooled choose (:mod:`.held_out`), after an over-fitting answer whose held-out excess is beyond the fitted
+    # model's uncertainty, and after a passing gap test or an excess without structure on so few poses (the F-test
+    # is the same whatever the noise's scale)
+    if pooled_choice and validation is not None and getattr(run, "pool", None) and (
+            (diag.outcome == "over-fitting" and diag.verdict.get("effect_not_excluded"))
+            or (diag.outcome in ("no significant gap", "understated noise") and run.weak)):
+        step("held-out choice")
+        diag = _held_out_answer(run) or _pooled_nothing(diag, run)
     checks = targets_to_check(data, validation) if per_target else []
     if checks:
         step("per target")
@@ -448,7 +458,7 @@ def _select(run: _Run, max_effects: int) -> None:
         pool[e["effect"]] = {"entry": e, "columns": run.columns[e["effect"]], "effect": eff,
                              "joints": list(eff.param_joints) if is_jointwise(e["effect"]) and
                              hasattr(eff, "param_joints") else None}
-    if run.significant:  # the per-joint candidates (only a gap needs them)
+    if run.significant or run.weak:  # the per-joint candidates (a gap needs them, and a pooled choice may)
         from hyperstat.solver.diagnosis.screening import make_atom
 
         for e in run.ranking:
@@ -646,6 +656,25 @@ def _pooled_fit(run: _Run, pooled: MeasurementSet, effects: tuple) -> dict | Non
     return {"chi2": test["chi2"], "dof": test["dof"], "rank": fit.rank}
 
 
+def _pooled_nothing(diag: Diagnosis, run: _Run) -> Diagnosis:
+    """A ``no significant gap`` answer on too few poses whose pooled choice named nothing: the answer says so."""
+    found = getattr(run, "held_out_found", None)
+    if found is not None:  # the pooled F-test found a candidate that could not be fitted or answered after all
+        diag.verdict["held_out_found"] = found
+        diag.verdict["evidence"] += (
+            f"; confidence low: on all the poses pooled (identification and held-out) {found['chosen']} passes an "
+            f"F-test against the geometry alone (F = {found['f']:.3g}, p = {found['p_value']:.2g}, family-wise 1 %), "
+            f"but {found['why']}: a missing effect is not excluded; measure more poses spread over the workspace "
+            f"and diagnose again")
+    elif diag.outcome == "no significant gap":
+        diag.verdict["few_equations"] = {"rank": run.rigid.rank, "equations": 3 * len(run.screen.w)}
+        diag.verdict["evidence"] += (
+            f"; with {run.rigid.rank} parameters for {3 * len(run.screen.w)} equations these tests are weak, and no "
+            f"candidate fitted with the geometry on all the poses pooled (identification and held-out) passes an "
+            f"F-test against the geometry alone at the family-wise 1 %")
+    return diag
+
+
 def _held_out_answer(run: _Run) -> Diagnosis | None:
     """An ``over-fitting`` answer whose held-out excess a missing effect may explain: the identification and the
     held-out poses are pooled, every candidate of the pool not refused at screening is fitted with the geometry on
@@ -671,12 +700,27 @@ def _held_out_answer(run: _Run) -> Diagnosis | None:
     run.selected_columns = {name: cand["columns"]}
     run.effect_joints = {name: [joint]} if joint else {}
     run.order_sets, run.below_guard = {}, []
-    _shrink(run, confirm=False)
+    run.held_out_found = {"chosen": choice["chosen"], "f": choice["best"]["f"], "p_value": choice["best"]["p_value"]}
+    try:
+        _shrink(run, confirm=False)
+    except DataError:  # more unknowns than the identification poses' equations once the effect is added
+        run.held_out_found["why"] = "the identification poses alone are too few to fit it with the geometry"
+        return None
     if not run.selected:  # the nonlinear fit refused it after all (its domain, or a worse validation RMS)
+        run.held_out_found["why"] = "the fit on the identification poses refused it (its physical domain, or a " \
+                                    "worse held-out error)"
         return None
+    passed, run.significant = run.significant, True  # the pooled F-test found the gap the weak gap tests missed
     diag = _answer(run)
+    run.significant = passed
     if diag.outcome not in ("explained", "partly explained") or "evidence" not in diag.verdict:
+        run.held_out_found["why"] = f"the answer with it fitted is '{diag.outcome}'"
         return None
+    if not passed:
+        diag.verdict["evidence"] += (f"; the gap tests on the identification and the held-out poses apart passed "
+                                     f"(identification p = {run.test['identification']['p_value']:.2g}, validation p "
+                                     f"= {run.test['validation']['p_value']:.2g}), weak with so few poses: the F-test "
+                                     f"on all the poses pooled found it")
     alike = list(dict.fromkeys(split_key(k)[0] for k in choice["alike"] if split_key(k)[0] != name))
     if alike:
         s = next((st for st in diag.equivalence_sets if st["effect"] == name), None)

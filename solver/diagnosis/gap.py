@@ -5,8 +5,11 @@ Units: lengths in mm; noise factors are dimensionless (``sqrt(chi2 / dof)``).
 * The gap test (:func:`gap_test`): the weighted residuals of a fit (position rows, and
   orientation rows for 6-D data: :mod:`.observations`) follow a chi-square law with
   ``3 rows - rank`` degrees of freedom when the file's noise model is right and
-  nothing is missing; the validation points give a second, independent test (their
-  variance inflated by ``1 + rank / 3K`` for the fitted model's own uncertainty).
+  nothing is missing; the validation points give a second, independent test, against the
+  exact covariance of a held-out prediction error, ``I + J_v (J^T J)^+ J_v^T`` in weighted
+  units (:func:`prediction_covariance`): the fitted model's own uncertainty at each held-out
+  pose, larger where the poses extrapolate (the workspace's edge) than its average
+  ``rank / 3K`` over the identification poses.
 * Inputs wrong (:func:`inputs_wrong`): sigma in the hundreds, or residuals of a
   fraction of a link, come from the joint map, the units or the targets, not from a
   missing effect (:func:`~hyperstat.solver.calibration.identify.fit_quality`).
@@ -26,7 +29,7 @@ from hyperstat.solver.calibration.measurements import MeasurementSet
 from hyperstat.solver.diagnosis.observations import oriented, residual_rows
 from hyperstat.solver.diagnosis.where import P_THRESHOLD
 
-__all__ = ["gap_test", "noise_statement", "overfitting", "inputs_wrong", "weighted_validation", "OVERFIT_RATIO"]
+__all__ = ["gap_test", "prediction_covariance", "noise_statement", "overfitting", "inputs_wrong", "weighted_validation", "OVERFIT_RATIO"]
 
 OVERFIT_RATIO = 1.3  #: validation noise factor this many times the identification's (and significant): over-fitting
 FEW_EQUATIONS = 2.0  #: fewer equations per identified parameter than this: over-fitting whatever the factors
@@ -44,16 +47,24 @@ def gap_test(result: IdentificationResult, data: MeasurementSet, validation: Mea
     dof = max(3 * len(w) - result.rank, 1)
     test = {"identification": {"chi2": chi_id, "dof": dof, "p_value": float(chdtrc(dof, chi_id)),
                                "noise_factor": float(np.sqrt(chi_id / dof))}}
+    held = None
     if validation is not None and len(validation) and result.validation_residuals is not None:
         rv, wv = _rows(result, validation, result.validation_residuals)
-        chi_v = float(np.sum((rv * wv[:, None]) ** 2))
-        scale = 1.0 + result.rank / (3.0 * len(w))
+        held = prediction_covariance(result, data, validation)
+        z = (rv * wv[:, None]).reshape(-1)
+        chi_raw = float(z @ z)
+        chi_v = float(z @ _solve_spd(held["covariance"], z))  # whitened by the exact prediction covariance
         dof_v = 3 * len(wv)
-        test["validation"] = {"chi2": chi_v, "dof": dof_v, "p_value": float(chdtrc(dof_v, chi_v / scale)),
-                              "variance_inflation": scale, "noise_factor": float(np.sqrt(chi_v / scale / dof_v))}
+        scale = chi_raw / max(chi_v, 1e-300)  # the inflation these residuals met (reported; the test is chi_v)
+        test["validation"] = {"chi2": chi_raw, "chi2_whitened": chi_v, "dof": dof_v,
+                              "p_value": float(chdtrc(dof_v, chi_v)),
+                              "variance_inflation": float(np.trace(held["covariance"]) / dof_v),
+                              "variance_inflation_met": float(scale),
+                              "variance_inflation_max_pose": held["max_pose_inflation"],
+                              "noise_factor": float(np.sqrt(chi_v / dof_v))}
     test["threshold"] = P_THRESHOLD / (len(test))
     test["significant"] = bool(min(v["p_value"] for k, v in test.items() if isinstance(v, dict)) < test["threshold"])
-    kinds = row_type_tests(result, data, validation)
+    kinds = row_type_tests(result, data, validation, held)
     if kinds is not None:  # 6-D: positions and orientations also tested apart (an effect may sit in one kind only)
         test["row_types"] = kinds
         if not test["significant"] and kinds["significant"]:
@@ -62,8 +73,68 @@ def gap_test(result: IdentificationResult, data: MeasurementSet, validation: Mea
     return test
 
 
+def prediction_covariance(result: IdentificationResult, data: MeasurementSet,
+                          validation: MeasurementSet) -> dict:
+    """The covariance of a fit's weighted prediction errors at held-out poses, in units of the stated noise.
+
+    A least-squares fit on the identification rows (weighted Jacobian ``J`` of the identified
+    base parameters, :func:`~hyperstat.solver.calibration.identify.identify`) errs by
+    ``-(J^T J)^+ J^T e``; a held-out row ``v`` (weighted Jacobian ``J_v``) then has the
+    prediction error ``e_v + J_v (J^T J)^+ J^T e``, of covariance ``I + J_v (J^T J)^+ J_v^T``
+    when the noise model is right and nothing is missing (linearised at the fit). Its
+    diagonal blocks are ``1 + h_v`` per pose, ``h_v`` the pose's prediction leverage: its
+    average over the identification poses is ``rank / 3K``, but held-out poses at the
+    workspace's edge extrapolate and have more, and the off-diagonal blocks correlate the
+    held-out poses through the shared parameter error.
+
+    Returns
+    -------
+    dict
+        ``covariance`` (3 Kv, 3 Kv), the rows of :func:`_rows` flattened (position rows, then
+        orientation rows for 6-D data), and ``max_pose_inflation`` (the largest ``1 + h_v``,
+        the trace of a pose's block over 3).
+
+    Examples
+    --------
+    A straight line fitted to 4 points with unit noise: the prediction variance at ``x`` is
+    ``1 + 1/4 + (x - mean)^2 / sum((x_i - mean)^2)`` (per component), larger outside the points:
+
+    >>> import numpy as np
+    >>> x = np.array([0.0, 1.0, 2.0, 3.0]); xv = np.array([1.5, 6.0])
+    >>> J = np.column_stack([np.ones(4), x]); Jv = np.column_stack([np.ones(2), xv])
+    >>> c = _covariance_from(J, Jv)
+    >>> np.allclose(np.diag(c), 1 + 1 / 4 + (xv - 1.5) ** 2 / 5)
+    True
+    """
+    _, w, jac, _ = residual_rows(result.model, result.theta, data, jacobian=True, q_start=result.configurations)
+    _, wv, jac_v, _ = residual_rows(result.model, result.theta, validation, jacobian=True)
+    base = [result.model.names.index(b) for b in result.base]
+    x = (jac[:, :, base] * w[:, None, None]).reshape(3 * len(w), -1)
+    xv = (jac_v[:, :, base] * wv[:, None, None]).reshape(3 * len(wv), -1)
+    cov = _covariance_from(x, xv, max(result.rank, 1))
+    per_row = np.diag(cov).reshape(len(wv), 3).mean(axis=1)
+    return {"covariance": cov, "max_pose_inflation": float(per_row.max()) if len(per_row) else 1.0}
+
+
+def _covariance_from(x: np.ndarray, xv: np.ndarray, rank: int | None = None) -> np.ndarray:
+    """``I + xv (x^T x)^+ xv^T`` with the columns scaled to unit norm and the pseudo-inverse cut at ``rank``."""
+    norm = np.linalg.norm(x, axis=0).clip(min=1e-300)
+    _, s, vt = np.linalg.svd(x / norm, full_matrices=False)
+    keep = s > 1e-9 * max(float(s[0]), 1e-300) if len(s) else s > 0
+    if rank is not None:
+        keep[rank:] = False
+    b = (xv / norm) @ (vt[keep].T / s[keep])
+    return np.eye(len(xv)) + b @ b.T
+
+
+def _solve_spd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a^-1 b`` for a symmetric positive definite ``a`` (Cholesky)."""
+    from scipy.linalg import cho_factor, cho_solve
+    return cho_solve(cho_factor(a), b)
+
+
 def row_type_tests(result: IdentificationResult, data: MeasurementSet,
-                   validation: MeasurementSet | None) -> dict | None:
+                   validation: MeasurementSet | None, held: dict | None = None) -> dict | None:
     """For 6-D data, the gap test on the position rows and on the orientation rows apart (None otherwise).
 
     The pooled test of :func:`gap_test` adds the chi-squares of both kinds of rows: an effect that moves the
@@ -72,8 +143,9 @@ def row_type_tests(result: IdentificationResult, data: MeasurementSet,
     1.35 pooled with an orientation factor of 1.0 gives 1.19).  Each kind is tested against its own chi-square:
     on the identification rows with ``3 K - h`` degrees of freedom, ``h`` the sum of the kind's leverages (the
     diagonal of the hat matrix of the weighted base columns, which sums to the rank over both kinds); on the
-    validation rows with the variance inflated by ``1 + h / 3K`` (the fitted model's own uncertainty at rows of
-    that kind).  The four tests are judged at ``1e-3 / 4`` (Bonferroni), a family beside the pooled one.
+    validation rows against the fitted model's own uncertainty at rows of
+    that kind (the rows of that kind of :func:`prediction_covariance`, given as ``held``, else ``1 + h / 3K``).
+    The four tests are judged at ``1e-3 / 4`` (Bonferroni), a family beside the pooled one.
 
     Returns
     -------
@@ -105,11 +177,20 @@ def row_type_tests(result: IdentificationResult, data: MeasurementSet,
                                     "noise_factor": float(np.sqrt(chi / dof)), "leverage": h}}
         if held_out:
             kv = len(validation)
-            chi_v = float(np.sum(zv[:kv] if kind == "positions" else zv[kv:]))
-            scale = 1.0 + h / (3.0 * k)
-            entry["validation"] = {"chi2": chi_v, "dof": 3 * kv, "p_value": float(chdtrc(3 * kv, chi_v / scale)),
+            part = slice(0, kv) if kind == "positions" else slice(kv, 2 * kv)
+            chi_v = float(np.sum(zv[part]))
+            if held is not None:  # the exact covariance of this kind's rows (a marginal of the whole)
+                flat = slice(3 * part.start, 3 * part.stop)
+                zk = (rv[part] * wv[part, None]).reshape(-1)
+                cov = held["covariance"][flat, flat]
+                chi_w = float(zk @ _solve_spd(cov, zk))
+                scale = float(np.trace(cov) / (3 * kv))
+            else:
+                scale = 1.0 + h / (3.0 * k)
+                chi_w = chi_v / scale
+            entry["validation"] = {"chi2": chi_v, "dof": 3 * kv, "p_value": float(chdtrc(3 * kv, chi_w)),
                                    "variance_inflation": scale,
-                                   "noise_factor": float(np.sqrt(chi_v / scale / (3 * kv)))}
+                                   "noise_factor": float(np.sqrt(chi_w / (3 * kv)))}
         out[kind] = entry
     ps = [t["p_value"] for kind in out.values() for t in kind.values()]
     out["threshold"] = P_THRESHOLD / len(ps)
@@ -150,8 +231,8 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured
       :data:`OVERFIT_RATIO` of theirs: an understated noise shows on both);
     * the validation noise factor is at least :data:`OVERFIT_RATIO` times the
       identification's, and either the F-test of the two variances is below 1e-3 or the fit
-      spends more than a quarter of its equations on parameters (where the variance
-      inflation ``1 + rank / 3K`` of the gap test underrates what extrapolating costs), and
+      spends more than a quarter of its equations on parameters (where the linearised
+      prediction covariance of the gap test may underrate what extrapolating costs), and
       the identification residual has no structure (``structured`` false: a structured
       residual is a missing effect seen in sample, whose extrapolation also degrades the
       held-out poses);

@@ -320,7 +320,10 @@ def format_diagnosis(diag) -> str:
     lines = ["Is there a gap?"]
     for key in ("identification", "validation"):
         if key in t:
-            lines.append(f"  {key:<15} chi2 {t[key]['chi2']:.1f} for {t[key]['dof']} dof, p = {t[key]['p_value']:.2g}")
+            chi = t[key].get("chi2_whitened", t[key]["chi2"])  # held-out rows: whitened by the prediction covariance
+            lines.append(f"  {key:<15} chi2 {chi:.1f} for {t[key]['dof']} dof, p = {t[key]['p_value']:.2g}"
+                         + (f" (the fitted model's own uncertainty at these poses: {t[key]['variance_inflation']:.2f}x "
+                            f"the noise's variance on average)" if "chi2_whitened" in t[key] else ""))
     lines.append("  -> " + ("significant gap (p below %.1g)" % t["threshold"] if diag.gap_significant
                             else "no significant gap: the residuals are at the noise level of the data"))
     w = diag.where

@@ -51,7 +51,10 @@ class GuideStraightness(Effect):
     turns with the guide's slope (``c_x f'(q)`` about y, ``-c_y f'(q)`` about x, ``f' = -2 s / h``).
     ``c`` is the deviation of the middle of the stroke from the chord through its ends.  The
     displacement is carried by the element after the joint (its origin and axis defects, and a
-    turn about its own axis as that joint's motion), through the loop closures to the output.
+    turn about its own axis as that joint's motion), through the loop closures to the output.  On
+    a serial chain whose next element has no origin defects (a gantry's X axis carrying its Y
+    axis, prismatic on prismatic) the carriage's motion is taken at the joint's own frame after
+    its travel and carried rigidly to the output.
     Parameters ``straightness_<joint>_x``, ``_y`` (mm); realistic 0.005 mm, plausible up to
     0.05 mm for the bow ``sqrt(c_x^2 + c_y^2)`` (ISO 230-1, linear-guide running parallelism).
     A leg whose both ends are spherical or universal joints (a hexapod's UPS legs) absorbs it to
@@ -69,6 +72,8 @@ class GuideStraightness(Effect):
         self._dirs = []  # (actuator index, joint name, carried element, q_mid, h, direction 0 = x / 1 = y)
         for a, joint in acts:
             carried = self._next_element(mechanism, joint.name)
+            if carried is None and not mechanism.closures:
+                carried = self._own_frame(mechanism, joint.name)
             if carried is None:
                 continue
             lo, hi = joint.range
@@ -134,6 +139,38 @@ class GuideStraightness(Effect):
                     "axis": np.asarray(placement.z_axis, float), "joint": jidx if revolute else None}
         return None
 
+    @staticmethod
+    def _own_frame(mechanism, joint: str):
+        """A serial chain's prismatic ``joint`` whose next element has no origin defects (a gantry's X carrying its
+        Y axis, prismatic on prismatic): the carriage's motion is taken at the joint's own frame after its travel,
+        ``{"frame": (chain index, element index)}``, and carried to the output as a rigid motion of everything after
+        it (no loop to close)."""
+        for c, ch in enumerate(mechanism.chains):
+            names = [el.name for el in ch.elements]
+            if joint in names:
+                return {"frame": (c, names.index(joint)), "own_joint": mechanism.joint_index[joint]}
+        return None
+
+    def _frame_twists(self, q: np.ndarray, state, out: np.ndarray) -> None:
+        """Fill the columns of the directions carried at a joint's own frame (:meth:`_own_frame`): output twist
+        ``(omega, v of the output origin)`` of the carriage's translation ``t`` and turn ``w`` (joint frame) about
+        the joint frame's origin after its travel."""
+        frames = (((1, 0, 0), (0, 1, 0)), ((0, 1, 0), (-1, 0, 0)))  # x bow: turn about +y; y bow: about -x
+        out_origin = state.output_pose[:, :3, 3]
+        for e, (a, _, carried, mid, half, d) in enumerate(self._dirs):
+            if "frame" not in carried:
+                continue
+            f = state.element_frames[carried["frame"]]  # (K, 4, 4): the joint's frame before its travel
+            rot = f[:, :3, :3]
+            qj = q[:, carried["own_joint"]]
+            origin = f[:, :3, 3] + qj[:, None] * rot[:, :, 2]  # after its travel along its z axis
+            s = (q[:, self.mechanism_actuated[a]] - mid) / half
+            bow, slope = 1.0 - s**2, -2.0 * s / half
+            t = rot @ np.asarray(frames[d][0], float) * bow[:, None]
+            w = rot @ np.asarray(frames[d][1], float) * slope[:, None]
+            out[:, :3, e] = w
+            out[:, 3:, e] = t + np.cross(w, out_origin - origin)
+
     def _twists(self, model, q: np.ndarray) -> np.ndarray:
         """Output twist per unit parameter at configurations ``q`` (K, 6, n_e), nominal geometry."""
         from hyperstat.solver.tolerances.accuracy import output_twist_maps
@@ -142,17 +179,22 @@ class GuideStraightness(Effect):
         if key in self._cache:
             return self._cache[key]
         m = model.mechanism
-        used = sorted({i for d in self._dirs for i in d[2]["defects"].values()})
-        twists = deformation_twists(self.kin, q, used)  # (K, 6, len(used)): loops closed by the least energy
+        self.mechanism_actuated = m.actuated
+        used = sorted({i for d in self._dirs for i in d[2].get("defects", {}).values()})
         k_xi = np.zeros((len(q), 6, len(m.parameters)))
-        k_xi[:, :, used] = twists
+        if used:
+            k_xi[:, :, used] = deformation_twists(self.kin, q, used)  # (K, 6, n): loops closed by the least energy
         k_a = output_twist_maps(self.kin, self.kin.evaluate(q, None, jacobians=True))[1] \
-            if any(d[2]["joint"] is not None for d in self._dirs) else None
+            if any(d[2].get("joint") is not None for d in self._dirs) else None
         act = list(m.actuated)
         k = len(q)
         out = np.zeros((k, 6, len(self._dirs)))
         frames = (((1, 0, 0), (0, 1, 0)), ((0, 1, 0), (-1, 0, 0)))  # x bow: turn about +y; y bow: about -x
+        if any("frame" in d[2] for d in self._dirs):
+            self._frame_twists(q, self.kin.evaluate(q, None, jacobians=False), out)
         for e, (a, _, carried, mid, half, d) in enumerate(self._dirs):
+            if "frame" in carried:
+                continue
             s = (q[:, m.actuated[a]] - mid) / half
             bow, slope = 1.0 - s**2, -2.0 * s / half
             t = np.outer(bow, frames[d][0])  # (K, 3) carriage translation per unit c, joint frame
