@@ -468,7 +468,7 @@ def _decision_rule(model, f: np.ndarray, w: np.ndarray, v: np.ndarray) -> float:
     c[-1] = 1.0
     # a play of a polygon-bounded group is within [-1, 1] by its polygon; the others by the box rows above
     res = linprog(c, A_ub=a_ub, b_ub=np.zeros(a_ub.shape[0]), A_eq=a_eq, b_eq=b_eq,
-                  bounds=[(None, None)] * ny + [(0, None)] * (nzp + nzy + 1), method="highs-ds")
+                  bounds=[(None, None)] * ny + [(0, None)] * (nzp + nzy + 1), method="highs-ipm")
     return float(res.fun) if res.success else math.inf
 
 
