@@ -53,7 +53,7 @@ from hyperstat.solver.diagnosis.screening import (PRIOR_ANGLE, PRIOR_LENGTH, Scr
                                                   black_box_ceiling, cv_rms, folds, plugin_guard, region_blocks,
                                                   score_entry, screen_candidates, split_key)
 from hyperstat.solver.diagnosis.located import below_guard_words, seen_words, settling_measurement
-from hyperstat.solver.diagnosis.selection import BIC_DROP, LOCATED_CV_DROP, forward_selection
+from hyperstat.solver.diagnosis.selection import BIC_DROP, CV_DROP, LOCATED_CV_DROP, forward_selection
 from hyperstat.solver.diagnosis.observations import oriented, residual_rows, row_view, stack_rows
 from hyperstat.solver.diagnosis.targets import per_target_check, targets_to_check, targets_agree
 from hyperstat.solver.diagnosis.where import (ResidualField, describe_where, spectrum_peaks, structure_tests,
@@ -136,14 +136,16 @@ class Diagnosis:
         :mod:`.held_out`), or an ``understated noise`` answer's isotropy test passes by less than 10x
         (``verdict.near_anisotropy``, :func:`.answer.near_anisotropy`), or a ``no significant gap`` answer's gap or
         structure test passes by less than 10x (``verdict.near_gap``, :func:`.answer.near_gap`), or the pooled
-        choice found an effect it could not fit or answer (``verdict.held_out_found``); ``"high"`` otherwise."""
+        choice found an effect it could not fit or answer (``verdict.held_out_found``), or a located effect was taken on
+        the held-out poses' confirmation against the blocked cross-validation (``verdict.cv_overruled``); ``"high"``
+        otherwise."""
         if self.targets_agree is False or self.verdict.get("unchecked_against") or self.verdict.get("stand_motion") \
                 or self.verdict.get("targets_differ") or self.verdict.get("outside_prior") \
                 or self.verdict.get("order_not_established") or self.verdict.get("below_guard") \
                 or self.verdict.get("library_effect_seen") or self.verdict.get("near_structure") \
                 or self.verdict.get("effect_not_excluded") or self.verdict.get("held_out_choice") \
                 or self.verdict.get("near_anisotropy") or self.verdict.get("near_gap") \
-                or self.verdict.get("held_out_found"):
+                or self.verdict.get("held_out_found") or self.verdict.get("cv_overruled"):
             return "low"
         return "high"
 
@@ -359,9 +361,18 @@ def _diagnose(mechanism, analysis, data, validation, candidates, kinematics, n_b
     step("selection")
     _select(run, max_effects)
     step("nonlinear fit")
-    _shrink(run)
+    overruled = _cv_overruled(run)
+    _shrink(run, confirm=True if overruled else None)
     step("verdict")
     diag = _answer(run)
+    if overruled and diag.named_effects == [overruled["effect"]]:
+        diag.verdict["cv_overruled"] = overruled
+        diag.verdict["evidence"] += (
+            f"; confidence low: {overruled['effect']} (joint {overruled['joint']}) was taken although the blocked "
+            f"cross-validation of the identification poses refused it (CV RMS {1000 * overruled['cv_rms_with']:.1f} "
+            f"µm with it against {1000 * overruled['cv_rms_rigid']:.1f} µm rigid: with these poses its folds "
+            f"extrapolate): the structure tests locate it (it is what 'where' names, BIC {overruled['delta_bic']:+.0f}) "
+            f"and the held-out poses confirm its prediction")
     # too few identification poses: the gap tests are weak (the held-out poses' predictions are uncertain, the
     # identification residuals bent around a missing effect), and the identification poses cannot choose; all the
     # poses pooled choose (:mod:`.held_out`), after an over-fitting answer whose held-out excess is beyond the fitted
@@ -566,6 +577,7 @@ def _select(run: _Run, max_effects: int) -> None:
 
         sel = forward_selection(run.screen, pool, run.base_cv, run.base_bic, max_effects, refuse, replace, peaks,
                                 located)
+        run.located, run.refuse = located, refuse
     else:
         sel = {"selected": [], "joints": {}, "columns": {}, "keys": [], "steps": [], "refused": [], "ties": [],
                "pruned": []}
@@ -609,6 +621,42 @@ def _select(run: _Run, max_effects: int) -> None:
         if parts:
             entry["per_joint"] = [{"joint": split_key(p["effect"])[1], "criterion": p["criterion"],
                                    **({"rejected": p["rejected"]} if p.get("rejected") else {})} for p in parts]
+
+
+def _cv_overruled(run: _Run) -> dict | None:
+    """Nothing selected, a gap with structure, and a library periodic effect on one joint that the structure tests
+    locate (what ``where`` names: the joint's spectral peak at its order) lowers the BIC by :data:`BIC_DROP` but not
+    the blocked cross-validated RMS: with some pose designs (poses in clusters at the workspace's corners) a fold
+    left out is an extrapolation, and the blocked cross-validation refuses what the data establish.  The candidate
+    with the lowest BIC is then put to the held-out poses, which must confirm its prediction
+    (:func:`.validation_confirms`, in the nonlinear fit); the answer says so, with low confidence.  Returns the
+    record of the candidate tried (``run.selected`` set to it), or None."""
+    if run.selected or not run.significant or run.validation is None or not len(run.validation) \
+            or not run.structure.get("structured") or getattr(run, "located", None) is None:
+        return None
+    trials = []
+    for key, cand in run.pool.items():
+        name, joint = split_key(key)
+        entry = cand["entry"]
+        if joint is None or cand["effect"] is None or entry.get("rejected") or "bounded_estimates" in entry \
+                or entry.get("note") or entry.get("criterion") is None or entry["criterion"] > -BIC_DROP:
+            continue
+        if not run.located(key) or run.refuse(key, []) is not None:
+            continue
+        trials.append((entry["criterion"], key))
+    if not trials:
+        return None
+    _, key = min(trials)
+    name, joint = split_key(key)
+    cand = run.pool[key]
+    cv, _, _, _ = cv_rms(run.screen, cand["columns"][0], cand["columns"][1])
+    if cv <= CV_DROP * run.base_cv:  # the cross-validation did not refuse it: not this rule's case
+        return None
+    run.selected, run.effects[name] = [name], cand["effect"]
+    run.selected_columns = {name: cand["columns"]}
+    run.effect_joints = {name: [joint]}
+    return {"effect": name, "joint": joint, "delta_bic": float(cand["entry"]["criterion"]), "cv_rms_with": float(cv),
+            "cv_rms_rigid": float(run.base_cv)}
 
 
 def _effect_on(run: _Run, name: str, joints: list):

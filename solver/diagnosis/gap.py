@@ -238,11 +238,12 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured
       held-out poses);
     * or the calibrated model predicts the held-out poses :data:`NOMINAL_MARGIN` times worse
       than the nominal one (only the tracker frame and targets fitted) beyond what estimating
-      ``rank`` parameters from ``n_rows`` equations adds by itself, and the residual has no
-      structure. A least-squares fit adds ``f^2 rank / n_rows`` to the squared held-out noise
-      factor, ``f^2 = f_id^2 / (1 - rank / n_rows)`` being the noise the identification
-      residual shows; so a nominal model that is already right (a simulation without defects)
-      predicts slightly better than any calibration, which is no over-fitting. A structured
+      ``rank`` parameters adds by itself, and the residual has no structure. The estimate's
+      error inflates the held-out poses' squared error by the average of the exact prediction
+      covariance's diagonal (``variance_inflation`` of the gap test, :func:`prediction_covariance`;
+      without it, ``f^2 rank / n_rows`` added to the squared factor, ``f^2 = f_id^2 / (1 - rank /
+      n_rows)``); so a nominal model that is already right (a simulation without defects)
+      predicts better than any calibration by that much, which is no over-fitting. A structured
       residual is a missing effect: the calibration absorbs part of it in sample and
       extrapolates it badly, so the held-out loss is that effect's, not the parameters'.
 
@@ -269,7 +270,14 @@ def overfitting(test: dict, rigid: IdentificationResult, n_rows: int, structured
     nominal = (rigid.nominal or {}).get("validation")
     load = rigid.rank / max(n_rows, 1)
     worse = False
-    if nominal is not None and rigid.validation is not None and not structured:
+    inflation = test["validation"].get("variance_inflation")
+    if nominal is not None and rigid.validation is not None and not structured and "chi2_whitened" in test["validation"]:
+        # the exact prediction covariance (:func:`prediction_covariance`): the calibrated model's squared held-out
+        # error is the noise's times its average inflation, the nominal model's (only the tracker frame and the
+        # targets fitted) the noise's alone, when the nominal model is right
+        ratio = rigid.validation["rms"] / max(nominal["rms"], 1e-300)
+        worse = ratio**2 > NOMINAL_MARGIN**2 * inflation
+    elif nominal is not None and rigid.validation is not None and not structured:
         f_nominal = fv * nominal["rms"] / max(rigid.validation["rms"], 1e-300)  # the nominal model's held-out factor
         estimation = fi**2 * load / max(1.0 - load, 1e-3)  # what fitting rank parameters adds to the squared factor
         worse = fv**2 > NOMINAL_MARGIN**2 * (f_nominal**2 + estimation)
