@@ -655,6 +655,8 @@ def _cv_overruled(run: _Run) -> dict | None:
     run.selected, run.effects[name] = [name], cand["effect"]
     run.selected_columns = {name: cand["columns"]}
     run.effect_joints = {name: [joint]}
+    if key in run.aliased:  # its order is one of several the joint's range cannot tell apart: named as their set
+        run.order_sets = {name: run.aliased[key]}
     return {"effect": name, "joint": joint, "delta_bic": float(cand["entry"]["criterion"]), "cv_rms_with": float(cv),
             "cv_rms_rigid": float(run.base_cv)}
 

@@ -51,6 +51,12 @@ def gap_test(result: IdentificationResult, data: MeasurementSet, validation: Mea
     if validation is not None and len(validation) and result.validation_residuals is not None:
         rv, wv = _rows(result, validation, result.validation_residuals)
         held = prediction_covariance(result, data, validation)
+        if held["residuals"].shape != rv.shape or not np.allclose(held["residuals"], rv, rtol=0.0,
+                                                                  atol=1e-3 / max(float(wv.max()), 1e-300)):
+            # the Jacobian was taken at other closures than the fit's held-out predictions (another assembly mode):
+            # the average inflation of the identification poses instead
+            k = len(wv)
+            held = {"covariance": np.eye(3 * k) * (1.0 + result.rank / (3.0 * len(w))), "max_pose_inflation": None}
         z = (rv * wv[:, None]).reshape(-1)
         chi_raw = float(z @ z)
         chi_v = float(z @ _solve_spd(held["covariance"], z))  # whitened by the exact prediction covariance
@@ -91,8 +97,9 @@ def prediction_covariance(result: IdentificationResult, data: MeasurementSet,
     -------
     dict
         ``covariance`` (3 Kv, 3 Kv), the rows of :func:`_rows` flattened (position rows, then
-        orientation rows for 6-D data), and ``max_pose_inflation`` (the largest ``1 + h_v``,
-        the trace of a pose's block over 3).
+        orientation rows for 6-D data), ``max_pose_inflation`` (the largest ``1 + h_v``, the
+        trace of a pose's block over 3) and ``residuals`` (the held-out residual rows where the
+        Jacobian was taken: the caller checks they are the fit's own).
 
     Examples
     --------
@@ -107,13 +114,14 @@ def prediction_covariance(result: IdentificationResult, data: MeasurementSet,
     True
     """
     _, w, jac, _ = residual_rows(result.model, result.theta, data, jacobian=True, q_start=result.configurations)
-    _, wv, jac_v, _ = residual_rows(result.model, result.theta, validation, jacobian=True)
+    resid_v, wv, jac_v, _ = residual_rows(result.model, result.theta, validation, jacobian=True)
     base = [result.model.names.index(b) for b in result.base]
     x = (jac[:, :, base] * w[:, None, None]).reshape(3 * len(w), -1)
     xv = (jac_v[:, :, base] * wv[:, None, None]).reshape(3 * len(wv), -1)
     cov = _covariance_from(x, xv, max(result.rank, 1))
     per_row = np.diag(cov).reshape(len(wv), 3).mean(axis=1)
-    return {"covariance": cov, "max_pose_inflation": float(per_row.max()) if len(per_row) else 1.0}
+    return {"covariance": cov, "max_pose_inflation": float(per_row.max()) if len(per_row) else 1.0,
+            "residuals": resid_v}
 
 
 def _covariance_from(x: np.ndarray, xv: np.ndarray, rank: int | None = None) -> np.ndarray:
