@@ -85,7 +85,7 @@ _c("ce_drift", "ceil", "ceil", "in", "tracker-drift",
 _c("cem_compliance_3", "ceil", "ceil_m", "in", "compliance", {"per": {"3": 2e-9}}, "q6tool", "clusters", 56,
    joints=["3"])
 _c("cem_linkbend_3", "ceil", "ceil_m", "in", "link-bending", {"per": {"3": ["4", 2e-9]}}, "tri3", "walk", 56)
-_c("cem_basedef", "ceil", "ceil_m", "in", "base-deformation", {"c": [3e-10, 3e-10]}, "tri3", "arcsine", 56)
+_c("cem_basedef", "ceil", "ceil_m", "in", "base-deformation", {"c": [3e-10, 3e-10]}, "tri3", "arcsine", 72)
 _c("cem_gbacklash_4", "ceil", "ceil_m", "in", "backlash-gravity", {"per": {"4": 4e-4}}, "q6tool", "walk", 56,
    joints=["4"])
 
