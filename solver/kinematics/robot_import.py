@@ -341,6 +341,9 @@ def _row(row: dict, i: int, units: dict, where: str, csv_line: int | None = None
     return DHJoint(name, jtype, vals["a"], vals["alpha"], vals["d"], vals["theta"], (lo, hi))
 
 
+_CSV_HEADERS = ("name", "convention")  #: the ``# key: value`` lines a CSV DH table reads
+
+
 def _parse_csv(text: str, source: str) -> dict:
     """A CSV DH table as the YAML mapping: ``# key: value`` header lines, then named columns with units."""
     header: dict = {}
@@ -350,9 +353,16 @@ def _parse_csv(text: str, source: str) -> dict:
         if line.startswith("#"):
             if ":" in line:
                 k, v = line[1:].split(":", 1)
-                if k.strip().lower() in header:
+                key = k.strip().lower()
+                if key and " " not in key and key not in _CSV_HEADERS:
+                    # a one-word header the CSV form does not read (a tool or a base frame): never silently dropped
+                    raise DataError(f"{source}, line {body + 1}: header '{k.strip()}' is not read from a CSV DH table "
+                                    f"(it reads {', '.join(repr(h) for h in _CSV_HEADERS)}); write the table in the "
+                                    f"YAML form for a tool frame (tool: {{origin: [x, y, z], rpy: [r, p, y]}}), or "
+                                    f"put a space in the comment's first words.")
+                if key in header:
                     raise DataError(f"{source}, line {body + 1}: header '{k.strip()}' is declared twice.")
-                header[k.strip().lower()] = v.strip()
+                header[key] = v.strip()
             continue
         break
     reader = csv.reader(io.StringIO("\n".join(lines[body:])))

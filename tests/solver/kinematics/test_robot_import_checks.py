@@ -114,6 +114,9 @@ DH_CASES = [
      "joint_map.joints declares model joint '2' twice"),
     ("csv", "a column twice", ("a[mm],alpha", "a[mm],a[mm],alpha"), "column 'a' appears twice"),
     ("csv", "a header line twice", ("# name: r2", "# name: r2\n# convention: modified-dh"), "header 'convention' is declared twice"),
+    # a header the CSV form does not read (the twelfth blind generator's '# tool:' line came out as no tool at all)
+    ("csv", "a tool header line", ("# name: r2", "# name: r2\n# tool: 0 0 120 0 0 0"),
+     "line 3: header 'tool' is not read from a CSV DH table"),
     # the joint map naming a model joint as a controller joint
     ("yaml", "joint map self-reference", ('"2": {J2: -1, offset: 0.5}', '"2": {"2": -1}'),
      "joint_map.joints.2: '2' is the name of a model joint; the keys of an entry name the controller's joints (e.g. J2)"),
