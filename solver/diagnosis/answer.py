@@ -361,6 +361,7 @@ def verdict(data, validation, significant: bool, test: dict, final, selected: li
         both = weak_signals_together(near, aniso)
         if both is not None:  # two independent tests of "noise only", each short of its threshold, reject it together
             out["weak_signals_together"] = both
+            out.pop("noise_consistent")  # not noise: no noise model is offered that "would make the data consistent"
             out["where"] = (f"{describe_where(near['test'])} (family-wise p = {near['family_wise_p']:.2g}), and "
                             f"a variance unequal between x, y and z (Bartlett p = {aniso['p_value']:.2g})")
             out["evidence"] = ("the excess is not noise alone: the strongest pattern of the structure tests and "

@@ -707,7 +707,9 @@ def _pooled_fit(run: _Run, pooled: MeasurementSet, effects: tuple) -> dict | Non
 
 
 def _pooled_nothing(diag: Diagnosis, run: _Run) -> Diagnosis:
-    """A ``no significant gap`` answer on too few poses whose pooled choice named nothing: the answer says so."""
+    """The answer after a pooled choice that named nothing: a candidate it found but could not fit or answer is
+    reported (``verdict.held_out_found``, any outcome); else a ``no significant gap`` on too few poses says its tests
+    are weak (``verdict.few_equations``)."""
     found = getattr(run, "held_out_found", None)
     if found is not None:  # the pooled F-test found a candidate that could not be fitted or answered after all
         diag.verdict["held_out_found"] = found

@@ -59,19 +59,27 @@ def test_two_weak_signals_together_are_no_understated_noise(tmp_path):
 
 
 def test_both_weak_flags_on_pure_noise_are_rare():
-    """Under pure noise the two p-values are independent and uniform: the two near flags come together, and their
-    combination rejects, on about 8e-5 of campaigns (200,000 simulated pairs; binomial bound)."""
+    """Under pure noise the structure tests' p-values and Bartlett's are independent and uniform: the real gates
+    (:func:`near_structure` on the smallest of 300 p-values, :func:`near_anisotropy`) and Fisher's combination turn
+    an understated noise into "unexplained" on at most about 0.009 x 0.009 = 8e-5 of campaigns (the two gates'
+    bands: a p-value within 10 x above its threshold); 200,000 simulated campaigns stay within the binomial bound."""
     import numpy as np
     from scipy.stats import binom
 
-    from hyperstat.solver.diagnosis.answer import weak_signals_together
+    from hyperstat.solver.diagnosis.answer import near_anisotropy, near_structure, weak_signals_together
 
     rng = np.random.default_rng(5)
-    p = rng.uniform(size=(200_000, 2))
-    near = (p >= 1e-3) & (p < 1e-2)  # both tests within 10 x above their 1e-3 (the family-wise structure p: n p)
-    hits = sum(weak_signals_together({"family_wise_p": a}, {"p_value": b}) is not None
-               for a, b in p[near.all(axis=1)])
-    assert hits <= binom.ppf(0.999, len(p), 0.009**2)
+    n_tests, k = 300, 200_000
+    threshold = 1e-3 / n_tests
+    smallest = rng.beta(1, n_tests, k)  # the smallest of n_tests uniform p-values
+    isotropy = rng.uniform(size=k)
+    hits = 0
+    for p_best, p_iso in zip(smallest, isotropy):
+        near = near_structure({"best": {"p_value": p_best}, "threshold": threshold, "n_tests": n_tests,
+                               "structured": bool(p_best < threshold)})
+        aniso = near_anisotropy({"isotropy": {"p_value": p_iso}}) if near is not None else None
+        hits += weak_signals_together(near, aniso) is not None
+    assert hits <= binom.ppf(0.999, k, 0.0095**2)
 
 
 @pytest.mark.parametrize("ratio2, inflation, worse", [(1.609, 1.356, False), (2.2, 1.356, True)])
