@@ -183,7 +183,14 @@ def _cmd_report(args) -> int:
         def start_pages() -> None:  # values to compute: a child imports CadQuery meanwhile, then draws the part pages
             nonlocal pages
             if not (args.json_only or args.step_drawings or all(t.cls == "non-influent" for t in tolerances.items)):
-                pages = part_pages_worker(command_cache(args))
+                pages = part_pages_worker(command_cache(args), provisional)
+
+        def provisional() -> tuple:  # in the pages' child: the drawings predicted before the values, to build ahead
+            from hyperstat.solver.tolerances.drawing import provisional_drawings
+
+            kinds = {el.name: getattr(el, "type", "F") for ch in mech.chains for el in ch.elements}
+            types = {p.element: kinds.get(p.element, "F") for p in result.parameters}
+            return solver_cli.jsonable(provisional_drawings(tolerances, mech, kin)), types
         data = read_measurements(args.data, mech) if args.data else None
         validation = read_measurements(args.validation, mech) if args.validation else None
         hypotheses = None

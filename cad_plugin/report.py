@@ -54,9 +54,11 @@ def skeleton_drawing(rendered: dict, items: list, title: str) -> tuple[str, byte
     return figure_svg(fig), figure_png(fig, 1800), words
 
 
-def _prepare_pages() -> None:
+def _prepare_pages(provisional=None) -> None:
     """What every part page needs whatever the drawing: CadQuery and OCCT's hidden-line removal, matplotlib's SVG
-    writer and the font (imported by the part pages' child while the report computes the values)."""
+    writer and the font (imported by the part pages' child while the report computes the values); then the solids
+    and views of the drawings ``provisional()`` predicts (``(drawings, joint types)``;
+    :func:`hyperstat.cad_plugin.report_parts.prebuild`)."""
     import cadquery  # noqa: F401 - about 2 s of imports
     from matplotlib.backends import backend_svg  # noqa: F401
     from OCP.HLRBRep import HLRBRep_PolyAlgo  # noqa: F401
@@ -64,6 +66,12 @@ def _prepare_pages() -> None:
     from hyperstat.cad_plugin import part_solids, report_parts  # noqa: F401
 
     report_parts.text_width_pt("M")
+    if provisional is not None:
+        try:
+            drawings, types = provisional()
+        except Exception:  # noqa: BLE001 - a prediction only: the pages are then built from the final drawings
+            return
+        report_parts.prebuild(drawings, types)
 
 
 def _pages_of(cache, doc: dict) -> list:
@@ -72,12 +80,13 @@ def _pages_of(cache, doc: dict) -> list:
     return part_pages(doc, cache=cache)
 
 
-def part_pages_worker(cache=None):
+def part_pages_worker(cache=None, provisional=None):
     """The part pages drawn by a forked child started now (:class:`hyperstat.cad_plugin.background.Deferred`): it
     imports CadQuery while the report computes the values, then draws the pages of the ``{"drawings", "joints"}``
     given to its ``result`` (:func:`hyperstat.cad_plugin.report_parts.part_pages`, without the solids; read from
     and stored in ``cache``).  The same pages as drawing them in-process; drawn here if the child fails, and
-    without a child once OCCT is loaded in this process."""
+    without a child once OCCT is loaded in this process.  ``provisional`` (a function returning ``(drawings, joint
+    types)`` predicted before the values) lets the child build the parts' solids and views meanwhile."""
     import sys
     from functools import partial
 
@@ -86,7 +95,8 @@ def part_pages_worker(cache=None):
     # OCCT's parallel meshing leaves its thread pool's locks in a forked child (measured: the child hangs at its
     # first mesh): once OCCT is loaded in this process (a template built with CadQuery, an earlier report in the
     # same process; FreeCAD's own OCCT), the pages are drawn here
-    return Deferred(partial(_pages_of, cache), _prepare_pages, fork=not {"OCP", "FreeCAD"} & set(sys.modules))
+    fork = not {"OCP", "FreeCAD"} & set(sys.modules)
+    return Deferred(partial(_pages_of, cache), partial(_prepare_pages, provisional if fork else None), fork=fork)
 
 
 def _diagnosis_key(args, mechanism, result, data_paths: list) -> str | None:

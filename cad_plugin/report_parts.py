@@ -27,7 +27,7 @@ from hyperstat.cad_plugin.drawing import FONT_PT, WIDTH_MM, figure_svg
 from hyperstat.cad_plugin.gdt import draw_symbol
 
 __all__ = ["part_pages", "page_key", "drawing_code_version", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
-           "PARTS_CSS"]
+           "PARTS_CSS", "prebuild", "geometry_key"]
 
 #: drawing scales of ISO 5455 (paper mm per part mm), largest first
 ISO_SCALES = (5.0, 2.0, 1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
@@ -390,8 +390,19 @@ def _band_rows(frames: list, width: float) -> list[list]:
     return rows
 
 
-def part_figure(drawing: dict, solid, max_height_mm: float = 175.0):
+def _views_of(features: list, solid) -> list[dict]:
+    """The part's two views (:func:`view_axes`) with their visible and hidden edges (:func:`_hlr`)."""
+    views = view_axes(features)
+    for v in views:
+        v.update(_hlr(solid.shape, v))
+    return views
+
+
+def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list | None = None):
     """The figure of one part drawing (views, datum symbols, frames with leaders); returns ``(figure, words)``.
+
+    ``views``: the part's views with their edges (:func:`_views_of` of the same features and solid) when already
+    computed (:func:`prebuild`).
 
     The frames stand in a column right of the views, or, for a part whose views are wide (a long leg),
     in rows under views that take the page's width: whichever draws the part at the larger ISO 5455 scale
@@ -403,9 +414,8 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0):
 
     features = drawing.get("features") or []
     frames = drawing.get("frames") or []
-    views = view_axes(features)
+    views = [dict(v) for v in views] if views is not None else _views_of(features, solid)
     for v in views:
-        v.update(_hlr(solid.shape, v))
         pts = np.vstack([np.vstack(v["visible"] or [np.zeros((1, 2))]), *(v["hidden"] or [])])
         v["bounds"] = (pts.min(axis=0) - 2.0, pts.max(axis=0) + 2.0)
     spans = [v["bounds"][1] - v["bounds"][0] for v in views]
@@ -555,20 +565,68 @@ def part_pages(doc: dict, solids: bool = False, cache=None) -> list[dict]:
     return pages
 
 
-def _part_page(drawing: dict, types: dict) -> dict:
-    """One part's page (:func:`part_pages`), its solid included."""
+#: the solids and views built ahead of the drawing (:func:`prebuild`): geometry key -> (solid, views) or the sentence
+#: why the solid cannot be built
+_PREBUILT: dict = {}
+
+
+def geometry_key(drawing: dict, types: dict) -> str:
+    """What a part's solid and views depend on: its name, its features and the joint types (JSON; the frames and
+    zones are left out: they are drawn on the views, not built into the solid).
+
+    >>> d = {"part": "rod", "features": [{"id": "a", "kind": "axis"}], "frames": [{"zone_mm": 0.1}]}
+    >>> geometry_key(d, {"j": "R"}) == geometry_key({**d, "frames": []}, {"j": "R"})
+    True
+    >>> geometry_key(d, {"j": "R"}) == geometry_key(d, {"j": "P"})
+    False
+    """
+    import json
+
+    return json.dumps({"part": drawing.get("part"), "features": drawing.get("features"),
+                       "types": dict(sorted((str(k), v) for k, v in types.items()))}, sort_keys=True, default=str)
+
+
+def _solid_and_views(drawing: dict, types: dict):
+    """``(solid, views)`` of a part drawing, or the sentence why its solid cannot be built."""
     from hyperstat.cad_plugin.part_solids import part_solid
 
     try:
         solid = part_solid(drawing, types)
     except Exception as exc:  # noqa: BLE001 - HyperstatError, or OCCT's Standard_Failure from a Boolean
-        reason = str(exc).strip() or type(exc).__name__
-        return {"part": drawing["part"], "svg": None, "words": None, "assumed": [], "solid": None, "error": reason}
+        return str(exc).strip() or type(exc).__name__
+    return solid, _views_of(drawing.get("features") or [], solid)
+
+
+def prebuild(drawings: list, types: dict) -> int:
+    """Build the solids and hidden-line views of ``drawings`` ahead of their frames (in place in this process).
+
+    The part pages' child calls it with the drawings predicted before the tolerance values
+    (:func:`hyperstat.solver.tolerances.drawing.provisional_drawings`) while the values are computed: a page whose
+    final drawing has the same geometry (:func:`geometry_key`) takes the solid and views built here, the same
+    computation on the same input; any other page builds its own.  Returns the number of parts built.
+    """
+    n = 0
+    for drawing in drawings:
+        k = geometry_key(drawing, types)
+        if k not in _PREBUILT:
+            _PREBUILT[k] = _solid_and_views(drawing, types)
+            n += 1
+    return n
+
+
+def _part_page(drawing: dict, types: dict) -> dict:
+    """One part's page (:func:`part_pages`), its solid included."""
+    built = _PREBUILT.pop(geometry_key(drawing, types), None) if _PREBUILT else None
+    if built is None:
+        built = _solid_and_views(drawing, types)
+    if isinstance(built, str):
+        return {"part": drawing["part"], "svg": None, "words": None, "assumed": [], "solid": None, "error": built}
+    solid, views = built
     # the heading, the picture, then the tables: the picture shrinks (to 80 mm) so that the tables fit on
     # its page (their height is measured to within about 7 mm: 10 mm are kept); when they cannot, the picture
     # keeps 200 mm and the table of a part with many frames continues on the next page
     room = _PAGE_MM - 10.0 - _tables_height_mm(drawing, solid.assumed)
-    fig, words = part_figure(drawing, solid, room if room >= 80.0 else 200.0)
+    fig, words = part_figure(drawing, solid, room if room >= 80.0 else 200.0, views=views)
     return {"part": drawing["part"], "svg": figure_svg(fig), "words": words, "assumed": list(solid.assumed),
             "solid": solid, "error": None}
 

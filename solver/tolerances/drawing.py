@@ -43,7 +43,7 @@ import numpy as np
 
 from hyperstat.solver.kinematics.model import Mechanism
 
-__all__ = ["safe_round", "SYMBOLS", "part_drawings", "add_drawing", "statement_functional"]
+__all__ = ["safe_round", "SYMBOLS", "part_drawings", "add_drawing", "statement_functional", "provisional_drawings"]
 
 #: ISO 1101 symbols
 SYMBOLS = {"parallelism": "\u2225", "perpendicularity": "\u27c2", "angularity": "\u2220", "position": "\u2316",
@@ -511,6 +511,37 @@ def _text(ds, f: _Frame, zone: float, length: float | None, ted: list) -> str:
     what = "axis of the " + f.feature.name if f.feature.kind == "axis" else f.feature.name
     return (f"{f.characteristic} of the {what} relative to {datums}, at its true position ({where}): {zone_words} "
             f"(± {zone / 2:.3g} mm)")
+
+
+def provisional_drawings(cl, mechanism: Mechanism, kin=None) -> list[dict]:
+    """The part drawings predicted before the tolerance values: every tolerance but the non-influent ones carried at
+    a unit value (``cl`` is left as it was).
+
+    A part drawing's features (the geometry its solid is built from) depend on which tolerances its frames carry,
+    not on their values, so the report builds the solids of these drawings while the values are computed.  It is a
+    prediction, not an answer: a final drawing whose features differ (a tolerance left without a value, a tool seat
+    no frame carries) is built again (:func:`hyperstat.cad_plugin.report_parts.prebuild`).
+
+    Examples
+    --------
+    >>> import hyperstat as hs
+    >>> from hyperstat.solver.tolerances.classification import classify
+    >>> mech = hs.load("slider_crank")
+    >>> cl = classify(mech, hs.analyze(mech))
+    >>> [d["part"] for d in provisional_drawings(cl, mech)]  # the four bodies of the slider-crank
+    ['base', 'crank', 'rod', 'block']
+    >>> all(t.drawing_value is None for t in cl.items)  # no value yet, and none left behind
+    True
+    """
+    saved = [t.drawing_value for t in cl.items]
+    try:
+        for t in cl.items:
+            if t.cls != "non-influent":
+                t.drawing_value = 1.0
+        return part_drawings(cl, mechanism, kin)["drawings"]
+    finally:
+        for t, v in zip(cl.items, saved):
+            t.drawing_value = v
 
 
 def add_drawing(cl, mechanism: Mechanism, kin=None) -> dict:

@@ -13,7 +13,8 @@ import json
 import subprocess
 import sys
 
-from hyperstat.cad_plugin.report_parts import page_key, part_pages, parts_html
+from hyperstat.cad_plugin import report_parts
+from hyperstat.cad_plugin.report_parts import geometry_key, page_key, part_pages, parts_html
 from hyperstat.solver.cache import Cache
 
 
@@ -29,7 +30,8 @@ from hyperstat.cad_plugin.report_parts import parts_html
 from hyperstat.solver.cache import Cache
 doc, cache, out = json.load(open(sys.argv[1])), Cache(sys.argv[2]), sys.argv[3]
 assert "OCP" not in sys.modules
-job = part_pages_worker(cache)
+types = {str(j["element"]): j.get("type") for j in doc["joints"]}
+job = part_pages_worker(cache, lambda: (doc["drawings"][:1], types))  # the first part's solid built ahead
 assert job._background._proc is not None, "no child was forked"
 pages = job.result({"drawings": doc["drawings"], "joints": doc["joints"]})
 assert "OCP" not in sys.modules  # drawn by the child
@@ -57,6 +59,26 @@ def test_pages_from_the_child_and_from_the_cache_are_the_report_s(slider_crank_r
     again = Cache(tmp_path / "cache")
     assert parts_html(two, part_pages(two, cache=again)) == html
     assert again.hits == ["part-page"] * 2 and not again.misses
+
+
+def test_pages_from_solids_built_ahead_are_the_pages_built_after(slider_crank_report):
+    _, doc = slider_crank_report
+    types = _types(doc)
+    after = part_pages(doc)
+    # built ahead (as the report's child does while the values are computed): the first drawing as it will be, the
+    # second with its features moved (a prediction that missed: that page must build its own solid)
+    first, second = doc["drawings"][:2]
+    moved = {**second, "features": [{**f, "point_mm": [v + 1.0 for v in f["point_mm"]]} for f in second["features"]]}
+    assert geometry_key(moved, types) != geometry_key(second, types)
+    try:
+        assert report_parts.prebuild([first, moved], types) == 2
+        ahead = part_pages(doc)
+        assert [p["svg"] for p in ahead] == [p["svg"] for p in after]  # to the byte
+        assert [p["assumed"] for p in ahead] == [p["assumed"] for p in after]
+        # the first page took its solid and views; the moved one's were not used
+        assert set(report_parts._PREBUILT) == {geometry_key(moved, types)}
+    finally:
+        report_parts._PREBUILT.clear()
 
 
 def test_a_changed_drawing_is_drawn_again(slider_crank_report, tmp_path):
