@@ -37,7 +37,7 @@ import numpy as np
 from hyperstat.solver.cache import Cache, default_directory, encode, file_digest, key
 
 __all__ = ["cache_option", "command_cache", "model_identity", "cached_sample", "cached_values",
-           "cached_document", "store_selection", "cached_selection", "SAMPLE_BYTES"]
+           "cached_document", "store_selection", "cached_selection", "SAMPLE_BYTES", "stage_memo"]
 
 #: the largest workspace sample stored (bytes of its configurations)
 SAMPLE_BYTES = 32 * 2**20
@@ -167,8 +167,8 @@ def _changes(before: dict, after: dict, obj) -> dict | None:
 
 #: options of :func:`~hyperstat.solver.tolerances.values.assign_values` that do not change its answer: ``task_maps_at``
 #: (the task rows at the configurations, handed over when ``accuracy`` has them from its own Jacobians; computed from
-#: the model and the configurations, both in the key, otherwise)
-_NOT_IN_KEY = ("task_maps_at",)
+#: the model and the configurations, both in the key, otherwise) and ``memo`` (:func:`stage_memo`)
+_NOT_IN_KEY = ("task_maps_at", "memo")
 #: the defaults of the options of ``assign_values`` a caller may give or leave out (the same call either way)
 _DEFAULTS = {"assembly": True, "refine": True, "workspace": None, "calibrate": True}
 
@@ -224,12 +224,55 @@ def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: 
             return cl
         if on_miss is not None:
             on_miss()
-        result = assign(cl, mechanism, kin, configurations, **options)
+        result = assign(cl, mechanism, kin, configurations, memo=stage_memo(args, mechanism), **options)
         changed_cl = _changes(before_cl, _signature(cl, _INPUTS), cl)
         changed_items = [_changes(b, _signature(t), t) for b, t in zip(before_items, cl.items)]
         if changed_cl is not None and all(c is not None for c in changed_items) and [t.id for t in cl.items] == ids:
             cache.store("values", k, {"ids": ids, "classification": changed_cl, "items": changed_items})
     return result
+
+
+def stage_memo(args: argparse.Namespace, mechanism) -> Callable[[str, Any, Callable[[], Any]], Any]:
+    """``memo(stage, inputs, compute)`` for the stages of a values call that do not depend on its sample
+    (:func:`~hyperstat.solver.tolerances.values.assign_values`' ``memo``): ``compute()``, stored in the command's cache
+    under the model, the stage, its ``inputs`` (arrays by their bytes) and the code's version, or read from it.
+
+    ``accuracy`` at 100,000 configurations, ``report`` at 200 and ``montecarlo`` at 2,000 of one model differ in their
+    samples, so their values are three entries; the assembly conditions and the whole drawing start from the analysis'
+    configurations and the workspace's fixed checkpoints in all three: one entry, computed by the first command.  A
+    result the cache cannot encode is computed every time.
+
+    >>> import argparse, tempfile, hyperstat as hs
+    >>> args = argparse.Namespace(_cache=Cache(tempfile.mkdtemp()))  # a command's cache, in a new folder
+    >>> memo = stage_memo(args, hs.load("slider_crank"))
+    >>> memo("demo", {"n": 1}, lambda: np.arange(3.0)).tolist(), memo("demo", {"n": 1}, lambda: None).tolist()
+    ([0.0, 1.0, 2.0], [0.0, 1.0, 2.0])
+    >>> command_cache(args).hits, command_cache(args).misses
+    (['demo'], ['demo'])
+    """
+    cache = command_cache(args)
+
+    def memo(stage: str, inputs: Any, compute: Callable[[], Any]) -> Any:
+        if not cache.enabled:
+            return compute()
+        try:
+            k = key(stage, model_identity(args, mechanism), _digest(inputs))
+        except (TypeError, ValueError):  # an input the cache does not encode: no key, computed
+            return compute()
+        stored = cache.load(stage, k)
+        if stored is not None:
+            return stored
+        with cache.computing(stage, k):  # another process on the same entry: wait, then read it
+            stored = Cache(cache.directory).load(stage, k)
+            if stored is not None:
+                cache.misses.pop()
+                cache.hits.append(stage)
+                return stored
+            value = compute()
+            cache.store(stage, k, value)
+        return value
+
+    return memo
 
 
 def _restore_values(stored: Any, cl, ids: list) -> bool:

@@ -29,6 +29,7 @@ task has position components, else the orientation error.
 from __future__ import annotations
 
 import math
+from typing import Any, Callable
 
 import numpy as np
 
@@ -138,7 +139,7 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
                   position_accuracy: float | None = None, orientation_accuracy: float | None = None,
                   assembly: bool = True, assembly_configurations: np.ndarray | None = None, refine: bool = True,
                   workspace=None, task_maps_at: tuple | None = None, calibrate: bool = True,
-                  background: bool = False) -> Classification:
+                  background: bool = False, memo: Callable | None = None) -> Classification:
     """Fill ``value``, ``value_source`` and ``contribution`` of every tolerance of ``cl`` (in place).
 
     Parameters
@@ -175,9 +176,15 @@ def assign_values(cl: Classification, mechanism: Mechanism, kin: Kinematics, con
         Compute the values with calibration in a forked child (:class:`hyperstat.solver.forked.Forked`) while
         the assembly conditions and the bounds are searched here: the same values, on the second core (the
         report's wall clock; not the CPU).
+    memo : callable, optional
+        ``memo(stage, inputs, compute)``: ``compute()``, or the value an earlier command stored for the same
+        ``stage`` and ``inputs`` (:func:`hyperstat.solver.cli.cached.stage_memo`, the cache of results).  Given to
+        the stages that do not depend on ``configurations`` (the assembly conditions' values and the whole
+        drawing's: they start from ``assembly_configurations`` and the workspace's fixed checkpoints), so that
+        ``accuracy``, ``report`` and ``montecarlo`` of one model compute them once whatever their samples.
     """
     return _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
-                          assembly_configurations, refine, workspace, calibrate, task_maps_at, background)
+                          assembly_configurations, refine, workspace, calibrate, task_maps_at, background, memo)
 
 
 def _with_calibration(cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve) -> dict:
@@ -200,7 +207,7 @@ def _with_calibration(cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
 
 def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orientation_accuracy, assembly,
                    assembly_configurations, refine, workspace, calibrate, task_maps_at=None,
-                   background: bool = False) -> Classification:
+                   background: bool = False, memo: Callable | None = None) -> Classification:
     """Body of :func:`assign_values` (BLAS single-threaded by the caller)."""
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
@@ -341,7 +348,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
     try:
         qa = _assembly_and_bounds(cl, mechanism, kin, q, assembly, assembly_configurations, workspace, info,
                                   influential, dirs if influential else None, is_len if influential else None,
-                                  spec_p, spec_o)
+                                  spec_p, spec_o, memo)
     except BaseException:
         if calibrating is not None:
             calibrating.cancel()
@@ -352,13 +359,30 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         for t, (value, limit) in zip(cl.items, done["items"]):
             t.value_with_calibration, t.value_with_calibration_limit = value, limit
         info["with_calibration"] = done["evidence"]
-    info.update(_drawing_values(cl, mechanism, kin, qa, workspace))
+    info.update(_drawing_values(cl, mechanism, kin, qa, workspace, memo))
     cl.allocation = info
     return cl
 
 
+def _memoised(memo: Callable | None, stage: str, inputs: Callable[[], Any], compute: Callable[[], Any]) -> Any:
+    """``compute()`` through ``memo`` (:func:`assign_values`) under ``inputs()``; computed when there is no memo or
+    the inputs cannot be written as a key (an object the cache does not encode)."""
+    if memo is None:
+        return compute()
+    try:
+        key_inputs = inputs()
+    except (TypeError, ValueError):
+        return compute()
+    return memo(stage, key_inputs, compute)
+
+
+def _state(t) -> dict:
+    """A tolerance's attributes (the inputs of a memoised stage; its changes are its outputs)."""
+    return dict(vars(t))
+
+
 def _assembly_and_bounds(cl, mechanism, kin, q, assembly, assembly_configurations, workspace, info, influential, dirs,
-                         is_len, spec_p, spec_o):
+                         is_len, spec_p, spec_o, memo=None):
     """The assembly conditions' values and the bounds of the allocations (in place); the assembly configurations."""
     decl = cl.declaration
     qa = None
@@ -373,8 +397,12 @@ def _assembly_and_bounds(cl, mechanism, kin, q, assembly, assembly_configuration
             ws_part, corners = workspace_checkpoints(mechanism, kin, workspace)
             parts = ([ref] if ref is not None else []) + [p for p in (ws_part, corners) if len(p)]
             qa = np.vstack(parts) if parts else q
-            vals = assembly_tolerances(mechanism, items, decl, qa, reference=None if ref is None else len(ref),
-                                       workspace=workspace)
+            vals = _memoised(memo, "assembly-values",
+                             lambda: (vars(decl), [_state(t) for t in items], qa, None if ref is None else len(ref),
+                                      None if workspace is None else vars(workspace)),
+                             lambda: assembly_tolerances(mechanism, items, decl, qa,
+                                                         reference=None if ref is None else len(ref),
+                                                         workspace=workspace))
             n_ref = 0 if ref is None else len(ref)
             info["assembly_configurations"] = {"total": int(len(qa)), "analysis": n_ref, "workspace": int(len(ws_part)),
                                                "box_corners": int(len(corners))}
@@ -451,7 +479,7 @@ def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, s
                 t.bounds = {k: bounds[k] for k in ("attainable_linear_worst_case", "triangle_bound", "unit")}
 
 
-def _drawing_values(cl, mechanism, kin=None, assembly_q=None, workspace=None) -> dict:
+def _drawing_values(cl, mechanism, kin=None, assembly_q=None, workspace=None, memo=None) -> dict:
     """The assembly values together (the drawing read as a whole), the values a drawing carries (rounded to the safe
     side) and the part drawings (:mod:`hyperstat.solver.tolerances.drawing`); returns the whole drawing's evidence."""
     from hyperstat.solver.tolerances.drawing import add_drawing, safe_round
@@ -460,7 +488,21 @@ def _drawing_values(cl, mechanism, kin=None, assembly_q=None, workspace=None) ->
     if assembly_q is not None and kin is not None:
         from hyperstat.solver.tolerances.whole_drawing import allocate_together
 
-        out["whole_drawing"] = allocate_together(cl, mechanism, kin, assembly_q, workspace)
+        # a function of the assembly conditions (their state after their values), the declaration, the
+        # configurations and the workspace only: what it changes on them is kept with its evidence
+        conditions = [t for t in cl.items if t.cls == "assembly"]
+
+        def together() -> dict:
+            evidence = allocate_together(cl, mechanism, kin, assembly_q, workspace)
+            return {"evidence": evidence, "conditions": [_state(t) for t in conditions]}
+
+        done = _memoised(memo, "whole-drawing",
+                         lambda: (vars(cl.declaration), [_state(t) for t in conditions], assembly_q,
+                                  None if workspace is None else vars(workspace)), together)
+        for t, state in zip(conditions, done["conditions"]):
+            for name, value in state.items():
+                setattr(t, name, value)
+        out["whole_drawing"] = done["evidence"]
     calibrated = "measurements" in cl.declaration.declared
     for t in cl.items:
         v = t.value_with_calibration if calibrated and t.cls == "compensable" and \

@@ -116,6 +116,33 @@ def test_report_and_accuracy_on_the_same_sample_read_one_values_entry(tmp_path, 
     assert len(_entries(cache_dir, "values")) == 2
 
 
+def test_the_stages_free_of_the_sample_are_computed_once_across_commands(tmp_path, cache_dir):
+    """``accuracy`` at 60 configurations, then ``report`` at its 200: two samples, two values entries; but the assembly
+    conditions' values and the whole drawing's start from the analysis' configurations and the workspace's fixed
+    checkpoints in both, so each is one entry, which the report reads (not written again) and its JSON is the
+    uncached report's, to the byte."""
+    source = TEMPLATES / "slider_crank.py"
+    code, _, err = run_cli(["accuracy", source, "--workspace-configurations", "60", "--json", tmp_path / "a.json",
+                            "--quiet"])
+    assert code == 0, err
+    stages = ("assembly-values", "whole-drawing")
+    stored = {stage: _entries(cache_dir, stage) for stage in stages}
+    assert all(len(names) == 1 for names in stored.values()), stored
+    stamps = {p: p.stat().st_mtime_ns for stage in stages for p in (cache_dir / stage).rglob("*.json")}
+    code, _, err = run_cli(["report", source, "--out", tmp_path / "rep", "--json-only", "--quiet"])
+    assert code == 0, err
+    assert len(_entries(cache_dir, "values")) == 2  # another sample: its own values
+    assert {stage: _entries(cache_dir, stage) for stage in stages} == stored
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps  # read, not computed and stored again
+    code, _, err = run_cli(["report", source, "--out", tmp_path / "fresh", "--json-only", "--quiet", "--no-cache"])
+    assert code == 0, err
+    cached = (tmp_path / "rep" / "report.json").read_text()
+    assert cached == (tmp_path / "fresh" / "report.json").read_text()
+    # the whole drawing changed the conditions it read (their values together): restored from the entry
+    together = json.loads(cached)["tolerances"]["allocation"]["whole_drawing"]
+    assert together["factors"] and any(f < 1.0 for f in together["factors"].values()), together["factors"]
+
+
 def _same(a, b, where: str = "mechanism") -> list:
     """Where two objects differ, attribute by attribute (arrays by their values, callables not compared)."""
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
