@@ -58,7 +58,9 @@ def nominal_twist_maps(kin, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     q = np.ascontiguousarray(np.atleast_2d(q), dtype=float)
     keep = len(q) >= KEPT_ROWS
     if keep:
-        key = (id(kin), q.shape, hashlib.sha256(memoryview(q.reshape(-1)).cast("B")).hexdigest())
+        # the evaluation path is part of the key (the plan and the element-by-element pass agree to round-off only)
+        key = (id(kin), bool(getattr(kin, "use_plan", True)), q.shape,
+               hashlib.sha256(memoryview(q.reshape(-1)).cast("B")).hexdigest())
         with _LOCK:
             hit = _KEPT.get(key)
             if hit is not None:
