@@ -524,9 +524,11 @@ class Kinematics:
             Joint values (rad / mm), all joints.
         xi : ndarray, (n_xi,) or (K, n_xi), optional
             Defect values (rad / mm); zero (nominal geometry) if omitted.
-        jacobians : bool or "joints"
+        jacobians : bool or "joints" or "actuation"
             Also compute ``dr/dxi``, ``dr/dq`` and the output Jacobians; ``"joints"``
-            computes only ``dr/dq`` (what assembly needs).
+            computes only ``dr/dq`` (what assembly needs); ``"actuation"`` ``dr/dq`` and the output's
+            ``dX/dq`` (what solving the actuators for a pose needs), not the defects' columns (the same
+            numbers as ``True`` gives for them).
         _elements : tuple, optional
             Internal: the element matrices of ``xi`` (one defect vector per configuration) computed before,
             used where the element-by-element pass runs (:meth:`assemble`'s iterations keep their defects).
@@ -541,6 +543,7 @@ class Kinematics:
         fast_rows = None
         fast_full = None
         planned = self.use_plan and xi.shape[0] == 1 and self._worth_a_plan(xi[0], k)
+        only_actuation = jacobians == "actuation"
         if planned and jacobians in (False, "joints"):
             # one geometry for all configurations: the lean batched path (hyperstat.solver.kinematics.fastfk)
             run = self.plan(xi[0]).run(q, closure_rows=jacobians == "joints")
@@ -552,7 +555,7 @@ class Kinematics:
             plan = self.plan(xi[0])
             run = plan.run(q, joint_twists=True, parents=True)
             frames, closing_end = run.frames, run.closing
-            fast_full = (run.joint_twists, self._plan_defect_twists(plan, xi[0], run.parents))
+            fast_full = (run.joint_twists, None if only_actuation else self._plan_defect_twists(plan, xi[0], run.parents))
             lframes = _LazyElementFrames(self, q, xi)
         else:
             frames, closing_end, parents, lframes, extras = self._walk(q, xi, _elements)
@@ -571,8 +574,8 @@ class Kinematics:
 
         # Spatial twists (omega, v) of every defect parameter and every joint.
         only_joints = jacobians == "joints"
-        tw_xi = np.zeros((k, self.n_xi, 6)) if fast_full is None else fast_full[1]
-        for key, info in ([] if only_joints or fast_full is not None else self._elements.items()):
+        tw_xi = None if only_actuation else np.zeros((k, self.n_xi, 6)) if fast_full is None else fast_full[1]
+        for key, info in ([] if only_joints or only_actuation or fast_full is not None else self._elements.items()):
             params = info["params"]
             if not params:
                 continue
@@ -635,6 +638,9 @@ class Kinematics:
         bq = rows(tw_q, self._closure_sign[:, self._joint_el_idx], points)
         if only_joints:
             return KinematicState(residual, None, bq, out_pose, None, None, frames, lframes, None)
+        if only_actuation:
+            o_q = rows(tw_q, self._output_member[None, self._joint_el_idx], out_pose[:, None, :3, 3])
+            return KinematicState(residual, None, bq, out_pose, None, o_q, frames, lframes, None)
         # closure rows of the defects and output rows of defects and joints: the output is one
         # more "loop" (weights: membership of the output path, point: the output origin)
         n_rows = 6 * len(closures)

@@ -52,6 +52,8 @@ def output_twist_maps(kin: Kinematics, st, damping: float = 1e-12) -> tuple[np.n
     eq. 12), the passive joints solving the (length-scaled) closure in the least-squares
     sense; shapes (K, 6, n_xi) and (K, 6, n_actuated), twists (omega, v) at the output origin.
 
+    A state evaluated with ``jacobians="actuation"`` (no defect columns) gives ``K_xi`` as None.
+
     ``O_p B_p^+`` is formed with six right-hand sides whatever the number of defects: when
     ``B_p`` is square, ``(O_p B_p^-1)^T = B_p^-T O_p^T``; otherwise (over-constrained, or a
     singular configuration in the block) ``Z^T B_p^T S^2`` with ``(B_p^T S^2 B_p) Z = O_p^T``,
@@ -83,7 +85,8 @@ def output_twist_maps(kin: Kinematics, st, damping: float = 1e-12) -> tuple[np.n
         normal[:, idx, idx] += damping * np.maximum(diag.max(axis=1), 1e-300)[:, None]
         z = np.linalg.solve(normal, np.swapaxes(o_p, 1, 2))  # (K, n_p, 6)
         gain = np.swapaxes(z, 1, 2) @ bt_w  # O_p B_p^+ (K, 6, 6L)
-    return o_xi - gain @ st.closure_xi, o_q[:, :, act] - gain @ st.closure_q[:, :, act]
+    k_xi = None if o_xi is None else o_xi - gain @ st.closure_xi  # None: a state without the defects' columns
+    return k_xi, o_q[:, :, act] - gain @ st.closure_q[:, :, act]
 
 
 def largest_singular_value(m: np.ndarray) -> np.ndarray:

@@ -84,7 +84,7 @@ def loss_together(cl, mechanism, kin, configurations: np.ndarray, workspace=None
                             f"{100 * loss:g} % of its range"))
     # the task's dead centres: the uncancelled task effect of every defect at once
     cand, _ = workspace_candidates(kin, workspace_of(m), q_all)
-    median = float(np.median(_actuation(kin, decl, q_all)[4]))
+    median = float(np.median(_actuation(kin, decl, q_all, defects=False)[4]))
     pool = np.vstack([q_all] + ([cand] if len(cand) else []))
     singular = ~regular_task(kin, decl, pool, reference=median)
     if singular.any():

@@ -183,6 +183,21 @@ class Objective:
         return np.array([v[n][k] for k, n in enumerate(which)], dtype=float)
 
 
+#: configurations per block of the coefficients' full Jacobians (:func:`_in_blocks`): each configuration is computed
+#: alone, so the values are the same bits whatever the block, and a block's defect Jacobians (the hexapod's: 36 x 234
+#: per configuration) stay near the cache instead of 1,095 configurations' 74 MiB at once (issue 39)
+EVALUATION_BLOCK = 256
+
+
+def _in_blocks(values, q: np.ndarray) -> dict:
+    """``values(q)`` (name -> (K,) array) computed :data:`EVALUATION_BLOCK` configurations at a time, joined."""
+    q = np.atleast_2d(q)
+    if len(q) <= EVALUATION_BLOCK:
+        return values(q)
+    parts = [values(q[i:i + EVALUATION_BLOCK]) for i in range(0, len(q), EVALUATION_BLOCK)]
+    return {n: np.concatenate([p[n] for p in parts]) for n in parts[0]}
+
+
 class Coefficients(Objective):
     """The accuracy coefficients of paper 2, eq. (18), as functions of configurations.
 
@@ -213,8 +228,12 @@ class Coefficients(Objective):
             self.cols[name] = (label, rows, cols)
 
     def values(self, q: np.ndarray) -> dict:
-        st = self.kin.evaluate(np.atleast_2d(q), None, jacobians=True)
-        k_xi, k_a = output_twist_maps(self.kin, st)
+        return _in_blocks(self._values, q)
+
+    def _values(self, q: np.ndarray) -> dict:
+        from hyperstat.solver.tolerances.twist_blocks import nominal_twist_maps
+
+        k_xi, k_a, _ = nominal_twist_maps(self.kin, q)
         k_g = k_xi @ self.matrix
         return {n: largest_singular_value((k_a if label == "f" else k_g)[:, rows][:, :, cols])
                 for n, (label, rows, cols) in self.cols.items()}
@@ -244,11 +263,15 @@ class TaskCoefficients(Objective):
         self.n_rot = n_rotation_rows(self.task)
 
     def values(self, q: np.ndarray) -> dict:
+        return _in_blocks(self._values, q)
+
+    def _values(self, q: np.ndarray) -> dict:
         from hyperstat.solver.tolerances.declaration import task_rows
 
-        st = self.kin.evaluate(np.atleast_2d(q), None, jacobians=True)
-        k_xi, _ = output_twist_maps(self.kin, st)
-        t = task_rows(self.task, st.output_pose) @ k_xi @ self.directions
+        from hyperstat.solver.tolerances.twist_blocks import nominal_twist_maps
+
+        k_xi, _, pose = nominal_twist_maps(self.kin, q)
+        t = task_rows(self.task, pose) @ k_xi @ self.directions
         out = {}
         for kind, cols in (("P", self.is_length), ("R", ~self.is_length)):
             for name, rows in (("delta", t[:, :self.n_rot]), ("epsilon", t[:, self.n_rot:])):
@@ -278,6 +301,23 @@ def _spread(sample: np.ndarray, n: int) -> np.ndarray:
     if len(sample) <= n:
         return sample
     return sample[np.linspace(0, len(sample) - 1, n).round().astype(int)]
+
+
+_MEDIANS: dict = {}
+
+
+def _median_conditioning(kin: Kinematics, q: np.ndarray) -> float:
+    """The median of :func:`branch_conditioning` over ``q``, kept for the last few (kinematics, configurations): the
+    searches of one command share their sample (issue 39: the hexapod's three searches computed it three times)."""
+    import hashlib
+
+    q = np.ascontiguousarray(q, dtype=float)
+    key = (id(kin), q.shape, hashlib.sha256(memoryview(q.reshape(-1)).cast("B")).hexdigest())
+    if key not in _MEDIANS:
+        if len(_MEDIANS) >= 4:
+            _MEDIANS.pop(next(iter(_MEDIANS)))
+        _MEDIANS[key] = (kin, float(np.median(branch_conditioning(kin, q))))  # the kinematics kept: its id not reused
+    return _MEDIANS[key][1]
 
 
 def branch_conditioning(kin: Kinematics, q: np.ndarray) -> np.ndarray:
@@ -698,8 +738,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
                 origin.append(pool_label(i))
     if not paths:
         return out
-    floor_at = CONDITIONING_FLOOR * float(np.median(branch_conditioning(kin, _spread(sample, POOL)))) \
-        if len(sample) else 0.0
+    floor_at = CONDITIONING_FLOOR * _median_conditioning(kin, _spread(sample, POOL)) if len(sample) else 0.0
     result = _ascend(space, objective, np.array(paths), owner, np.array(sense), iterations, floor_at)
     _polish(space, objective, result, owner, np.array(sense))
     for name in dict.fromkeys(owner):

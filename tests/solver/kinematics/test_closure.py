@@ -86,3 +86,22 @@ def test_an_assembly_given_its_machines_element_matrices_is_the_same_bit_for_bit
     rows = np.array([1, 4, 6])
     part = kin.assemble(q0[rows], xi[rows], _elements=_element_rows(elements, rows, len(q0)))
     assert np.array_equal(part.q, kin.assemble(q0[rows], xi[rows]).q)
+
+
+def test_the_actuation_jacobians_are_those_of_the_full_evaluation_bit_for_bit(tripteor):
+    """``evaluate(jacobians="actuation")`` (the compensation's Newton steps, the task's dead centres: issue 39) gives the
+    joints' closure rows and the output's joint rows of ``jacobians=True`` to the bit, without the defects' columns:
+    per-configuration defects (the element-by-element pass) and the nominal machine (the batched plan)."""
+    from hyperstat.solver.tolerances.accuracy import output_twist_maps
+
+    kin = Kinematics(tripteor)
+    rng = np.random.default_rng(11)
+    q = tripteor.home[None, :] + rng.normal(0.0, 0.05, (6, kin.n_q))  # the rows are defined off the closure too
+    xi = rng.normal(0.0, 1e-3, (6, kin.n_xi)) * kin.parameter_scale
+    for defects in (xi, None):
+        full, lean = kin.evaluate(q, defects, jacobians=True), kin.evaluate(q, defects, jacobians="actuation")
+        assert lean.closure_xi is None and lean.output_xi is None and full.closure_xi is not None
+        for a, b in ((full.closure_q, lean.closure_q), (full.output_q, lean.output_q), (full.residual, lean.residual),
+                     (full.output_pose, lean.output_pose), (output_twist_maps(kin, full)[1], output_twist_maps(kin, lean)[1])):
+            assert np.array_equal(a, b)
+        assert output_twist_maps(kin, lean)[0] is None and np.abs(full.output_q).max() > 0.1

@@ -132,3 +132,26 @@ def test_the_values_with_calibration_computed_by_a_forked_child_are_the_in_proce
     assert done["items"] == [[t.value_with_calibration, t.value_with_calibration_limit] for t in cl.items]
     assert done["evidence"] == cl.allocation["with_calibration"]
     assert any(v is not None for v, _ in done["items"])
+
+
+def test_a_simulated_calibration_in_blocks_of_rows_is_the_same_bit_for_bit(tripteor, monkeypatch):
+    """The simulated calibrations assemble and differentiate their machines block by block of configurations (issue
+    39: the working set stays in the cache): uneven blocks, the last one short, give the task errors and the reached
+    flags of one block of everything, to the bit."""
+    import hyperstat.solver.tolerances.calibrated as calibrated
+
+    mech, kin, result, cl = tripteor
+    items = [t for t in cl.items if t.cls == "compensable" and t.value][:5]
+    sizes = np.array([calibrated.PROBE * (kin.length_scale if t.unit == "mm" else 1.0) for t in items])
+    xi = np.stack([t.direction for t in items]) * sizes[:, None] * 3.0  # five machines, one defect each
+    q_cal, q_task = cl.configurations[:8], cl.configurations[8:14]
+    monkeypatch.setattr(calibrated, "ROWS", 10**9)
+    monkeypatch.setattr(calibrated, "ASSEMBLY_ROWS", 10**9)
+    whole = calibrated.simulate_calibration(mech, kin, result, cl.declaration, xi, q_cal, q_task)
+    monkeypatch.setattr(calibrated, "ROWS", 7)
+    monkeypatch.setattr(calibrated, "ASSEMBLY_ROWS", 9)
+    blocks = calibrated.simulate_calibration(mech, kin, result, cl.declaration, xi, q_cal, q_task)
+    assert len(items) == 5 and len(q_task) == 6 and whole[2].all()  # 40 and 30 rows: several blocks
+    for a, b in zip(whole, blocks):
+        assert np.array_equal(a, b)
+    assert whole[0].max() > 0  # a residual left, not nothing simulated

@@ -236,3 +236,24 @@ def test_the_pools_extent_is_numpys_ptp_of_the_scaled_columns():
         for i in (0, len(pool) - 1):
             np.testing.assert_array_equal(pool.row(i)[cols] / scale, pool.columns(cols, scale)[i])
     assert _Pool(np.zeros((0, 5)), np.zeros((0, 5)), []).extent(np.array([0, 1]), np.ones(2)).tolist() == [0.0, 0.0]
+
+
+def test_the_coefficients_in_blocks_of_configurations_are_the_same_bit_for_bit(tripteor, monkeypatch):
+    """The searches' coefficients are evaluated block by block of configurations (issue 39): uneven blocks give the
+    values of one block of everything, to the bit, for both objectives."""
+    import hyperstat.solver.tolerances.worst_case as wc
+    from hyperstat.solver.kinematics.closure import Kinematics
+    from hyperstat.solver.tolerances.accuracy import sample_workspace
+
+    kin = Kinematics(tripteor)
+    q = sample_workspace(tripteor, 23, seed=1, kinematics=kin)
+    dirs = np.eye(kin.n_xi)[:, ::7] * kin.parameter_scale[:, None]
+    objectives = (wc.Coefficients(kin), wc.TaskCoefficients(kin, ("position", "orientation"), dirs,
+                                                            kin.parameter_scale[::7] > 1.0))
+    monkeypatch.setattr(wc, "EVALUATION_BLOCK", 10**9)
+    whole = [o.values(q) for o in objectives]
+    monkeypatch.setattr(wc, "EVALUATION_BLOCK", 5)
+    for o, w in zip(objectives, whole):
+        blocks = o.values(q)
+        assert blocks.keys() == w.keys() and len(q) > 20
+        assert all(np.array_equal(blocks[n], w[n]) for n in w) and max(float(v.max()) for v in w.values()) > 0
