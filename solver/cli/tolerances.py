@@ -9,6 +9,7 @@ import argparse
 import math
 import sys
 import warnings
+from functools import partial
 from pathlib import Path
 
 from hyperstat.solver.atomic import write_json
@@ -111,7 +112,10 @@ def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True, c
 
     result = args._stationarity
     cl = _classes(args, mech, kin)[0] if cl is None else cl
-    cached_values(args, cl, mech, kin, q, assign_values, position_accuracy=args.position_accuracy,
+    # the values with calibration in a forked child beside the assembly conditions' and the bounds' searches (the
+    # same values, on the second core: issue 39, as ``report`` does); not part of the cache's key
+    cached_values(args, cl, mech, kin, q, partial(assign_values, background=True),
+                  position_accuracy=args.position_accuracy,
                   orientation_accuracy=args.orientation_accuracy, assembly=assembly,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE],
                   workspace=args.workspace_used if args.range else None, calibrate=True,
