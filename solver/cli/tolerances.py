@@ -34,7 +34,10 @@ def _ranges(specs: list | None) -> dict:
     return out
 
 
-def _accuracy_inputs(args: argparse.Namespace, progress):
+def _accuracy_inputs(args: argparse.Namespace, progress, spill: bool = False):
+    """The model, its analysis and the workspace sample; ``spill``: the sample in a temporary file, read a block at
+    a time (:class:`~hyperstat.solver.tolerances.spilled.SpilledArray`: ``accuracy``'s memory does not grow with
+    the count, issue 39)."""
     from hyperstat.solver.tolerances.accuracy import sample_workspace
     from hyperstat.solver.tolerances.workspace import workspace_of
 
@@ -58,7 +61,8 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
     def sample():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws)
+            return sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws,
+                                    spill=spill)
 
     q = cached_sample(args, mech, args.configurations_workspace, args.seed, ws, sample)
     if len(q) == 0:
@@ -199,7 +203,7 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
     names = ["stationarity analysis", "workspace sampling", "accuracy maps"] + ([] if args.no_refine else
                                                                                ["worst cases"]) + ["tolerances"]
     with stages(args, names) as progress:
-        mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress)
+        mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress, spill=True)
         progress.next("accuracy maps")
         # one set of Jacobians per configuration: the coefficients and the task rows of the tolerance values
         classes, directions = _classes(args, mech, kin)

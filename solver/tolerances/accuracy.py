@@ -204,6 +204,21 @@ def in_chunks(block, n: int, chunk: int = 10000, workers: int | None = None) -> 
             block(start)
 
 
+def _is_spilled(a) -> bool:
+    from hyperstat.solver.tolerances.spilled import SpilledArray
+
+    return isinstance(a, SpilledArray)
+
+
+def _per_configuration(k: int, spilled: bool):
+    """K zeros, in memory or in a temporary file (:class:`~hyperstat.solver.tolerances.spilled.SpilledArray`)."""
+    if not spilled:
+        return np.zeros(k)
+    from hyperstat.solver.tolerances.spilled import SpilledArray
+
+    return SpilledArray(k)
+
+
 def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics: Kinematics | None = None,
                   chunk: int = 2048, workers: int | None = None, task: tuple | None = None,
                   task_directions: np.ndarray | None = None, per_configuration: bool = True,
@@ -221,8 +236,10 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
     Parameters
     ----------
     mechanism : Mechanism
-    q : ndarray, (K, n_q)
-        Assembled configurations (rad / mm).
+    q : ndarray or SpilledArray, (K, n_q)
+        Assembled configurations (rad / mm).  In a temporary file
+        (:class:`~hyperstat.solver.tolerances.spilled.SpilledArray`): read a block at a time, and the
+        per-configuration coefficients (and the task summary's) written to temporary files as well.
     analysis : StationarityResult, optional
         Restrict the geometric errors to the admissible influential coordinates.
     chunk : int
@@ -267,8 +284,10 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
               "gR": [n for n, k in zip(names, g_kind) if k == "R"]}
     f_idx = {k: [i for i, kk in enumerate(f_kind) if kk == k] for k in "PR"}
     g_idx = {k: [i for i, kk in enumerate(g_kind) if kk == k] for k in "PR"}
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    coeffs = {n: np.zeros(len(q)) for n in COEFFICIENT_NAMES}
+    spilled = _is_spilled(q)  # a sample in a temporary file: the coefficients go to one too (issue 39: memory)
+    if not spilled:
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+    coeffs = {n: _per_configuration(len(q), spilled) for n in COEFFICIENT_NAMES}
     keep = len(q) if per_configuration else 0
     per = {n: {"rotation": np.zeros(keep), "position": np.zeros(keep)} for n in f_names + names} \
         if per_configuration else {}
@@ -282,7 +301,7 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
             on_task = np.zeros((len(q), n_task, task_directions.shape[1]))
         else:
             accumulator = TaskAccumulator(len(q), n_rotation_rows(task), n_task - n_rotation_rows(task),
-                                          task_columns[0], task_columns[1])
+                                          task_columns[0], task_columns[1], spill=spilled)
 
     def block(start: int) -> None:
         sl = slice(start, start + chunk)
@@ -352,7 +371,7 @@ CLOSED_FORM_FROM = 20_000
 
 def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict | None = None,
                      kinematics: Kinematics | None = None, workspace: Workspace | None = None,
-                     certificate: bool = False, closed_form: bool | None = None):
+                     certificate: bool = False, closed_form: bool | None = None, spill: bool = False):
     """Configurations with actuated values uniform in the workspace's actuated box, certified on the home branch.
 
     The box and the assembly branch come from the workspace (:func:`workspace_of`: the
@@ -391,6 +410,11 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         reachable draws near a fold whose path the continuation gives up, which moves the
         sampled statistics and the searches' starts).
 
+    spill : bool
+        Write the kept configurations, a block at a time, into a
+        :class:`~hyperstat.solver.tolerances.spilled.SpilledArray` (a temporary file) instead of memory: the
+        same rows, returned in it (``hyperstat accuracy``: memory independent of the count, issue 39).
+
     Returns
     -------
     ndarray, (K, n_q)
@@ -412,7 +436,11 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         form = closed_form_of(mechanism, kin)
     # the kept configurations are written into one buffer of the draws' size: only the rows written become
     # resident memory, and the sample is not copied again at the end (a concatenation of the chunks held it twice)
-    out, count, certs, pool = np.empty((n, kin.n_q)), 0, [], None
+    out, count, certs, pool = np.empty((0 if spill else n, kin.n_q)), 0, [], None
+    if spill:
+        from hyperstat.solver.tolerances.spilled import SpilledArray
+
+        out = SpilledArray.empty((kin.n_q,))
     rejected: dict = {}  # why draws were left out -> how many, in order of first appearance (the warning's words)
     for start in range(0, n, SAMPLING_CHUNK):  # bounded memory: a chunk of draws at a time
         qa = lo + (hi - lo) * rng.random((min(SAMPLING_CHUNK, n - start), len(lo)))
@@ -425,7 +453,10 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         at = count
         for b in range(0, len(q), CLOSED_FORM_BLOCK):  # the rows of q[ok] a block at a time (no copy of them all;
             rows = q[b:b + CLOSED_FORM_BLOCK][ok[b:b + CLOSED_FORM_BLOCK]]  # numpy.compress(out=) is 30 x slower)
-            out[at:at + len(rows)] = rows
+            if spill:
+                out.append(rows)
+            else:
+                out[at:at + len(rows)] = rows
             at += len(rows)
         if certificate:
             certs.append(cert)
@@ -433,10 +464,10 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
             for reason, kept in zip(cert.reason, ok):
                 if not kept:
                     rejected[reason] = rejected.get(reason, 0) + 1
-        pool = out[count:count + min(good, SAMPLING_POOL)].copy()  # the next chunk also starts from these
+        pool = np.array(out[count:count + min(good, SAMPLING_POOL)])  # the next chunk also starts from these
         count += good
         del q, cert, qa
-    q = out[:count]
+    q = out if spill else out[:count]
     every = BranchCertificate.concatenate(certs) if certificate else _rejected(rejected)
     if len(q) < n:
         warnings.warn(f"workspace sampling of '{mechanism.name}': {every.summary(total=n)} They were left out.",

@@ -37,6 +37,7 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, in_chunks, output_twist_maps
 from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
+from hyperstat.solver.tolerances.spilled import SpilledArray
 from hyperstat.solver.tolerances.task_summary import TaskAccumulator, TaskSummary, value_columns
 from hyperstat.solver.tolerances.worst_case import TASK_COEFFICIENTS, TaskCoefficients, search_extremes
 from hyperstat.solver.threads import limited_blas
@@ -108,7 +109,7 @@ def _coefficients(summary: TaskSummary, cols: np.ndarray, names: list, q: np.nda
         coeffs[f"epsilon_{kind}"] = np.zeros(summary.configurations)
     groups = {"fP": [], "fR": [], "gP": [n for n, b in zip(names, is_len) if b],
               "gR": [n for n, b in zip(names, is_len) if not b]}
-    return AccuracyMaps(coeffs, {}, groups, np.atleast_2d(q), np.zeros((0, 3)))
+    return AccuracyMaps(coeffs, {}, groups, q if isinstance(q, SpilledArray) else np.atleast_2d(q), np.zeros((0, 3)))
 
 
 def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | None,
@@ -188,7 +189,7 @@ def _with_calibration(cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
     # on the fixed workspace checkpoints (the same whatever the command's sample: one value per tolerance in
     # report, accuracy and montecarlo)
     q_fixed = workspace_checkpoints(mechanism, kin, workspace)[0]
-    q_fixed = q_fixed if len(q_fixed) else q
+    q_fixed = q_fixed if len(q_fixed) else np.asarray(q)
     evidence = calibrated_values(cl, mechanism, kin, q_fixed, spec_p, spec_o, workspace, share=reserve)
     if evidence:
         from hyperstat.solver.tolerances.calibrated_together import loss_together
@@ -205,7 +206,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
     spec_o = orientation_accuracy if orientation_accuracy is not None else decl.orientation_rad
-    q = np.atleast_2d(configurations)
+    q = configurations if isinstance(configurations, SpilledArray) else np.atleast_2d(configurations)
     influential = [t for t in cl.items if t.cls in ("accuracy-critical", "compensable")]
     info = {"spec": {"position_mm": spec_p, "orientation_rad": spec_o}, "configurations": int(len(q)),
             "method": "equal allocation, paper 2 eqs. (19), (30)-(31), on the worst case of each task-restricted "
