@@ -443,6 +443,12 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         out = SpilledArray.empty((kin.n_q,))
     rejected: dict = {}  # why draws were left out -> how many, in order of first appearance (the warning's words)
     for start in range(0, n, SAMPLING_CHUNK):  # bounded memory: a chunk of draws at a time
+        if spill and form is not None and not certificate:  # the chunk's blocks written as they are assembled
+            good = _closed_form_streamed(kin, form, rng, lo, hi, min(SAMPLING_CHUNK, n - start), ws, pool, out,
+                                         rejected)
+            pool = np.array(out[count:count + min(good, SAMPLING_POOL)])
+            count += good
+            continue
         qa = lo + (hi - lo) * rng.random((min(SAMPLING_CHUNK, n - start), len(lo)))
         if form is None:
             q, cert = continue_nearest(kin, qa, None, mechanism.home, pool=pool, inside=ws.inside)
@@ -514,6 +520,65 @@ def _closed_form_chunk(kin: Kinematics, form, qa: np.ndarray, ws: Workspace, poo
         q[idx] = qg
         _replace_rows(cert, idx, cg)
     return q, cert
+
+
+def _closed_form_streamed(kin: Kinematics, form, rng, lo: np.ndarray, hi: np.ndarray, n: int, ws: Workspace,
+                          pool: np.ndarray | None, out, rejected: dict) -> int:
+    """A chunk of ``n`` draws through the closed form, each block's kept rows appended to ``out`` (a
+    :class:`~hyperstat.solver.tolerances.spilled.SpilledArray`) and its rejected draws counted in ``rejected`` as
+    soon as it is assembled; the number of rows kept.
+
+    The same rows as :func:`_closed_form_chunk` (and the same draws: a seeded generator fills its doubles in
+    order, a block at a time or a chunk at once): while no draw of the chunk is left to the corrector a block is
+    final when assembled (each draw is assembled alone).  From the first block with such a draw on, the rest of
+    the chunk is held and finished as :func:`_closed_form_chunk` does (the corrector's seeds: the chunk before's and
+    the chunk's first :data:`SAMPLING_POOL` rows the closed form certified), so a chunk holds only a block's arrays
+    at a time when the closed form certifies or rejects every draw (the Triflex-II; issue 39: the arrays of a
+    200,000-draw chunk were the 1,000,000 run's largest transient).
+    """
+    from hyperstat.solver.kinematics.closed_form import assemble_closed_form
+    from hyperstat.solver.kinematics.continuation import BranchCertificate, continue_nearest
+
+    kept, first, held = 0, [], None  # first: the chunk's first certified rows (the corrector's seeds)
+    n_first = 0
+    for b in range(0, n, CLOSED_FORM_BLOCK):
+        qa = lo + (hi - lo) * rng.random((min(CLOSED_FORM_BLOCK, n - b), len(lo)))
+        qb, cb, gb = assemble_closed_form(kin, form, qa, ws.inside)
+        if held is None and not gb.any():
+            rows = qb[cb.certified]
+            out.append(rows)
+            kept += len(rows)
+            if n_first < SAMPLING_POOL:
+                first.append(rows[:SAMPLING_POOL - n_first])
+                n_first += len(first[-1])
+            for reason, ok in zip(cb.reason, cb.certified):
+                if not ok:
+                    rejected[reason] = rejected.get(reason, 0) + 1
+            continue
+        held = [] if held is None else held
+        held.append((qa, qb, cb, gb))
+    if held is None:
+        return kept
+    qa = np.concatenate([h[0] for h in held])
+    q = np.concatenate([h[1] for h in held])
+    cert = BranchCertificate.concatenate([h[2] for h in held])
+    generic = np.concatenate([h[3] for h in held])
+    del held
+    if n_first < SAMPLING_POOL:
+        first.append(q[np.nonzero(cert.certified)[0][:SAMPLING_POOL - n_first]])
+    seeds = [p for p in [pool] + first if p is not None and len(p)]
+    idx = np.nonzero(generic)[0]
+    qg, cg = continue_nearest(kin, qa[idx], None, kin.mechanism.home, inside=ws.inside,
+                              pool=np.concatenate(seeds) if seeds else None)
+    q[idx] = qg
+    _replace_rows(cert, idx, cg)
+    ok = cert.certified
+    for b in range(0, len(q), CLOSED_FORM_BLOCK):
+        out.append(q[b:b + CLOSED_FORM_BLOCK][ok[b:b + CLOSED_FORM_BLOCK]])
+    for reason, good in zip(cert.reason, ok):
+        if not good:
+            rejected[reason] = rejected.get(reason, 0) + 1
+    return kept + int(ok.sum())
 
 
 def _replace_rows(cert, idx: np.ndarray, part) -> None:
