@@ -194,11 +194,25 @@ def _print_accuracy(doc: dict) -> None:
     sys.stdout.write("\n" + _tolerance_lines(doc["tolerances"]))
 
 
+def _refined(mech, maps, analysis, kin, workspace, kinds: tuple) -> list:
+    """:func:`~hyperstat.solver.tolerances.worst_case.refine_extremes` as ``[name, kind, fields]`` (what a forked
+    child hands back: every field of each :class:`~hyperstat.solver.tolerances.worst_case.Extreme`)."""
+    import dataclasses
+
+    from hyperstat.solver.tolerances.worst_case import refine_extremes
+
+    found = refine_extremes(mech, maps, analysis, kinematics=kin, workspace=workspace, kinds=kinds)
+    return [[name, kind, {f.name: getattr(e, f.name) for f in dataclasses.fields(e)}]
+            for (name, kind), e in found.items()]
+
+
 def _accuracy_document(args: argparse.Namespace) -> dict:
     """The JSON document of ``hyperstat accuracy`` (and the map, with ``--map``)."""
     from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate
     from hyperstat.solver.tolerances.task_summary import value_columns
-    from hyperstat.solver.tolerances.worst_case import refine_extremes
+    import numpy as np
+
+    from hyperstat.solver.tolerances.worst_case import Extreme
 
     names = ["stationarity analysis", "workspace sampling", "accuracy maps"] + ([] if args.no_refine else
                                                                                ["worst cases"]) + ["tolerances"]
@@ -214,21 +228,33 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
         maps = accuracy_maps(mech, q, analysis, kinematics=kin, task=None if directions is None else
                              classes.declaration.task, task_directions=directions, per_configuration=False,
                              task_columns=columns)
-        extremes = {}
+        extremes, refining = {}, None
         if not args.no_refine:
+            from hyperstat.solver.forked import Forked
+
             progress.next("worst cases")
-            extremes = refine_extremes(mech, maps, analysis, kinematics=kin, workspace=args.workspace_used,
-                                       kinds=("max", "min") if args.refine_minima else ("max",))
+            # searched in a forked child beside the tolerance values (which do not read them): the same extremes, on
+            # the second core (issue 39)
+            refining = Forked(_refined, mech, maps, analysis, kin, args.workspace_used,
+                              ("max", "min") if args.refine_minima else ("max",))
+        coefficients = maps.summary()
+        progress.next("tolerances")
+        try:
+            tolerances = _tolerances(args, mech, kin, q, cl=classes, task_maps_at=maps.task_rows).to_dict()
+        except BaseException:
+            if refining is not None:
+                refining.cancel()
+            raise
+        if refining is not None:
+            extremes = {(name, kind): Extreme(**dict(fields, q=np.asarray(fields["q"], dtype=float)))
+                        for name, kind, fields in refining.result()}
         # the refined maximum plus its stated tolerance: an upper bound of the coefficient, so the
         # allocated tolerances are conservative when the tolerance estimate holds
         maxima = {name: e.value + (e.tolerance if math.isfinite(e.tolerance) else 0.0)
                   for (name, kind), e in extremes.items() if kind == "max"}
         allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed),
                               maxima=maxima)
-        coefficients = maps.summary()
-        maps.coefficients = {}  # the per-configuration coefficients are not read past here (memory: 8 x 8 B each)
-        progress.next("tolerances")
-        tolerances = _tolerances(args, mech, kin, q, cl=classes, task_maps_at=maps.task_rows).to_dict()
+        maps.coefficients = {}  # the per-configuration coefficients are not read past here
     for name, v in coefficients.items():
         v["sampled_min"], v["sampled_max"] = v["min"], v["max"]
         for kind in ("min", "max"):

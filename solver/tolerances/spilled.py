@@ -219,16 +219,13 @@ def pairwise_sum(a) -> float:
     (True, True)
     """
     def part(lo: int, n: int) -> np.float64:
-        if n <= BLOCK:
+        if n <= max(BLOCK, _PAIRWISE):  # numpy sums a part of at most 128 elements without splitting it
             return np.add.reduce(a[lo:lo + n])
         half = n // 2
         half -= half % 8
         return part(lo, half) + part(lo + half, n - half)
 
-    n = len(a)
-    if n <= _PAIRWISE or n <= BLOCK:
-        return float(np.add.reduce(a[0:n]))
-    return float(part(0, n))
+    return float(part(0, len(a)))
 
 
 def row_blocks(a, size: int = BLOCK):

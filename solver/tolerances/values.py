@@ -208,6 +208,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
     spec_o = orientation_accuracy if orientation_accuracy is not None else decl.orientation_rad
     q = configurations if isinstance(configurations, SpilledArray) else np.atleast_2d(configurations)
     influential = [t for t in cl.items if t.cls in ("accuracy-critical", "compensable")]
+    calibrating = None  # the values with calibration computed in a forked child (``background``)
     info = {"spec": {"position_mm": spec_p, "orientation_rad": spec_o}, "configurations": int(len(q)),
             "method": "equal allocation, paper 2 eqs. (19), (30)-(31), on the worst case of each task-restricted "
                       "coefficient over the declared workspace: " + (
@@ -268,9 +269,23 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
                                                              sampled=maps.coefficients).items()}
             return _allocate(maps, p_budget if has_p else None, o_budget if has_r else None, ext)
 
-        calibrated = allocation(crit, left_p if left_p is None or left_p > 0 else 0.0,
-                                left_o if left_o is None or left_o > 0 else 0.0) if crit.any() else None
         uncalibrated = allocation(np.ones(len(influential), dtype=bool), spec_p, spec_o)
+        if calibrate and background:
+            # the values with calibration read the compensable tolerances' values (the uncalibrated allocation's)
+            # and nothing of the calibrated allocation: started now, beside that allocation's search (issue 39)
+            for t, length in zip(influential, is_len):
+                if t.cls == "compensable":
+                    t.value = uncalibrated["classes"].get("gP" if length else "gR", {}).get("tolerance")
+            from hyperstat.solver.forked import Forked
+
+            calibrating = Forked(_with_calibration, cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
+        try:
+            calibrated = allocation(crit, left_p if left_p is None or left_p > 0 else 0.0,
+                                    left_o if left_o is None or left_o > 0 else 0.0) if crit.any() else None
+        except BaseException:
+            if calibrating is not None:
+                calibrating.cancel()
+            raise
         info["calibrated"] = calibrated
         info["uncalibrated"] = uncalibrated
         for t, length in zip(influential, is_len):
@@ -334,8 +349,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
             t.value_source = "not limited by accuracy (moves nothing the task uses)"
     # the values with calibration depend on the allocation only: computed beside the assembly conditions and the
     # bounds when asked (the same function of the same state: the same values)
-    calibrating = None
-    if calibrate and influential and background:
+    if calibrate and influential and background and calibrating is None:
         from hyperstat.solver.forked import Forked
 
         calibrating = Forked(_with_calibration, cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
