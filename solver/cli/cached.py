@@ -36,7 +36,7 @@ import numpy as np
 
 from hyperstat.solver.cache import Cache, default_directory, encode, file_digest, key
 
-__all__ = ["cache_option", "command_cache", "model_identity", "cached_sample", "cached_values",
+__all__ = ["cache_option", "command_cache", "model_identity", "cached_sample", "cached_sample_started", "cached_values",
            "cached_document", "store_selection", "cached_selection", "SAMPLE_BYTES"]
 
 #: the largest workspace sample stored (bytes of its configurations)
@@ -134,6 +134,27 @@ def cached_sample(args: argparse.Namespace, mechanism, n: int, seed: int, worksp
     if q.nbytes <= SAMPLE_BYTES:
         cache.store("sample", k, q if isinstance(q, np.ndarray) else q.copy())
     return q
+
+
+def cached_sample_started(args: argparse.Namespace, mechanism, n: int, seed: int, workspace,
+                          start: Callable[[], Callable[[], Any]]) -> Callable[[], Any]:
+    """:func:`cached_sample` whose computation runs while the caller goes on: ``start()`` begins it and returns what
+    waits for its sample; returned: what gives the sample (stored, or computed and then stored)."""
+    cache = command_cache(args)
+    if not cache.enabled:
+        return start()
+    k = key("sample", model_identity(args, mechanism), int(n), int(seed), _workspace_key(workspace))
+    q = cache.load("sample", k)
+    if isinstance(q, np.ndarray) and q.ndim == 2 and q.shape[1] == len(mechanism.joints):
+        return lambda: q
+    wait = start()
+
+    def finish():
+        q = wait()
+        if q.nbytes <= SAMPLE_BYTES:
+            cache.store("sample", k, q if isinstance(q, np.ndarray) else q.copy())
+        return q
+    return finish
 
 
 # ---------------------------------------------------------------------------------------------- values

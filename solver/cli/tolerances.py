@@ -13,7 +13,8 @@ from functools import partial
 from pathlib import Path
 
 from hyperstat.solver.atomic import write_json
-from hyperstat.solver.cli.cached import cache_option, cached_document, cached_sample, cached_values
+from hyperstat.solver.cli.cached import (cache_option, cached_document, cached_sample, cached_sample_started,
+                                         cached_values)
 from hyperstat.solver.cli.common import (PLOTTERS, analysis_of, common_options, jsonable, load_source, loaded_source,
                                          stages)
 from hyperstat.solver.errors import HyperstatError
@@ -64,6 +65,19 @@ def _accuracy_inputs(args: argparse.Namespace, progress, spill: bool = False):
             return sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws,
                                     spill=spill)
 
+    if spill:  # sampled in a forked child, written to the sample's temporary file, while the caller goes on
+        q = cached_sample_started(args, mech, args.configurations_workspace, args.seed, ws,
+                                  lambda: _sampling_started(mech, args.configurations_workspace, args.seed, kin, ws))
+
+        def sampled():
+            out = q()
+            if len(out) == 0:
+                raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
+            return out
+        args.workspace_used = ws
+        over = result.overconstraint > 0
+        args._stationarity = result
+        return mech, provenance, kin, (result if over else None), sampled, over
     q = cached_sample(args, mech, args.configurations_workspace, args.seed, ws, sample)
     if len(q) == 0:
         raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
@@ -71,6 +85,31 @@ def _accuracy_inputs(args: argparse.Namespace, progress, spill: bool = False):
     over = result.overconstraint > 0
     args._stationarity = result  # the tolerance classes need it whatever the over-constraint
     return mech, provenance, kin, (result if over else None), q, over
+
+
+def _sample_into(mech, n: int, seed: int, kin, ws, out) -> int:
+    """The workspace sample written into ``out`` (a :class:`~hyperstat.solver.tolerances.spilled.SpilledArray`);
+    its number of rows (what a forked child hands back: the rows are in the file)."""
+    from hyperstat.solver.tolerances.accuracy import sample_workspace
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return len(sample_workspace(mech, n, seed=seed, kinematics=kin, workspace=ws, spill=out))
+
+
+def _sampling_started(mech, n: int, seed: int, kin, ws):
+    """The sampling started in a forked child (the tolerance classes are computed meanwhile: issue 39); returns what
+    waits for the sample.  Without a child (``HYPERSTAT_NO_FORK``, a failed child) it is computed in-process."""
+    from hyperstat.solver.forked import Forked
+    from hyperstat.solver.tolerances.spilled import SpilledArray
+
+    out = SpilledArray.empty((kin.n_q,))
+    job = Forked(_sample_into, mech, n, seed, kin, ws, out)
+
+    def wait():
+        out.resize(job.result())
+        return out
+    return wait
 
 
 def _classes(args: argparse.Namespace, mech, kin):
@@ -217,10 +256,12 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
     names = ["stationarity analysis", "workspace sampling", "accuracy maps"] + ([] if args.no_refine else
                                                                                ["worst cases"]) + ["tolerances"]
     with stages(args, names) as progress:
-        mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress, spill=True)
+        mech, provenance, kin, analysis, sampled, over = _accuracy_inputs(args, progress, spill=True)
+        # the tolerance classes while the sample is drawn (a forked child)
+        classes, directions = _classes(args, mech, kin)
+        q = sampled()
         progress.next("accuracy maps")
         # one set of Jacobians per configuration: the coefficients and the task rows of the tolerance values
-        classes, directions = _classes(args, mech, kin)
         # reduced block by block (issue 39): what is kept per configuration is the coefficients, not the
         # parameters' column norms nor the task rows
         columns = None if directions is None else value_columns(

@@ -410,10 +410,11 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         reachable draws near a fold whose path the continuation gives up, which moves the
         sampled statistics and the searches' starts).
 
-    spill : bool
+    spill : bool or SpilledArray
         Write the kept configurations, a block at a time, into a
-        :class:`~hyperstat.solver.tolerances.spilled.SpilledArray` (a temporary file) instead of memory: the
-        same rows, returned in it (``hyperstat accuracy``: memory independent of the count, issue 39).
+        :class:`~hyperstat.solver.tolerances.spilled.SpilledArray` (a temporary file; this one when given, empty)
+        instead of memory: the same rows, returned in it (``hyperstat accuracy``: memory independent of the count,
+        issue 39).
 
     Returns
     -------
@@ -437,10 +438,11 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
     # the kept configurations are written into one buffer of the draws' size: only the rows written become
     # resident memory, and the sample is not copied again at the end (a concatenation of the chunks held it twice)
     out, count, certs, pool = np.empty((0 if spill else n, kin.n_q)), 0, [], None
-    if spill:
+    if spill is not False and spill is not None:
         from hyperstat.solver.tolerances.spilled import SpilledArray
 
-        out = SpilledArray.empty((kin.n_q,))
+        out = spill if isinstance(spill, SpilledArray) else SpilledArray.empty((kin.n_q,))
+        spill = True
     rejected: dict = {}  # why draws were left out -> how many, in order of first appearance (the warning's words)
     for start in range(0, n, SAMPLING_CHUNK):  # bounded memory: a chunk of draws at a time
         if spill and form is not None and not certificate:  # the chunk's blocks written as they are assembled

@@ -121,6 +121,12 @@ class SpilledArray:
             self._rows = max(self._rows, self._written)
         self._write(at, rows)
 
+    def resize(self, rows: int) -> None:
+        """``rows`` rows, the rows appended so far being those (what another process appended to this file)."""
+        with self._lock:
+            self._rows = self._written = int(rows)
+            os.ftruncate(self._fd, self._rows * self._row_bytes)
+
     # ------------------------------------------------------------------ reads
     def _read(self, start: int, stop: int) -> np.ndarray:
         out = np.empty((max(stop - start, 0),) + self.row_shape)
