@@ -691,7 +691,10 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
                                               pool_label(best), location="constant")
                 continue
             chosen: list = []
-            order = np.argsort(-sv)
+            # equal values (to the last bit: a coefficient's maximum is often reached on a whole set) in row order, not
+            # in the order of numpy's unstable sort (which depends on the whole array and on the machine's sort
+            # kernel): the starts do not depend on how the sample is held (issue 39: read block by block)
+            order = np.argsort(-sv, kind="stable")
             for category in ("sample", "corner", "edge", "face", "dead centre"):  # the best separate ones of each kind
                 limit = starts if category == "sample" else (1 if category == "dead centre" else structured)
                 taken = 0
@@ -758,10 +761,9 @@ def _streamed_starts(kin: Kinematics, space: _Space, objective: Objective, sampl
     :data:`STREAMED_TOP` configurations, the extent of the actuated columns and the best candidate are kept instead of
     every configuration's value, its sort order and masks (issue 39: memory independent of the count).
 
-    The same starts as the whole-array path: the best separate configurations of the sample, best first, walked
-    until ``starts`` are taken (a second pass keeps more of them when the walk runs past the kept ones); the
-    structured candidates' own order.  Equal values are ordered by row number (the whole-array path leaves their
-    order to numpy's unstable sort).
+    The same starts as the whole-array path: the best separate configurations of the sample, best first (equal
+    values by row number, as the whole-array path's stable sort), walked until ``starts`` are taken (a second pass
+    keeps more of them when the walk runs past the kept ones); then the structured candidates in the same order.
     """
     m = kin.mechanism
     values_given = sampled is not None

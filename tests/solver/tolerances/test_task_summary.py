@@ -260,3 +260,38 @@ def test_maps_and_searches_read_block_by_block_are_the_whole_arrays(triflex, mon
     assert a.keys() == b.keys() == {("attainable", "max"), ("triangle", "max")}
     for key in a:
         assert a[key].as_dict() == b[key].as_dict(), key
+
+
+def test_equal_values_take_the_same_starts_in_both_paths(triflex, monkeypatch):
+    """A function with many equal values (a coefficient rounded to 0.25: ties to the last bit, as a coefficient's
+    plateau gives): the whole-array path (stable sort) and the streamed one (best rows kept by value, then row
+    number) hand the same starts to the searches."""
+    from hyperstat.solver.tolerances.worst_case import Coefficients
+
+    mech, kin, result, q = triflex[:4]
+
+    class Rounded(Coefficients):
+        def values(self, qq):
+            return {n: np.round(v * 4) / 4 for n, v in super().values(qq).items()}
+
+        def pick(self, qq, which):
+            return np.round(super().pick(qq, which) * 4) / 4
+
+    objective = Rounded(kin, result, ("delta_gR",))
+    values = objective.values(q)["delta_gR"]
+    assert len(values) - len(np.unique(values)) > len(values) // 2  # ties
+    monkeypatch.setattr(spilled, "BLOCK", 64)
+    monkeypatch.setattr(worst_case, "STREAMED_TOP", 3)
+    starts = []  # the starts each path hands to the searches, and the best candidates
+
+    def record(space, objective, sample, out, paths, owner, sense, origin, best_of, kinds, iterations):
+        starts.append((np.array(paths), list(owner), list(sense), list(origin),
+                       {k: (v, q_b.tolist(), label) for k, (v, q_b, label) in best_of.items()}))
+        return out
+    monkeypatch.setattr(worst_case, "_searched", record)
+    worst_case.search_extremes(kin, objective, q, kinds=("max", "min"), starts=4)
+    worst_case.search_extremes(kin, objective, _spilled(q), kinds=("max", "min"), starts=4)
+    (pa, *ra), (pb, *rb) = starts
+    assert len(pa) >= 8 and ra[2].count("sample") == 8  # four separate sample starts per kind, and structured ones
+    np.testing.assert_array_equal(pa, pb)
+    assert ra == rb
