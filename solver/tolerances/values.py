@@ -104,9 +104,12 @@ def _coefficients(summary: TaskSummary, cols: np.ndarray, names: list, q: np.nda
     """Task-restricted coefficients (eq. 18 on the task rows) at the sampled configurations, as AccuracyMaps."""
     coeffs = dict(summary.of(cols))
     is_len = summary.is_length[cols]
+    # the actuators' coefficients are zero here; in a (sparse) temporary file when the others are (issue 39: calloc'd
+    # zeros on a reused heap are written, 8 x 5.5 MiB at 685,000 configurations)
+    spilled = any(isinstance(v, SpilledArray) for v in coeffs.values())
     for kind in ("fP", "fR"):
-        coeffs[f"delta_{kind}"] = np.zeros(summary.configurations)
-        coeffs[f"epsilon_{kind}"] = np.zeros(summary.configurations)
+        for name in (f"delta_{kind}", f"epsilon_{kind}"):
+            coeffs[name] = SpilledArray(summary.configurations) if spilled else np.zeros(summary.configurations)
     groups = {"fP": [], "fR": [], "gP": [n for n, b in zip(names, is_len) if b],
               "gR": [n for n, b in zip(names, is_len) if not b]}
     return AccuracyMaps(coeffs, {}, groups, q if isinstance(q, SpilledArray) else np.atleast_2d(q), np.zeros((0, 3)))
