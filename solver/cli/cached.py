@@ -36,7 +36,7 @@ import numpy as np
 
 from hyperstat.solver.cache import Cache, default_directory, encode, file_digest, key
 
-__all__ = ["cache_option", "command_cache", "model_identity", "cached_sample", "cached_values",
+__all__ = ["cache_option", "command_cache", "model_identity", "cached_sample", "cached_sample_started", "cached_values",
            "cached_document", "store_selection", "cached_selection", "SAMPLE_BYTES", "stage_memo"]
 
 #: the largest workspace sample stored (bytes of its configurations)
@@ -87,6 +87,10 @@ def _digest(a: Any) -> str:
     >>> _digest(np.arange(3.0)) == _digest(np.arange(3.0)) != _digest(np.arange(3))
     True
     """
+    from hyperstat.solver.tolerances.spilled import SpilledArray, array_digest
+
+    if isinstance(a, SpilledArray):  # the same digest as the array in memory, read a block at a time
+        return array_digest(a, f"array {np.dtype('<f8').str} {list(a.shape)} ".encode())
     if isinstance(a, np.ndarray):
         if a.dtype.kind not in "biuf":
             raise TypeError(f"an array of {a.dtype} is not cached")
@@ -99,7 +103,9 @@ def _digest(a: Any) -> str:
 
 def _arrays_digested(a: Any) -> Any:
     """``a`` with every array replaced by ``{"array-sha256": its digest}`` (lists, tuples and dict values)."""
-    if isinstance(a, np.ndarray):
+    from hyperstat.solver.tolerances.spilled import SpilledArray
+
+    if isinstance(a, (np.ndarray, SpilledArray)):
         return {"array-sha256": _digest(a)}
     if isinstance(a, tuple):
         return tuple(_arrays_digested(v) for v in a)
@@ -126,8 +132,29 @@ def cached_sample(args: argparse.Namespace, mechanism, n: int, seed: int, worksp
         return q
     q = compute()
     if q.nbytes <= SAMPLE_BYTES:
-        cache.store("sample", k, q)
+        cache.store("sample", k, q if isinstance(q, np.ndarray) else q.copy())
     return q
+
+
+def cached_sample_started(args: argparse.Namespace, mechanism, n: int, seed: int, workspace,
+                          start: Callable[[], Callable[[], Any]]) -> Callable[[], Any]:
+    """:func:`cached_sample` whose computation runs while the caller goes on: ``start()`` begins it and returns what
+    waits for its sample; returned: what gives the sample (stored, or computed and then stored)."""
+    cache = command_cache(args)
+    if not cache.enabled:
+        return start()
+    k = key("sample", model_identity(args, mechanism), int(n), int(seed), _workspace_key(workspace))
+    q = cache.load("sample", k)
+    if isinstance(q, np.ndarray) and q.ndim == 2 and q.shape[1] == len(mechanism.joints):
+        return lambda: q
+    wait = start()
+
+    def finish():
+        q = wait()
+        if q.nbytes <= SAMPLE_BYTES:
+            cache.store("sample", k, q if isinstance(q, np.ndarray) else q.copy())
+        return q
+    return finish
 
 
 # ---------------------------------------------------------------------------------------------- values
@@ -205,6 +232,7 @@ def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: 
     before_cl = _signature(cl, _INPUTS)
     before_items = [_signature(t) for t in cl.items]
     ids = [t.id for t in cl.items]
+    from hyperstat.solver.tolerances.spilled import SpilledArray
     from hyperstat.solver.tolerances.task_summary import TaskSummary
 
     keyed = {name: v.as_tuple() if isinstance(v, TaskSummary) else v for name, v in _answer_options(options).items()}
@@ -212,7 +240,7 @@ def cached_values(args: argparse.Namespace, cl, mechanism, kin, configurations: 
                    _workspace_key(v) if name == "workspace" else v) for name, v in sorted(keyed.items())}
     k = key("values", model_identity(args, mechanism), _digest(_keyed(before_cl)),
             _digest([_keyed(b) for b in before_items]),
-            _digest(np.asarray(configurations)),
+            _digest(configurations if isinstance(configurations, SpilledArray) else np.asarray(configurations)),
             None if cl.analysis is None else _digest(np.asarray(cl.analysis.configurations)), opts)
     if _restore_values(cache.load("values", k), cl, ids):
         return cl

@@ -9,10 +9,12 @@ import argparse
 import math
 import sys
 import warnings
+from functools import partial
 from pathlib import Path
 
 from hyperstat.solver.atomic import write_json
-from hyperstat.solver.cli.cached import cache_option, cached_document, cached_sample, cached_values
+from hyperstat.solver.cli.cached import (cache_option, cached_document, cached_sample, cached_sample_started,
+                                         cached_values)
 from hyperstat.solver.cli.common import (PLOTTERS, analysis_of, common_options, jsonable, load_source, loaded_source,
                                          stages)
 from hyperstat.solver.errors import HyperstatError
@@ -33,7 +35,10 @@ def _ranges(specs: list | None) -> dict:
     return out
 
 
-def _accuracy_inputs(args: argparse.Namespace, progress):
+def _accuracy_inputs(args: argparse.Namespace, progress, spill: bool = False):
+    """The model, its analysis and the workspace sample; ``spill``: the sample in a temporary file, read a block at
+    a time (:class:`~hyperstat.solver.tolerances.spilled.SpilledArray`: ``accuracy``'s memory does not grow with
+    the count, issue 39)."""
     from hyperstat.solver.tolerances.accuracy import sample_workspace
     from hyperstat.solver.tolerances.workspace import workspace_of
 
@@ -57,8 +62,22 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
     def sample():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws)
+            return sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws,
+                                    spill=spill)
 
+    if spill:  # sampled in a forked child, written to the sample's temporary file, while the caller goes on
+        q = cached_sample_started(args, mech, args.configurations_workspace, args.seed, ws,
+                                  lambda: _sampling_started(mech, args.configurations_workspace, args.seed, kin, ws))
+
+        def sampled():
+            out = q()
+            if len(out) == 0:
+                raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
+            return out
+        args.workspace_used = ws
+        over = result.overconstraint > 0
+        args._stationarity = result
+        return mech, provenance, kin, (result if over else None), sampled, over
     q = cached_sample(args, mech, args.configurations_workspace, args.seed, ws, sample)
     if len(q) == 0:
         raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
@@ -66,6 +85,31 @@ def _accuracy_inputs(args: argparse.Namespace, progress):
     over = result.overconstraint > 0
     args._stationarity = result  # the tolerance classes need it whatever the over-constraint
     return mech, provenance, kin, (result if over else None), q, over
+
+
+def _sample_into(mech, n: int, seed: int, kin, ws, out) -> int:
+    """The workspace sample written into ``out`` (a :class:`~hyperstat.solver.tolerances.spilled.SpilledArray`);
+    its number of rows (what a forked child hands back: the rows are in the file)."""
+    from hyperstat.solver.tolerances.accuracy import sample_workspace
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return len(sample_workspace(mech, n, seed=seed, kinematics=kin, workspace=ws, spill=out))
+
+
+def _sampling_started(mech, n: int, seed: int, kin, ws):
+    """The sampling started in a forked child (the tolerance classes are computed meanwhile: issue 39); returns what
+    waits for the sample.  Without a child (``HYPERSTAT_NO_FORK``, a failed child) it is computed in-process."""
+    from hyperstat.solver.forked import Forked
+    from hyperstat.solver.tolerances.spilled import SpilledArray
+
+    out = SpilledArray.empty((kin.n_q,))
+    job = Forked(_sample_into, mech, n, seed, kin, ws, out)
+
+    def wait():
+        out.resize(job.result())
+        return out
+    return wait
 
 
 def _classes(args: argparse.Namespace, mech, kin):
@@ -111,7 +155,10 @@ def _tolerances(args: argparse.Namespace, mech, kin, q, assembly: bool = True, c
 
     result = args._stationarity
     cl = _classes(args, mech, kin)[0] if cl is None else cl
-    cached_values(args, cl, mech, kin, q, assign_values, position_accuracy=args.position_accuracy,
+    # the values with calibration in a forked child beside the assembly conditions' and the bounds' searches (the
+    # same values, on the second core: issue 39, as ``report`` does); not part of the cache's key
+    cached_values(args, cl, mech, kin, q, partial(assign_values, background=True),
+                  position_accuracy=args.position_accuracy,
                   orientation_accuracy=args.orientation_accuracy, assembly=assembly,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE],
                   workspace=args.workspace_used if args.range else None, calibrate=True,
@@ -186,19 +233,35 @@ def _print_accuracy(doc: dict) -> None:
     sys.stdout.write("\n" + _tolerance_lines(doc["tolerances"]))
 
 
+def _refined(mech, maps, analysis, kin, workspace, kinds: tuple) -> list:
+    """:func:`~hyperstat.solver.tolerances.worst_case.refine_extremes` as ``[name, kind, fields]`` (what a forked
+    child hands back: every field of each :class:`~hyperstat.solver.tolerances.worst_case.Extreme`)."""
+    import dataclasses
+
+    from hyperstat.solver.tolerances.worst_case import refine_extremes
+
+    found = refine_extremes(mech, maps, analysis, kinematics=kin, workspace=workspace, kinds=kinds)
+    return [[name, kind, {f.name: getattr(e, f.name) for f in dataclasses.fields(e)}]
+            for (name, kind), e in found.items()]
+
+
 def _accuracy_document(args: argparse.Namespace) -> dict:
     """The JSON document of ``hyperstat accuracy`` (and the map, with ``--map``)."""
     from hyperstat.solver.tolerances.accuracy import accuracy_maps, allocate
     from hyperstat.solver.tolerances.task_summary import value_columns
-    from hyperstat.solver.tolerances.worst_case import refine_extremes
+    import numpy as np
+
+    from hyperstat.solver.tolerances.worst_case import Extreme, workspace_candidates
 
     names = ["stationarity analysis", "workspace sampling", "accuracy maps"] + ([] if args.no_refine else
                                                                                ["worst cases"]) + ["tolerances"]
     with stages(args, names) as progress:
-        mech, provenance, kin, analysis, q, over = _accuracy_inputs(args, progress)
+        mech, provenance, kin, analysis, sampled, over = _accuracy_inputs(args, progress, spill=True)
+        # the tolerance classes while the sample is drawn (a forked child)
+        classes, directions = _classes(args, mech, kin)
+        q = sampled()
         progress.next("accuracy maps")
         # one set of Jacobians per configuration: the coefficients and the task rows of the tolerance values
-        classes, directions = _classes(args, mech, kin)
         # reduced block by block (issue 39): what is kept per configuration is the coefficients, not the
         # parameters' column norms nor the task rows
         columns = None if directions is None else value_columns(
@@ -206,21 +269,37 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
         maps = accuracy_maps(mech, q, analysis, kinematics=kin, task=None if directions is None else
                              classes.declaration.task, task_directions=directions, per_configuration=False,
                              task_columns=columns)
-        extremes = {}
+        extremes, refining = {}, None
         if not args.no_refine:
+            from hyperstat.solver.forked import Forked
+
             progress.next("worst cases")
-            extremes = refine_extremes(mech, maps, analysis, kinematics=kin, workspace=args.workspace_used,
-                                       kinds=("max", "min") if args.refine_minima else ("max",))
+            # the structured candidates (corners, edges, faces, dead centres) of the searches here and in the values
+            # stage, computed once before the child is forked (it inherits them; every search of these functions varies
+            # all the actuators): not once in each process
+            workspace_candidates(kin, args.workspace_used, q, varied=np.ones(len(mech.actuated), dtype=bool))
+            # searched in a forked child beside the tolerance values (which do not read them): the same extremes, on
+            # the second core (issue 39)
+            refining = Forked(_refined, mech, maps, analysis, kin, args.workspace_used,
+                              ("max", "min") if args.refine_minima else ("max",))
+        coefficients = maps.summary()
+        progress.next("tolerances")
+        try:
+            tolerances = _tolerances(args, mech, kin, q, cl=classes, task_maps_at=maps.task_rows).to_dict()
+        except BaseException:
+            if refining is not None:
+                refining.cancel()
+            raise
+        if refining is not None:
+            extremes = {(name, kind): Extreme(**dict(fields, q=np.asarray(fields["q"], dtype=float)))
+                        for name, kind, fields in refining.result()}
         # the refined maximum plus its stated tolerance: an upper bound of the coefficient, so the
         # allocated tolerances are conservative when the tolerance estimate holds
         maxima = {name: e.value + (e.tolerance if math.isfinite(e.tolerance) else 0.0)
                   for (name, kind), e in extremes.items() if kind == "max"}
         allocation = allocate(maps, args.orientation_accuracy, args.position_accuracy, _fixed(args.fixed),
                               maxima=maxima)
-        coefficients = maps.summary()
-        maps.coefficients = {}  # the per-configuration coefficients are not read past here (memory: 8 x 8 B each)
-        progress.next("tolerances")
-        tolerances = _tolerances(args, mech, kin, q, cl=classes, task_maps_at=maps.task_rows).to_dict()
+        maps.coefficients = {}  # the per-configuration coefficients are not read past here
     for name, v in coefficients.items():
         v["sampled_min"], v["sampled_max"] = v["min"], v["max"]
         for kind in ("min", "max"):

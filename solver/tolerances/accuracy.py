@@ -207,6 +207,21 @@ def in_chunks(block, n: int, chunk: int = 10000, workers: int | None = None) -> 
             block(start)
 
 
+def _is_spilled(a) -> bool:
+    from hyperstat.solver.tolerances.spilled import SpilledArray
+
+    return isinstance(a, SpilledArray)
+
+
+def _per_configuration(k: int, spilled: bool):
+    """K zeros, in memory or in a temporary file (:class:`~hyperstat.solver.tolerances.spilled.SpilledArray`)."""
+    if not spilled:
+        return np.zeros(k)
+    from hyperstat.solver.tolerances.spilled import SpilledArray
+
+    return SpilledArray(k)
+
+
 def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics: Kinematics | None = None,
                   chunk: int = 2048, workers: int | None = None, task: tuple | None = None,
                   task_directions: np.ndarray | None = None, per_configuration: bool = True,
@@ -224,8 +239,10 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
     Parameters
     ----------
     mechanism : Mechanism
-    q : ndarray, (K, n_q)
-        Assembled configurations (rad / mm).
+    q : ndarray or SpilledArray, (K, n_q)
+        Assembled configurations (rad / mm).  In a temporary file
+        (:class:`~hyperstat.solver.tolerances.spilled.SpilledArray`): read a block at a time, and the
+        per-configuration coefficients (and the task summary's) written to temporary files as well.
     analysis : StationarityResult, optional
         Restrict the geometric errors to the admissible influential coordinates.
     chunk : int
@@ -270,8 +287,10 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
               "gR": [n for n, k in zip(names, g_kind) if k == "R"]}
     f_idx = {k: [i for i, kk in enumerate(f_kind) if kk == k] for k in "PR"}
     g_idx = {k: [i for i, kk in enumerate(g_kind) if kk == k] for k in "PR"}
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    coeffs = {n: np.zeros(len(q)) for n in COEFFICIENT_NAMES}
+    spilled = _is_spilled(q)  # a sample in a temporary file: the coefficients go to one too (issue 39: memory)
+    if not spilled:
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+    coeffs = {n: _per_configuration(len(q), spilled) for n in COEFFICIENT_NAMES}
     keep = len(q) if per_configuration else 0
     per = {n: {"rotation": np.zeros(keep), "position": np.zeros(keep)} for n in f_names + names} \
         if per_configuration else {}
@@ -285,7 +304,7 @@ def accuracy_maps(mechanism: Mechanism, q: np.ndarray, analysis=None, kinematics
             on_task = np.zeros((len(q), n_task, task_directions.shape[1]))
         else:
             accumulator = TaskAccumulator(len(q), n_rotation_rows(task), n_task - n_rotation_rows(task),
-                                          task_columns[0], task_columns[1])
+                                          task_columns[0], task_columns[1], spill=spilled)
 
     def block(start: int) -> None:
         sl = slice(start, start + chunk)
@@ -355,7 +374,7 @@ CLOSED_FORM_FROM = 20_000
 
 def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict | None = None,
                      kinematics: Kinematics | None = None, workspace: Workspace | None = None,
-                     certificate: bool = False, closed_form: bool | None = None):
+                     certificate: bool = False, closed_form: bool | None = None, spill: bool = False):
     """Configurations with actuated values uniform in the workspace's actuated box, certified on the home branch.
 
     The box and the assembly branch come from the workspace (:func:`workspace_of`: the
@@ -394,6 +413,12 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         reachable draws near a fold whose path the continuation gives up, which moves the
         sampled statistics and the searches' starts).
 
+    spill : bool or SpilledArray
+        Write the kept configurations, a block at a time, into a
+        :class:`~hyperstat.solver.tolerances.spilled.SpilledArray` (a temporary file; this one when given, empty)
+        instead of memory: the same rows, returned in it (``hyperstat accuracy``: memory independent of the count,
+        issue 39).
+
     Returns
     -------
     ndarray, (K, n_q)
@@ -415,9 +440,20 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         form = closed_form_of(mechanism, kin)
     # the kept configurations are written into one buffer of the draws' size: only the rows written become
     # resident memory, and the sample is not copied again at the end (a concatenation of the chunks held it twice)
-    out, count, certs, pool = np.empty((n, kin.n_q)), 0, [], None
+    out, count, certs, pool = np.empty((0 if spill else n, kin.n_q)), 0, [], None
+    if spill is not False and spill is not None:
+        from hyperstat.solver.tolerances.spilled import SpilledArray
+
+        out = spill if isinstance(spill, SpilledArray) else SpilledArray.empty((kin.n_q,))
+        spill = True
     rejected: dict = {}  # why draws were left out -> how many, in order of first appearance (the warning's words)
     for start in range(0, n, SAMPLING_CHUNK):  # bounded memory: a chunk of draws at a time
+        if spill and form is not None and not certificate:  # the chunk's blocks written as they are assembled
+            good = _closed_form_streamed(kin, form, rng, lo, hi, min(SAMPLING_CHUNK, n - start), ws, pool, out,
+                                         rejected)
+            pool = np.array(out[count:count + min(good, SAMPLING_POOL)])
+            count += good
+            continue
         qa = lo + (hi - lo) * rng.random((min(SAMPLING_CHUNK, n - start), len(lo)))
         if form is None:
             q, cert = continue_nearest(kin, qa, None, mechanism.home, pool=pool, inside=ws.inside)
@@ -428,7 +464,10 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
         at = count
         for b in range(0, len(q), CLOSED_FORM_BLOCK):  # the rows of q[ok] a block at a time (no copy of them all;
             rows = q[b:b + CLOSED_FORM_BLOCK][ok[b:b + CLOSED_FORM_BLOCK]]  # numpy.compress(out=) is 30 x slower)
-            out[at:at + len(rows)] = rows
+            if spill:
+                out.append(rows)
+            else:
+                out[at:at + len(rows)] = rows
             at += len(rows)
         if certificate:
             certs.append(cert)
@@ -436,10 +475,10 @@ def sample_workspace(mechanism: Mechanism, n: int, seed: int = 0, ranges: dict |
             for reason, kept in zip(cert.reason, ok):
                 if not kept:
                     rejected[reason] = rejected.get(reason, 0) + 1
-        pool = out[count:count + min(good, SAMPLING_POOL)].copy()  # the next chunk also starts from these
+        pool = np.array(out[count:count + min(good, SAMPLING_POOL)])  # the next chunk also starts from these
         count += good
         del q, cert, qa
-    q = out[:count]
+    q = out if spill else out[:count]
     every = BranchCertificate.concatenate(certs) if certificate else _rejected(rejected)
     if len(q) < n:
         warnings.warn(f"workspace sampling of '{mechanism.name}': {every.summary(total=n)} They were left out.",
@@ -486,6 +525,65 @@ def _closed_form_chunk(kin: Kinematics, form, qa: np.ndarray, ws: Workspace, poo
         q[idx] = qg
         _replace_rows(cert, idx, cg)
     return q, cert
+
+
+def _closed_form_streamed(kin: Kinematics, form, rng, lo: np.ndarray, hi: np.ndarray, n: int, ws: Workspace,
+                          pool: np.ndarray | None, out, rejected: dict) -> int:
+    """A chunk of ``n`` draws through the closed form, each block's kept rows appended to ``out`` (a
+    :class:`~hyperstat.solver.tolerances.spilled.SpilledArray`) and its rejected draws counted in ``rejected`` as
+    soon as it is assembled; the number of rows kept.
+
+    The same rows as :func:`_closed_form_chunk` (and the same draws: a seeded generator fills its doubles in
+    order, a block at a time or a chunk at once): while no draw of the chunk is left to the corrector a block is
+    final when assembled (each draw is assembled alone).  From the first block with such a draw on, the rest of
+    the chunk is held and finished as :func:`_closed_form_chunk` does (the corrector's seeds: the chunk before's and
+    the chunk's first :data:`SAMPLING_POOL` rows the closed form certified), so a chunk holds only a block's arrays
+    at a time when the closed form certifies or rejects every draw (the Triflex-II; issue 39: the arrays of a
+    200,000-draw chunk were the 1,000,000 run's largest transient).
+    """
+    from hyperstat.solver.kinematics.closed_form import assemble_closed_form
+    from hyperstat.solver.kinematics.continuation import BranchCertificate, continue_nearest
+
+    kept, first, held = 0, [], None  # first: the chunk's first certified rows (the corrector's seeds)
+    n_first = 0
+    for b in range(0, n, CLOSED_FORM_BLOCK):
+        qa = lo + (hi - lo) * rng.random((min(CLOSED_FORM_BLOCK, n - b), len(lo)))
+        qb, cb, gb = assemble_closed_form(kin, form, qa, ws.inside)
+        if held is None and not gb.any():
+            rows = qb[cb.certified]
+            out.append(rows)
+            kept += len(rows)
+            if n_first < SAMPLING_POOL:
+                first.append(rows[:SAMPLING_POOL - n_first])
+                n_first += len(first[-1])
+            for reason, ok in zip(cb.reason, cb.certified):
+                if not ok:
+                    rejected[reason] = rejected.get(reason, 0) + 1
+            continue
+        held = [] if held is None else held
+        held.append((qa, qb, cb, gb))
+    if held is None:
+        return kept
+    qa = np.concatenate([h[0] for h in held])
+    q = np.concatenate([h[1] for h in held])
+    cert = BranchCertificate.concatenate([h[2] for h in held])
+    generic = np.concatenate([h[3] for h in held])
+    del held
+    if n_first < SAMPLING_POOL:
+        first.append(q[np.nonzero(cert.certified)[0][:SAMPLING_POOL - n_first]])
+    seeds = [p for p in [pool] + first if p is not None and len(p)]
+    idx = np.nonzero(generic)[0]
+    qg, cg = continue_nearest(kin, qa[idx], None, kin.mechanism.home, inside=ws.inside,
+                              pool=np.concatenate(seeds) if seeds else None)
+    q[idx] = qg
+    _replace_rows(cert, idx, cg)
+    ok = cert.certified
+    for b in range(0, len(q), CLOSED_FORM_BLOCK):
+        out.append(q[b:b + CLOSED_FORM_BLOCK][ok[b:b + CLOSED_FORM_BLOCK]])
+    for reason, good in zip(cert.reason, ok):
+        if not good:
+            rejected[reason] = rejected.get(reason, 0) + 1
+    return kept + int(ok.sum())
 
 
 def _replace_rows(cert, idx: np.ndarray, part) -> None:

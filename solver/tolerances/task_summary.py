@@ -131,6 +131,9 @@ class TaskAccumulator:
     is_length : ndarray of bool, (n,)
     column_sets : list of ndarray of bool
         The allocations' column sets (:func:`value_columns`).
+    spill : bool
+        Keep the per-configuration coefficients in temporary files
+        (:class:`~hyperstat.solver.tolerances.spilled.SpilledArray`) instead of memory.
 
     :meth:`add` may run on several threads at once: each call writes its own rows of the
     coefficients and returns its block's partial sums, which :meth:`finish` adds in block order
@@ -147,12 +150,20 @@ class TaskAccumulator:
     """
 
     def __init__(self, configurations: int, n_rot: int, n_pos: int, is_length: np.ndarray,
-                 column_sets: list) -> None:
+                 column_sets: list, spill: bool = False) -> None:
         self.k, self.n_rot, self.n_pos = int(configurations), int(n_rot), int(n_pos)
         self.is_length = np.asarray(is_length, dtype=bool)
         self.sets = {tuple(bool(c) for c in cols): np.asarray(cols, dtype=bool) for cols in column_sets if np.any(cols)}
-        self.coefficients = {key: {name: np.zeros(self.k) for name in ("delta_gP", "epsilon_gP", "delta_gR",
-                                                                        "epsilon_gR")} for key in self.sets}
+        if spill:  # per-configuration coefficients in temporary files (issue 39: memory independent of the count)
+            from hyperstat.solver.tolerances.spilled import SpilledArray
+
+            def zeros():
+                return SpilledArray(self.k)
+        else:
+            def zeros():
+                return np.zeros(self.k)
+        self.coefficients = {key: {name: zeros() for name in ("delta_gP", "epsilon_gP", "delta_gR",
+                                                               "epsilon_gR")} for key in self.sets}
 
     def add(self, start: int, rows: np.ndarray) -> tuple:
         """Reduce the task rows (k, r, n) of configurations ``start .. start + k``; returns the block's partial sums."""

@@ -38,6 +38,7 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import AccuracyMaps, allocate, in_chunks
 from hyperstat.solver.tolerances.classification import Classification, workspace_checkpoints
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
+from hyperstat.solver.tolerances.spilled import SpilledArray
 from hyperstat.solver.tolerances.task_summary import TaskAccumulator, TaskSummary, value_columns
 from hyperstat.solver.tolerances.twist_blocks import nominal_twist_maps
 from hyperstat.solver.tolerances.worst_case import TASK_COEFFICIENTS, TaskCoefficients, search_extremes
@@ -105,12 +106,15 @@ def _coefficients(summary: TaskSummary, cols: np.ndarray, names: list, q: np.nda
     """Task-restricted coefficients (eq. 18 on the task rows) at the sampled configurations, as AccuracyMaps."""
     coeffs = dict(summary.of(cols))
     is_len = summary.is_length[cols]
+    # the actuators' coefficients are zero here; in a (sparse) temporary file when the others are (issue 39: calloc'd
+    # zeros on a reused heap are written, 8 x 5.5 MiB at 685,000 configurations)
+    spilled = any(isinstance(v, SpilledArray) for v in coeffs.values())
     for kind in ("fP", "fR"):
-        coeffs[f"delta_{kind}"] = np.zeros(summary.configurations)
-        coeffs[f"epsilon_{kind}"] = np.zeros(summary.configurations)
+        for name in (f"delta_{kind}", f"epsilon_{kind}"):
+            coeffs[name] = SpilledArray(summary.configurations) if spilled else np.zeros(summary.configurations)
     groups = {"fP": [], "fR": [], "gP": [n for n, b in zip(names, is_len) if b],
               "gR": [n for n, b in zip(names, is_len) if not b]}
-    return AccuracyMaps(coeffs, {}, groups, np.atleast_2d(q), np.zeros((0, 3)))
+    return AccuracyMaps(coeffs, {}, groups, q if isinstance(q, SpilledArray) else np.atleast_2d(q), np.zeros((0, 3)))
 
 
 def _allocate(maps: AccuracyMaps, position: float | None, orientation: float | None,
@@ -196,7 +200,7 @@ def _with_calibration(cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
     # on the fixed workspace checkpoints (the same whatever the command's sample: one value per tolerance in
     # report, accuracy and montecarlo)
     q_fixed = workspace_checkpoints(mechanism, kin, workspace)[0]
-    q_fixed = q_fixed if len(q_fixed) else q
+    q_fixed = q_fixed if len(q_fixed) else np.asarray(q)
     evidence = calibrated_values(cl, mechanism, kin, q_fixed, spec_p, spec_o, workspace, share=reserve)
     if evidence:
         from hyperstat.solver.tolerances.calibrated_together import loss_together
@@ -213,8 +217,9 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
     decl = cl.declaration
     spec_p = position_accuracy if position_accuracy is not None else decl.position_mm
     spec_o = orientation_accuracy if orientation_accuracy is not None else decl.orientation_rad
-    q = np.atleast_2d(configurations)
+    q = configurations if isinstance(configurations, SpilledArray) else np.atleast_2d(configurations)
     influential = [t for t in cl.items if t.cls in ("accuracy-critical", "compensable")]
+    calibrating = None  # the values with calibration computed in a forked child (``background``)
     info = {"spec": {"position_mm": spec_p, "orientation_rad": spec_o}, "configurations": int(len(q)),
             "method": "equal allocation, paper 2 eqs. (19), (30)-(31), on the worst case of each task-restricted "
                       "coefficient over the declared workspace: " + (
@@ -275,9 +280,23 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
                                                              sampled=maps.coefficients).items()}
             return _allocate(maps, p_budget if has_p else None, o_budget if has_r else None, ext)
 
-        calibrated = allocation(crit, left_p if left_p is None or left_p > 0 else 0.0,
-                                left_o if left_o is None or left_o > 0 else 0.0) if crit.any() else None
         uncalibrated = allocation(np.ones(len(influential), dtype=bool), spec_p, spec_o)
+        if calibrate and background:
+            # the values with calibration read the compensable tolerances' values (the uncalibrated allocation's)
+            # and nothing of the calibrated allocation: started now, beside that allocation's search (issue 39)
+            for t, length in zip(influential, is_len):
+                if t.cls == "compensable":
+                    t.value = uncalibrated["classes"].get("gP" if length else "gR", {}).get("tolerance")
+            from hyperstat.solver.forked import Forked
+
+            calibrating = Forked(_with_calibration, cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
+        try:
+            calibrated = allocation(crit, left_p if left_p is None or left_p > 0 else 0.0,
+                                    left_o if left_o is None or left_o > 0 else 0.0) if crit.any() else None
+        except BaseException:
+            if calibrating is not None:
+                calibrating.cancel()
+            raise
         info["calibrated"] = calibrated
         info["uncalibrated"] = uncalibrated
         for t, length in zip(influential, is_len):
@@ -341,8 +360,7 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
             t.value_source = "not limited by accuracy (moves nothing the task uses)"
     # the values with calibration depend on the allocation only: computed beside the assembly conditions and the
     # bounds when asked (the same function of the same state: the same values)
-    calibrating = None
-    if calibrate and influential and background:
+    if calibrate and influential and background and calibrating is None:
         from hyperstat.solver.forked import Forked
 
         calibrating = Forked(_with_calibration, cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)

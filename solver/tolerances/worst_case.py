@@ -62,7 +62,8 @@ from hyperstat.solver.kinematics.closure import Kinematics
 from hyperstat.solver.kinematics.continuation import batched_lstsq
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import (COEFFICIENT_NAMES, AccuracyMaps, geometric_parameters,
-                                                  largest_singular_value, output_twist_maps)
+                                                  largest_singular_value)
+from hyperstat.solver.tolerances.spilled import SpilledArray, row_blocks, take_rows
 from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
 
 __all__ = ["Extreme", "Objective", "Coefficients", "TaskCoefficients", "search_extremes", "refine_extremes",
@@ -299,8 +300,8 @@ POOL = 2048
 def _spread(sample: np.ndarray, n: int) -> np.ndarray:
     """At most ``n`` configurations of ``sample``, evenly taken (all of them when there are fewer)."""
     if len(sample) <= n:
-        return sample
-    return sample[np.linspace(0, len(sample) - 1, n).round().astype(int)]
+        return sample if isinstance(sample, np.ndarray) else take_rows(sample, np.arange(len(sample)))
+    return take_rows(sample, np.linspace(0, len(sample) - 1, n).round().astype(int))
 
 
 _MEDIANS: dict = {}
@@ -550,13 +551,18 @@ def _candidates_key(kin: Kinematics, workspace: Workspace, sample: np.ndarray, o
     declaration) and the sample's bytes."""
     import hashlib
 
-    sample = np.ascontiguousarray(sample, dtype=float)
+    if not isinstance(sample, SpilledArray):
+        sample = np.ascontiguousarray(sample, dtype=float)
     bounds = [np.ascontiguousarray(a, dtype=float) for a in (workspace.lower, workspace.upper)]
     flags = [np.ascontiguousarray(a, dtype=bool) for a in (workspace.passive_declared, workspace.revolute)
              if a is not None]
     digest = hashlib.sha256()
     for a in [sample] + bounds + flags:
         digest.update(str(a.shape).encode())
+        if isinstance(a, SpilledArray):  # read a block at a time: the same bytes
+            for _, block in row_blocks(a):
+                digest.update(memoryview(np.ascontiguousarray(block).reshape(-1)).cast("B"))
+            continue
         digest.update(memoryview(a.reshape(-1)).cast("B"))  # the bytes where they lie (no copy of the sample)
     return (id(kin), workspace.passive_declared is None, workspace.revolute is None, digest.hexdigest(), options)
 
@@ -664,6 +670,10 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
     ws = workspace or workspace_of(m)
     space = _Space(kin, ws, objective.loop_only, margin)
     names = tuple(names or objective.names)
+    if isinstance(sample, SpilledArray) and len(sample):  # read a block at a time (issue 39: memory)
+        out, paths, owner, sense, origin, best_of = _streamed_starts(kin, space, objective, sample, ws, names, kinds,
+                                                                     starts, sampled, candidates, structured)
+        return _searched(space, objective, sample, out, paths, owner, sense, origin, best_of, kinds, iterations)
     sample = np.atleast_2d(np.asarray(sample, dtype=float))
     values = {n: np.asarray(v) for n, v in (sampled or objective.values(sample)).items() if n in names} \
         if len(sample) else {n: np.zeros(0) for n in names}
@@ -683,7 +693,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
         return v if v is None or name not in extra else np.r_[v, extra[name]]
 
     out: dict = {}
-    paths, owner, sense, origin = [], [], [], []
+    paths, owner, sense, origin, best_of = [], [], [], [], {}
     scale_act = space.scale[m.actuated]
     spread_box = pool_q.extent(m.actuated, scale_act)  # the pool's extent in z, without a copy of its columns
     spread_box = np.where(spread_box > 0, spread_box, 1.0)
@@ -713,6 +723,7 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
             sign = 1.0 if kind == "max" else -1.0
             sv = np.where(finite, sign * v, -np.inf)
             best = int(np.argmax(sv))
+            best_of[(name, kind)] = (float(v[best]), pool_q[best], pool_label(best))
             spread = float(np.max(v[finite]) - np.min(v[finite]))
             if spread <= 1e-9 * max(1.0, abs(float(v[best]))):
                 out[(name, kind)] = _describe(space, name, kind, float(v[best]), float(v[best]), pool_q[best], 0.0, 0, 0,
@@ -720,7 +731,10 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
                                               pool_label(best), location="constant")
                 continue
             chosen: list = []
-            order = np.argsort(-sv)
+            # equal values (to the last bit: a coefficient's maximum is often reached on a whole set) in row order, not
+            # in the order of numpy's unstable sort (which depends on the whole array and on the machine's sort
+            # kernel): the starts do not depend on how the sample is held (issue 39: read block by block)
+            order = np.argsort(-sv, kind="stable")
             for category in ("sample", "corner", "edge", "face", "dead centre"):  # the best separate ones of each kind
                 limit = starts if category == "sample" else (1 if category == "dead centre" else structured)
                 taken = 0
@@ -736,9 +750,16 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
                 owner.append(name)
                 sense.append(sign)
                 origin.append(pool_label(i))
+    return _searched(space, objective, sample, out, paths, owner, sense, origin, best_of, kinds, iterations)
+
+
+def _searched(space: _Space, objective: Objective, sample, out: dict, paths: list, owner: list, sense: list,
+              origin: list, best_of: dict, kinds: tuple, iterations: int) -> dict:
+    """The searches from the chosen starts and their conclusions, into ``out`` (the end of :func:`search_extremes`;
+    ``best_of``: (function, kind) -> the best candidate's value, configuration and label)."""
     if not paths:
         return out
-    floor_at = CONDITIONING_FLOOR * _median_conditioning(kin, _spread(sample, POOL)) if len(sample) else 0.0
+    floor_at = CONDITIONING_FLOOR * _median_conditioning(space.kin, _spread(sample, POOL)) if len(sample) else 0.0
     result = _ascend(space, objective, np.array(paths), owner, np.array(sense), iterations, floor_at)
     _polish(space, objective, result, owner, np.array(sense))
     for name in dict.fromkeys(owner):
@@ -747,13 +768,170 @@ def search_extremes(kin: Kinematics, objective: Objective, sample: np.ndarray, w
             ks = [k for k, (n, s) in enumerate(zip(owner, sense)) if n == name and s == sign]
             if not ks:
                 continue
-            v = pooled(name)
-            sv = np.where(np.isfinite(v), sign * v, -np.inf)
-            best_s = int(np.argmax(sv))
-            out[(name, kind)] = _conclude(space, objective, name, kind, sign, float(v[best_s]), pool_q[best_s],
-                                          pool_label(best_s), result, ks, [origin[k] for k in ks], iterations,
-                                          sample)
+            value, q_best, label = best_of[(name, kind)]
+            out[(name, kind)] = _conclude(space, objective, name, kind, sign, value, q_best, label, result, ks,
+                                          [origin[k] for k in ks], iterations, sample)
     return out
+
+
+#: the best configurations of a sample kept per function and kind by the streamed search (:func:`_streamed_starts`);
+#: more are gathered (a second pass) only when the separate starts are not all among them
+STREAMED_TOP = 4096
+
+
+def _top(keep_v: np.ndarray, keep_i: np.ndarray, v: np.ndarray, i: np.ndarray, m: int) -> tuple:
+    """The ``m`` largest of the values ``keep_v`` and ``v`` (with their row numbers), largest first, equal values
+    by row number."""
+    if len(v) > m:
+        part = np.argpartition(-v, m - 1)[:m]
+        cut = v[part].min()
+        take = v >= cut  # every row equal to the m-th value too (the order among equals is by row number)
+        v, i = v[take], i[take]
+    v, i = np.r_[keep_v, v], np.r_[keep_i, i]
+    order = np.lexsort((i, -v))[:m]
+    return v[order], i[order]
+
+
+def _streamed_starts(kin: Kinematics, space: _Space, objective: Objective, sample, ws: Workspace, names: tuple,
+                     kinds: tuple, starts: int, sampled: dict | None, candidates: bool, structured: int) -> tuple:
+    """The start selection of :func:`search_extremes` from a sample read a block at a time (a
+    :class:`~hyperstat.solver.tolerances.spilled.SpilledArray`): per function and kind the best
+    :data:`STREAMED_TOP` configurations, the extent of the actuated columns and the best candidate are kept instead of
+    every configuration's value, its sort order and masks (issue 39: memory independent of the count).
+
+    The same starts as the whole-array path: the best separate configurations of the sample, best first (equal
+    values by row number, as the whole-array path's stable sort), walked until ``starts`` are taken (a second pass
+    keeps more of them when the walk runs past the kept ones); then the structured candidates in the same order.
+    """
+    m = kin.mechanism
+    values_given = sampled is not None
+    names = tuple(n for n in names if not values_given or n in sampled)
+    extra, cq, c_labels = {}, np.zeros((0, kin.n_q)), []
+    if candidates:
+        cq, c_labels = workspace_candidates(kin, ws, sample, varied=space.free[m.actuated])
+        if len(cq):
+            cv = objective.values(cq)
+            extra = {n: np.asarray(cv[n], dtype=float) for n in names}
+    n_s = len(sample)
+    act = np.asarray(m.actuated)
+    scale_act = space.scale[m.actuated]
+
+    def reduce(top_m: int, wanted: set | None = None) -> dict:
+        """One pass over the sample: per function its finite count, extremes and largest magnitude, per kind the
+        first best row and the ``top_m`` best rows; and the actuated columns' extremes."""
+        st = {"hi": np.full(len(act), -np.inf), "lo": np.full(len(act), np.inf), "nan": np.zeros(len(act), bool)}
+        for n in names:
+            st[n] = {"count": 0, "vmax": -np.inf, "vmin": np.inf, "amax": 0.0}
+            for kind in kinds:
+                st[(n, kind)] = {"best": -np.inf, "at": -1, "top_v": np.zeros(0), "top_i": np.zeros(0, np.int64)}
+        for start, qb in row_blocks(sample):
+            cols = qb[:, act]
+            st["nan"] |= np.isnan(cols).any(axis=0)  # numpy's max and ptp propagate NaN (below)
+            st["hi"], st["lo"] = np.fmax(st["hi"], cols.max(axis=0)), np.fmin(st["lo"], cols.min(axis=0))
+            vals = {n: np.asarray(sampled[n][start:start + len(qb)], dtype=float) for n in names} if values_given \
+                else objective.values(qb)
+            rows = np.arange(start, start + len(qb), dtype=np.int64)
+            for n in names:
+                v = vals[n]
+                finite = np.isfinite(v)
+                s = st[n]
+                if finite.any():
+                    vf = v[finite]
+                    s["count"] += int(finite.sum())
+                    s["vmax"], s["vmin"] = max(s["vmax"], float(vf.max())), min(s["vmin"], float(vf.min()))
+                    s["amax"] = max(s["amax"], float(np.max(np.abs(vf))))
+                for kind in kinds:
+                    if wanted is not None and (n, kind) not in wanted:
+                        continue
+                    sign = 1.0 if kind == "max" else -1.0
+                    k = st[(n, kind)]
+                    sv = sign * v[finite]
+                    if not len(sv):
+                        continue
+                    j = int(np.argmax(sv))
+                    if sv[j] > k["best"]:
+                        k["best"], k["at"] = float(sv[j]), int(rows[finite][j])
+                    k["top_v"], k["top_i"] = _top(k["top_v"], k["top_i"], sv, rows[finite], top_m)
+        return st
+
+    st = reduce(STREAMED_TOP)
+    # the pool's extent in z (the sample's and the candidates' actuated columns), as the whole-array path
+    hi, lo = st["hi"], st["lo"]
+    if len(cq):
+        hi, lo = np.fmax(hi, cq[:, act].max(axis=0)), np.fmin(lo, cq[:, act].min(axis=0))
+        nan = st["nan"] | np.isnan(cq[:, act]).any(axis=0)
+    else:
+        nan = st["nan"]
+    if np.all(scale_act > 0):
+        spread_box = np.where(nan, np.nan, hi / scale_act - lo / scale_act)
+    else:
+        spread_box = np.ptp(np.r_[take_rows(sample, np.arange(n_s))[:, act], cq[:, act]] / scale_act, axis=0)
+    spread_box = np.where(spread_box > 0, spread_box, 1.0)
+    is_kind = {c: np.array([lb.startswith(c) for lb in c_labels], dtype=bool) for c in
+               ("corner", "edge", "face", "dead centre")}
+    out: dict = {}
+    paths, owner, sense, origin, best_of = [], [], [], [], {}
+    for name in names:
+        s = st[name]
+        ev = extra.get(name, np.zeros(0))
+        ef = np.isfinite(ev)
+        count = s["count"] + int(ef.sum())
+        if not count:
+            continue
+        vmax = max(s["vmax"], float(ev[ef].max()) if ef.any() else -np.inf)
+        vmin = min(s["vmin"], float(ev[ef].min()) if ef.any() else np.inf)
+        if max(s["amax"], float(np.max(np.abs(ev[ef]))) if ef.any() else 0.0) <= 0:
+            continue
+        for kind in kinds:
+            sign = 1.0 if kind == "max" else -1.0
+            k = st[(name, kind)]
+            esv = np.where(ef, sign * ev, -np.inf)
+            e_best = int(np.argmax(esv)) if len(esv) else -1
+            if k["at"] >= 0 and (e_best < 0 or not esv[e_best] > k["best"]):  # the first best of the pool
+                value, q_best, label = sign * k["best"], take_rows(sample, [k["at"]])[0], "sample"
+            else:
+                value, q_best, label = float(ev[e_best]), cq[e_best].copy(), c_labels[e_best]
+            best_of[(name, kind)] = (float(value), q_best, label)
+            spread = float(vmax - vmin)
+            if spread <= 1e-9 * max(1.0, abs(float(value))):
+                out[(name, kind)] = _describe(space, name, kind, float(value), float(value), q_best, 0.0, 0, 0, 0,
+                                              f"varies by {spread:.2g} over {count} configurations", label,
+                                              location="constant")
+                continue
+            chosen_z: list = []  # the starts taken so far (of every category), in z
+
+            def walk(rows_q: np.ndarray, limit: int) -> list:
+                """The positions in ``rows_q`` (best first) of the next separate starts, at most ``limit``."""
+                taken = []
+                for pos, qi in enumerate(rows_q):
+                    if len(taken) == limit:
+                        break
+                    z_i = qi[m.actuated] / scale_act
+                    if all(np.linalg.norm((z_i - z_j) / spread_box) > 0.05 for z_j in chosen_z):
+                        chosen_z.append(z_i)
+                        taken.append(pos)
+                return taken
+
+            while True:  # the sample's best separate rows: every finite one is among the kept ones, or enough were
+                rows_q = take_rows(sample, k["top_i"])
+                taken = walk(rows_q, starts)
+                if len(taken) == starts or len(k["top_i"]) >= s["count"]:
+                    break
+                del chosen_z[:]  # a second pass keeping more of the best rows
+                k.update(reduce(8 * len(k["top_i"]), {(name, kind)})[(name, kind)])
+            chosen = [(rows_q[p].copy(), "sample") for p in taken]
+            c_order = np.lexsort((np.arange(len(esv)), -esv)) if len(esv) else np.zeros(0, int)
+            for category in ("corner", "edge", "face", "dead centre"):
+                limit = 1 if category == "dead centre" else structured
+                rows_c = [int(i) for i in c_order if is_kind[category][i] and np.isfinite(esv[i])]
+                for p in walk(cq[rows_c] if rows_c else np.zeros((0, kin.n_q)), limit):
+                    chosen.append((cq[rows_c[p]].copy(), c_labels[rows_c[p]]))
+            for q_i, label in chosen:
+                paths.append(q_i)
+                owner.append(name)
+                sense.append(sign)
+                origin.append(label)
+    return out, paths, owner, sense, origin, best_of
 
 
 class _Pool:

@@ -7,15 +7,17 @@ go with numpy, a second computation of the same quantities; no timing is asserte
 
 from __future__ import annotations
 
+import functools
 import tracemalloc
 import warnings
 
 import numpy as np
 import pytest
 
-from hyperstat.solver.tolerances import accuracy
+from hyperstat.solver.tolerances import accuracy, spilled, worst_case
 from hyperstat.solver.tolerances.accuracy import accuracy_maps, sample_workspace
 from hyperstat.solver.tolerances.classification import classify
+from hyperstat.solver.tolerances.spilled import SpilledArray
 from hyperstat.solver.tolerances.task_summary import TaskSummary, task_coefficients, value_columns
 from hyperstat.solver.tolerances.values import assign_values, task_maps
 
@@ -82,6 +84,12 @@ def test_values_from_the_summary_are_those_from_the_whole_rows(triflex):
     with pytest.raises(ValueError, match="task_maps_at"):
         assign_values(classify(mech, result, kin), mech, kin, q[:10], assembly=False, refine=False,
                       calibrate=False, task_maps_at=streamed.task_rows)
+
+
+def _spilled(a: np.ndarray) -> SpilledArray:
+    s = SpilledArray(len(a), a.shape[1:])
+    s[:] = a
+    return s
 
 
 def _peak(fn) -> int:
@@ -176,3 +184,114 @@ def test_the_corrector_rows_merged_in_place_are_those_of_the_concatenation(trifl
     np.testing.assert_array_equal(kept, alone)
     texts = [str(w.message) for w in caught if "workspace sampling" in str(w.message)]
     assert len(texts) == 2 and texts[0] == texts[1] and every.summary(total=300) in texts[1]
+
+
+def test_the_spilled_sampler_gives_the_same_sample(triflex, monkeypatch):
+    """The closed form's blocks appended as they are assembled, over several chunks, with and without draws left to
+    the corrector (a high conditioning threshold sends many there): the in-memory sampler's rows and warning."""
+    import hyperstat.solver.kinematics.closed_form as closed_form
+
+    mech, kin = triflex[0], triflex[1]
+    monkeypatch.setattr(accuracy, "CLOSED_FORM_BLOCK", 64)
+    monkeypatch.setattr(accuracy, "SAMPLING_CHUNK", 250)
+    from hyperstat.solver.tolerances.workspace import workspace_of
+
+    plain = closed_form.assemble_closed_form
+    lo, hi = workspace_of(mech).actuated_box(mech)
+    mid, chosen = 0.5 * (lo[0] + hi[0]), []
+
+    def some(kin, form, qa, inside=None):  # the blocks whose first draw is high: many draws to the corrector
+        chosen.append(bool(qa[0, 0] > mid))
+        return plain(kin, form, qa, inside, cond_tol=0.3 if chosen[-1] else 1e-6)
+
+    for corrector in ("none", "every block", "some blocks"):
+        if corrector != "none":
+            monkeypatch.setattr(closed_form, "assemble_closed_form", some if corrector == "some blocks" else
+                                functools.partial(plain, cond_tol=0.3))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            whole = sample_workspace(mech, 600, seed=4, kinematics=kin, closed_form=True)
+            spill = sample_workspace(mech, 600, seed=4, kinematics=kin, closed_form=True, spill=True)
+        assert isinstance(spill, SpilledArray) and len(whole) > 300
+        np.testing.assert_array_equal(np.asarray(spill), whole)
+        texts = [str(w.message) for w in caught if "workspace sampling" in str(w.message)]
+        assert len(texts) == 2 and texts[0] == texts[1]
+    # within a chunk (4 blocks), blocks written as assembled and then the rest held for the corrector
+    assert any(not a and b for a, b in zip(chosen, chosen[1:])), chosen
+
+
+def test_maps_and_searches_read_block_by_block_are_the_whole_arrays(triflex, monkeypatch):
+    """On a Triflex-II sample: the maps of the spilled sample (their coefficients in temporary files) and the worst
+    cases searched from them, with blocks of 64 rows and only 2 rows kept per function (the walk over the best
+    separate starts runs past them: a second pass), against the maps and searches of the sample in memory."""
+    from hyperstat.solver.tolerances.bounds import LinearWorstCase
+    from hyperstat.solver.tolerances.values import task_maps
+
+    mech, kin, result, q, cl, dirs, columns = triflex
+    monkeypatch.setattr(spilled, "BLOCK", 64)
+    monkeypatch.setattr(worst_case, "STREAMED_TOP", 2)
+    task = cl.declaration.task
+    whole = accuracy_maps(mech, q, result, kinematics=kin, task=task, task_directions=dirs, per_configuration=False,
+                          task_columns=columns)
+    spill = accuracy_maps(mech, _spilled(q), result, kinematics=kin, task=task, task_directions=dirs,
+                          per_configuration=False, task_columns=columns, chunk=37)
+    assert isinstance(spill.coefficients["delta_gR"], SpilledArray)
+    for name, values in whole.coefficients.items():
+        np.testing.assert_array_equal(np.asarray(spill.coefficients[name]), values)
+    assert spill.summary() == whole.summary()  # min, max and numpy's mean: the same bits
+    for cols in [c for c in columns[1] if c.any()]:
+        for name, values in whole.task_rows.of(cols).items():
+            np.testing.assert_array_equal(np.asarray(spill.task_rows.of(cols)[name]), values)
+    names = ("delta_gR", "epsilon_gP", "delta_gP")  # delta_gP is zero here: left out by both
+    a = worst_case.refine_extremes(mech, whole, result, kinematics=kin, kinds=("max", "min"), names=names)
+    b = worst_case.refine_extremes(mech, spill, result, kinematics=kin, kinds=("max", "min"), names=names)
+    assert a.keys() == b.keys() and len(a) == 4 and ("delta_gP", "max") not in a
+    for key in a:
+        assert a[key].as_dict() == b[key].as_dict(), key
+        assert a[key].starts == b[key].starts >= 3, key  # the sample's three separate starts and the structured ones
+
+    def rows(qq):
+        rot, pos = task_maps(mech, kin, qq, task, dirs)
+        return pos if pos.shape[1] else rot
+
+    objective = LinearWorstCase(rows, np.full(dirs.shape[1], 0.01))  # values computed a block at a time
+    a = worst_case.search_extremes(kin, objective, q, starts=1, structured=1)
+    b = worst_case.search_extremes(kin, objective, _spilled(q), starts=1, structured=1)
+    assert a.keys() == b.keys() == {("attainable", "max"), ("triangle", "max")}
+    for key in a:
+        assert a[key].as_dict() == b[key].as_dict(), key
+
+
+def test_equal_values_take_the_same_starts_in_both_paths(triflex, monkeypatch):
+    """A function with many equal values (a coefficient rounded to 0.25: ties to the last bit, as a coefficient's
+    plateau gives): the whole-array path (stable sort) and the streamed one (best rows kept by value, then row
+    number) hand the same starts to the searches."""
+    from hyperstat.solver.tolerances.worst_case import Coefficients
+
+    mech, kin, result, q = triflex[:4]
+
+    class Rounded(Coefficients):
+        def values(self, qq):
+            return {n: np.round(v * 4) / 4 for n, v in super().values(qq).items()}
+
+        def pick(self, qq, which):
+            return np.round(super().pick(qq, which) * 4) / 4
+
+    objective = Rounded(kin, result, ("delta_gR",))
+    values = objective.values(q)["delta_gR"]
+    assert len(values) - len(np.unique(values)) > len(values) // 2  # ties
+    monkeypatch.setattr(spilled, "BLOCK", 64)
+    monkeypatch.setattr(worst_case, "STREAMED_TOP", 3)
+    starts = []  # the starts each path hands to the searches, and the best candidates
+
+    def record(space, objective, sample, out, paths, owner, sense, origin, best_of, kinds, iterations):
+        starts.append((np.array(paths), list(owner), list(sense), list(origin),
+                       {k: (v, q_b.tolist(), label) for k, (v, q_b, label) in best_of.items()}))
+        return out
+    monkeypatch.setattr(worst_case, "_searched", record)
+    worst_case.search_extremes(kin, objective, q, kinds=("max", "min"), starts=4)
+    worst_case.search_extremes(kin, objective, _spilled(q), kinds=("max", "min"), starts=4)
+    (pa, *ra), (pb, *rb) = starts
+    assert len(pa) >= 8 and ra[2].count("sample") == 8  # four separate sample starts per kind, and structured ones
+    np.testing.assert_array_equal(pa, pb)
+    assert ra == rb
