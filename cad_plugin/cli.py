@@ -185,11 +185,12 @@ def _cmd_report(args) -> int:
             if not (args.json_only or args.step_drawings or all(t.cls == "non-influent" for t in tolerances.items)):
                 pages = part_pages_worker(command_cache(args), provisional)
 
+        kinds = {el.name: getattr(el, "type", "F") for ch in mech.chains for el in ch.elements}
+        types = {p.element: kinds.get(p.element, "F") for p in result.parameters}  # as report.json's "joints"
+
         def provisional() -> tuple:  # in the pages' child: the drawings predicted before the values, to build ahead
             from hyperstat.solver.tolerances.drawing import provisional_drawings
 
-            kinds = {el.name: getattr(el, "type", "F") for ch in mech.chains for el in ch.elements}
-            types = {p.element: kinds.get(p.element, "F") for p in result.parameters}
             return solver_cli.jsonable(provisional_drawings(tolerances, mech, kin)), types
         data = read_measurements(args.data, mech) if args.data else None
         validation = read_measurements(args.validation, mech) if args.validation else None
@@ -232,6 +233,11 @@ def _cmd_report(args) -> int:
                           on_miss=start_pages,
                           position_accuracy=args.position_accuracy, orientation_accuracy=args.orientation_accuracy,
                           assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
+            sent = None
+            if pages is not None:  # the part drawings are final with the values: the child draws them meanwhile
+                sent = solver_cli.jsonable({"drawings": (getattr(tolerances, "drawings", None) or {}).get("drawings")
+                                            or [], "joints": [{"element": e, "type": t} for e, t in types.items()]})
+                pages.send(sent)
             accuracy = report_section(mech, result, kin)
             if diagnosing is not None:
                 stored = decode_entry(diagnosing.result(timeout=600.0))
@@ -248,11 +254,13 @@ def _cmd_report(args) -> int:
         _title_block(doc, args.revision, date)
         progress.next("layout and pictures")
         if pages is not None:
-            pages.send(solver_cli.jsonable({"drawings": doc.get("drawings") or [], "joints": doc["joints"]}))
-            if doc.get("drawings"):
+            final = solver_cli.jsonable({"drawings": doc.get("drawings") or [], "joints": doc["joints"]})
+            if doc.get("drawings") and final["drawings"] == sent["drawings"] and \
+                    {str(j["element"]): j.get("type") for j in final["joints"]} == \
+                    {str(j["element"]): j.get("type") for j in sent["joints"]}:
                 images["parts"] = pages
-            else:
-                pages.result()  # nothing to draw: the child ends
+            else:  # nothing to draw, or not what the child was sent (then write_report draws them here)
+                pages.result()
         analysis_json = solver_cli.jsonable({**result.to_dict(), "tolerances": doc["tolerances"]})
         if args.json_only:  # the values without the pictures (the FreeCAD workbench's Analyse)
             from hyperstat.solver.atomic import dumps_json, write_text

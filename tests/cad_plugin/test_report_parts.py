@@ -81,6 +81,23 @@ def test_pages_from_solids_built_ahead_are_the_pages_built_after(slider_crank_re
         report_parts._PREBUILT.clear()
 
 
+def test_the_report_s_children_draw_the_pages_this_process_draws(slider_crank_report, tmp_path):
+    """``hyperstat report`` as a user runs it (a new process, everything computed: its part pages' child builds the
+    solids while the values are computed and draws the pages once they are) writes the part-drawing section of the
+    same drawings drawn in this process."""
+    import os
+
+    from tests.conftest import TEMPLATES
+
+    _, doc = slider_crank_report
+    env = {k: v for k, v in os.environ.items() if k != "HYPERSTAT_NO_FORK"}
+    subprocess.run([sys.executable, "-m", "hyperstat.cad_plugin.cli", "report", str(TEMPLATES / "slider_crank.py"),
+                    "--out", str(tmp_path / "rep"), "--quiet", "--no-cache"], check=True, timeout=600, env=env)
+    theirs = json.loads((tmp_path / "rep" / "report.json").read_text())
+    assert theirs["drawings"] == doc["drawings"]  # the same drawings: the same pages expected
+    assert parts_html(doc, part_pages(doc)) in (tmp_path / "rep" / "report.html").read_text(encoding="utf-8")
+
+
 def test_a_changed_drawing_is_drawn_again(slider_crank_report, tmp_path):
     _, doc = slider_crank_report
     drawing = doc["drawings"][0]
