@@ -123,17 +123,11 @@ def _workspace_key(ws) -> Any:
 def cached_sample(args: argparse.Namespace, mechanism, n: int, seed: int, workspace,
                   compute: Callable[[], np.ndarray]) -> np.ndarray:
     """The workspace sample of ``compute()`` (``n`` draws, ``seed``, ``workspace``), from the cache when stored."""
-    cache = command_cache(args)
-    if not cache.enabled:
-        return compute()
-    k = key("sample", model_identity(args, mechanism), int(n), int(seed), _workspace_key(workspace))
-    q = cache.load("sample", k)
-    if isinstance(q, np.ndarray) and q.ndim == 2 and q.shape[1] == len(mechanism.joints):
-        return q
-    q = compute()
-    if q.nbytes <= SAMPLE_BYTES:
-        cache.store("sample", k, q if isinstance(q, np.ndarray) else q.copy())
-    return q
+    def start() -> Callable[[], Any]:  # computed now, handed over when asked
+        q = compute()
+        return lambda: q
+
+    return cached_sample_started(args, mechanism, n, seed, workspace, start)()
 
 
 def cached_sample_started(args: argparse.Namespace, mechanism, n: int, seed: int, workspace,
