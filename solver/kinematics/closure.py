@@ -715,7 +715,9 @@ class Kinematics:
             st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), "joints",
                                _elements=_element_rows(every, idx, len(q)))
             r = self.scaled(st.residual)
-            b = self.scaled_rows(st.closure_q[:, :, passive])
+            b = st.closure_q[:, :, passive]  # a copy (an index array), scaled in place as scaled_rows scales its copy
+            for c in range(b.shape[-2] // 6):
+                b[..., 6 * c : 6 * c + 3, :] *= self.length_scale
             dq = -batched_lstsq(b, r[..., None])[..., 0]
             ratio = np.max(np.abs(dq) / step_cap, axis=1, keepdims=True)
             dq = dq / np.maximum(ratio, 1.0)
