@@ -251,7 +251,7 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
     from hyperstat.solver.tolerances.task_summary import value_columns
     import numpy as np
 
-    from hyperstat.solver.tolerances.worst_case import Extreme, workspace_candidates
+    from hyperstat.solver.tolerances.worst_case import Extreme, prepare_searches
 
     names = ["stationarity analysis", "workspace sampling", "accuracy maps"] + ([] if args.no_refine else
                                                                                ["worst cases"]) + ["tolerances"]
@@ -275,9 +275,10 @@ def _accuracy_document(args: argparse.Namespace) -> dict:
 
             progress.next("worst cases")
             # the structured candidates (corners, edges, faces, dead centres) of the searches here and in the values
-            # stage, computed once before the child is forked (it inherits them; every search of these functions varies
-            # all the actuators): not once in each process
-            workspace_candidates(kin, args.workspace_used, q, varied=np.ones(len(mech.actuated), dtype=bool))
+            # stage, their nominal twist maps and the sample's conditioning median, computed once before the child is
+            # forked (it inherits them; every search of these functions varies all the actuators): not once in each
+            # process
+            prepare_searches(kin, args.workspace_used, q)
             # searched in a forked child beside the tolerance values (which do not read them): the same extremes, on
             # the second core (issue 39)
             refining = Forked(_refined, mech, maps, analysis, kin, args.workspace_used,

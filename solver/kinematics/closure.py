@@ -585,12 +585,9 @@ class Kinematics:
             rp = parent[:, :3, :3]
             orient = [(c, params[c]) for c in "IJK" if c in params]
             if orient:
-                b = extras[key]["b"]
-                norm = extras[key]["norm"]
-                eye = np.eye(3)
-                proj = (eye[None] - b[:, :, None] * b[:, None, :]) / norm[:, :, None]
-                db = np.stack([proj[:, :, _COMP_INDEX[c]] for c, _ in orient], axis=1)  # (K, n, 3)
-                w_par = minimal_rotation_velocity(np.broadcast_to(info["n0"], b.shape), b, db)
+                w_par = extras[key].get("w_par")  # computed before per simulated machine (_with_tilt_velocities)
+                if w_par is None:
+                    w_par = _tilt_velocities(info["n0"], extras[key]["b"], extras[key]["norm"], orient)
                 w_par = np.broadcast_to(w_par, (rp.shape[0],) + w_par.shape[1:])
                 w = np.einsum("kij,knj->kni", rp, w_par)
                 for j, (_, pi) in enumerate(orient):
@@ -718,7 +715,9 @@ class Kinematics:
             st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), "joints",
                                _elements=_element_rows(every, idx, len(q)))
             r = self.scaled(st.residual)
-            b = self.scaled_rows(st.closure_q[:, :, passive])
+            b = st.closure_q[:, :, passive]  # a copy (an index array), scaled in place as scaled_rows scales its copy
+            for c in range(b.shape[-2] // 6):
+                b[..., 6 * c : 6 * c + 3, :] *= self.length_scale
             dq = -batched_lstsq(b, r[..., None])[..., 0]
             ratio = np.max(np.abs(dq) / step_cap, axis=1, keepdims=True)
             dq = dq / np.maximum(ratio, 1.0)
@@ -850,6 +849,29 @@ class Kinematics:
         res = self.residual_norm(st.residual)
         converged = (res <= 1e-7 * self.length_scale) & cert.certified
         return AssemblyResult(q, res, converged, cert)
+
+
+def _tilt_velocities(n0: np.ndarray, b: np.ndarray, norm: np.ndarray, orient: list) -> np.ndarray:
+    """Angular velocity (K, n, 3) in the parent frame per unit of each axis-tilt defect ``orient`` of an element whose
+    tilted axis is ``b`` (K, 3) of length ``norm`` (K, 1) before normalising (the element-by-element Jacobians)."""
+    proj = (np.eye(3)[None] - b[:, :, None] * b[:, None, :]) / norm[:, :, None]
+    db = np.stack([proj[:, :, _COMP_INDEX[c]] for c, _ in orient], axis=1)  # (K, n, 3)
+    return minimal_rotation_velocity(np.broadcast_to(n0, b.shape), b, db)
+
+
+def _with_tilt_velocities(kin: Kinematics, elements: tuple) -> tuple:
+    """:meth:`Kinematics._all_element_matrices`' output with each tilted element's ``w_par``
+    (:func:`_tilt_velocities`) among its extras: what :meth:`Kinematics.evaluate` with Jacobians computes from them
+    row by row, computed once for these rows (simulated machines: once per machine, then repeated to its
+    configurations by :func:`_element_rows`; each row's alone, so the same bits)."""
+    mats, extras = elements
+    out = {}
+    for key, extra in extras.items():
+        params = kin._elements[key]["params"]  # noqa: SLF001
+        orient = [(c, params[c]) for c in "IJK" if c in params]
+        out[key] = dict(extra, w_par=_tilt_velocities(kin._elements[key]["n0"], extra["b"], extra["norm"], orient)) \
+            if orient else extra
+    return mats, out
 
 
 def _element_rows(elements: tuple | None, idx: np.ndarray, k: int) -> tuple | None:

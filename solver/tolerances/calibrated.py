@@ -38,7 +38,7 @@ import math
 
 import numpy as np
 
-from hyperstat.solver.kinematics.closure import Kinematics, _element_rows
+from hyperstat.solver.kinematics.closure import Kinematics, _element_rows, _with_tilt_velocities
 from hyperstat.solver.kinematics.continuation import batched_lstsq
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import output_twist_maps
@@ -160,7 +160,7 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
 
     def design_rows(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         # the measurement rows per admissible coordinate and the nuisance columns of the rows ``idx`` of (qe, xe)
-        st = kin.evaluate(qe[idx], xe[idx], jacobians=True, _elements=_element_rows(elements_e, idx, len(qe)))
+        st = kin.evaluate(qe[idx], xe[idx], jacobians=True, _elements=_element_rows(elements_d, idx, len(qe)))
         k_xi, _ = output_twist_maps(kin, st)
         meas_xi, nuisance, _ = _measurement_maps(decl, st, k_xi, ls, pscale)
         return meas_xi @ basis, nuisance
@@ -174,10 +174,12 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         rhs = -np.einsum("krs,ks->kr", sel, _pose_error(st.output_pose, goal[rows]))
         return batched_lstsq(sel @ output_twist_maps(kin, st)[1], rhs[..., None], damping=1e-14)[..., 0], rhs
 
-    # the true machines' measurements
+    # the true machines' measurements; each machine's element matrices computed once and repeated to its rows
+    # (every row's are its own: the same bits as computed row by row), for this assembly and the last one
     qc = np.tile(q_cal, (n_m, 1))
     xc = np.repeat(xi_true, k_c, axis=0)
-    qe, pose_e = assembled(qc, xc)
+    elements_true = _machine_elements(kin, xi_true)
+    qe, pose_e = assembled(qc, xc, _per_row(elements_true, n_m, k_c, len(xc)))
     y = _measure(kin, qe, xc, decl, pose_e)
     # Gauss-Newton over (admissible coordinates, nuisances); the nuisances enter linearly (tracker frame as a
     # small rigid motion, offsets in the output frame), so their columns are those of the analysis' design.  The
@@ -196,7 +198,10 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         x = coef @ seen.T
         xi_est = (basis @ x[:, :n_s].T).T * pscale[None, :]
         xe = np.repeat(xi_est, k_c, axis=0)
-        elements_e = kin._all_element_matrices(xe) if len(xe) > 1 else None  # for the assembly and the Jacobians
+        machines = _machine_elements(kin, xi_est)
+        elements_e = _per_row(machines, n_m, k_c, len(xe))  # for the assembly
+        # and for the Jacobians, with the axis tilts' velocities of each machine (computed once per machine)
+        elements_d = _per_row(_with_tilt_velocities(kin, machines), n_m, k_c, len(xe))
         qe, pose_e = assembled(qe, xe, elements_e)
         meas_s, nuisance = _joined([design_rows(idx) for idx in _row_blocks(len(qe))])
         jac = meas_s.reshape(n_m, k_c, -1, n_s).reshape(n_m, -1, n_s)
@@ -213,7 +218,7 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     goal = np.tile(setup["goal"], (n_m, 1, 1))
     qt = np.tile(q_task, (n_m, 1))
     xt = np.repeat(xi_est, k_t, axis=0)
-    elements_t = kin._all_element_matrices(xt) if len(xt) > 1 else None  # the fitted models', for every step below
+    elements_t = _per_row(_machine_elements(kin, xi_est), n_m, k_t, len(xt))  # the fitted models', for every step
     cap = 0.05 * kin.joint_scale[act]
     tscale = _task_scale(decl, ls)
     todo = np.arange(len(qt))
@@ -234,7 +239,8 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     qt, pose = assembled(qt, xt, elements_t)
     reached = np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal))
     reached = np.linalg.norm(reached * tscale[None, :], axis=1) <= 1e-9
-    qt, true_pose = assembled(qt, np.repeat(xi_true, k_t, axis=0))
+    xt_true = np.repeat(xi_true, k_t, axis=0)
+    qt, true_pose = assembled(qt, xt_true, _per_row(elements_true, n_m, k_t, len(xt_true)))
     err = np.einsum("krs,ks->kr", task_rows(decl.task, true_pose), _pose_error(true_pose, goal))
     pos = np.linalg.norm(err[:, n_rot:], axis=1).reshape(n_m, k_t)
     rot = np.linalg.norm(err[:, :n_rot], axis=1).reshape(n_m, k_t)
@@ -248,6 +254,21 @@ ROWS = 384
 #: configurations per block of its assemblies (the same bits): a block's Gauss-Newton arrays stay in the cache, and the
 #: hexapod's probe took 2.3 instead of 2.6 s of CPU (blocks of 350: 2.5 s, the calls' overhead)
 ASSEMBLY_ROWS = 768
+
+
+def _machine_elements(kin: Kinematics, xi: np.ndarray) -> tuple:
+    """The element matrices of each machine ``xi`` (M, n_xi) (:meth:`Kinematics._all_element_matrices`)."""
+    return kin._all_element_matrices(np.ascontiguousarray(xi, dtype=float))  # noqa: SLF001
+
+
+def _per_row(elements: tuple, n_m: int, k: int, rows: int) -> tuple | None:
+    """The element matrices of ``n_m`` machines (:func:`_machine_elements`) repeated to their ``k`` configurations
+    each (the rows of ``np.repeat(xi, k, axis=0)``): row ``i`` is machine ``i // k``'s, computed once for all of its
+    configurations instead of once per configuration (each row's matrices are computed alone: the same bits).  None
+    when ``rows`` is one (as before: an evaluation of one row reads its defects as one geometry)."""
+    if rows <= 1:
+        return None
+    return _element_rows(elements, np.repeat(np.arange(n_m), k), n_m)
 
 
 def _row_blocks(n: int, size: int = ROWS) -> list:

@@ -67,7 +67,7 @@ from hyperstat.solver.tolerances.spilled import SpilledArray, row_blocks, take_r
 from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
 
 __all__ = ["Extreme", "Objective", "Coefficients", "TaskCoefficients", "search_extremes", "refine_extremes",
-           "workspace_candidates", "coefficient_at", "branch_conditioning", "TASK_COEFFICIENTS"]
+           "workspace_candidates", "coefficient_at", "branch_conditioning", "prepare_searches", "TASK_COEFFICIENTS"]
 
 #: passive bounds are moved inwards by this much (rad; times the length scale for mm)
 MARGIN = 1e-4
@@ -543,6 +543,25 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
     out = (np.array(out_q) if out_q else np.zeros((0, kin.n_q)), out_l)
     _remember(key, kin, out)
     return out
+
+
+def prepare_searches(kin: Kinematics, workspace: Workspace, sample) -> None:
+    """What every search of one sample reads, computed now and kept in this process (before a child is forked).
+
+    The structured candidates of :func:`workspace_candidates` (every actuator varied), the nominal twist maps of
+    their blocks of :data:`EVALUATION_BLOCK` configurations (:func:`hyperstat.solver.tolerances.twist_blocks.
+    nominal_twist_maps`: what :class:`Coefficients`, :class:`TaskCoefficients` and the bounds' task rows evaluate
+    first) and the sample's conditioning median (the searches' floor).  A forked child inherits them instead of
+    computing them again (issue 39: the hexapod's refining child computed the candidates' maps that this process
+    computed again for the allocation's and the bounds' searches); the same arrays, computed once.
+    """
+    from hyperstat.solver.tolerances.twist_blocks import nominal_twist_maps
+
+    cq, _ = workspace_candidates(kin, workspace, sample, varied=np.ones(len(kin.mechanism.actuated), dtype=bool))
+    for start in range(0, len(cq), EVALUATION_BLOCK):  # the blocks of _in_blocks and of the task rows' blocks
+        nominal_twist_maps(kin, cq[start:start + EVALUATION_BLOCK])
+    if len(sample):
+        _median_conditioning(kin, _spread(sample, POOL))
 
 
 def _candidates_key(kin: Kinematics, workspace: Workspace, sample: np.ndarray, options: tuple) -> tuple:

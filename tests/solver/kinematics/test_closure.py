@@ -88,6 +88,31 @@ def test_an_assembly_given_its_machines_element_matrices_is_the_same_bit_for_bit
     assert np.array_equal(part.q, kin.assemble(q0[rows], xi[rows]).q)
 
 
+def test_each_machines_element_matrices_repeated_to_its_rows_are_the_same_bit_for_bit(tripteor):
+    """The simulated calibrations compute each machine's element matrices (and the axis tilts' velocities of the
+    Jacobians) once and repeat them to the machine's configurations (issue 39): the same matrices, extras and
+    Jacobians as computed for every row, and an evaluation without the tilt velocities computes the same ones."""
+    from hyperstat.solver.kinematics.closure import _element_rows, _with_tilt_velocities
+
+    kin = Kinematics(tripteor)
+    rng = np.random.default_rng(3)
+    machines = rng.normal(0.0, 1e-3, (4, kin.n_xi)) * kin.parameter_scale
+    k = 5
+    xi = np.repeat(machines, k, axis=0)
+    q = np.tile(tripteor.home, (len(xi), 1)) + rng.normal(0.0, 0.05, (len(xi), kin.n_q))
+    every = kin._all_element_matrices(xi)
+    once = _element_rows(kin._all_element_matrices(machines), np.repeat(np.arange(len(machines)), k), len(machines))
+    assert every[0].keys() == once[0].keys() and all(np.array_equal(every[0][key], once[0][key]) for key in every[0])
+    assert all(np.array_equal(every[1][key][name], once[1][key][name]) for key in every[1] for name in every[1][key])
+    tilted = _element_rows(_with_tilt_velocities(kin, kin._all_element_matrices(machines)),
+                           np.repeat(np.arange(len(machines)), k), len(machines))
+    assert any("w_par" in extra for extra in tilted[1].values())
+    plain, given = kin.evaluate(q, xi, jacobians=True), kin.evaluate(q, xi, jacobians=True, _elements=tilted)
+    for name in ("residual", "closure_xi", "closure_q", "output_pose", "output_xi", "output_q"):
+        assert np.array_equal(getattr(plain, name), getattr(given, name)), name
+    assert np.abs(plain.closure_xi).max() > 0.1
+
+
 def test_the_actuation_jacobians_are_those_of_the_full_evaluation_bit_for_bit(tripteor):
     """``evaluate(jacobians="actuation")`` (the compensation's Newton steps, the task's dead centres: issue 39) gives the
     joints' closure rows and the output's joint rows of ``jacobians=True`` to the bit, without the defects' columns:
