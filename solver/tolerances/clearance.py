@@ -304,9 +304,11 @@ def _constraint_blocks(model: ClearanceModel, q: np.ndarray, kin: Kinematics | N
     a = kin.scaled_rows(st.closure_xi)  # (K, m, n_aug)
     bp = kin.scaled_rows(st.closure_q)[:, :, model.mechanism.passive]
     out = []
+    if bp.shape[2] and len(q):  # one batched call: LAPACK factors each matrix alone, as one call per matrix would
+        us, ss = np.linalg.svd(bp, full_matrices=True)[:2]
     for k in range(len(q)):
         if bp.shape[2]:
-            u, s, _ = np.linalg.svd(bp[k], full_matrices=True)
+            u, s = us[k], ss[k]
             r = int(np.sum(s > 1e-9 * s[0])) if s.size and s[0] > 0 else 0
         else:
             u, r = np.eye(a.shape[1]), 0
@@ -551,25 +553,26 @@ def _violation_dual(model: ClearanceModel, cg: np.ndarray, av: np.ndarray) -> np
     b = _dual_pieces(model, np.einsum("krg,kr->kg", cg, n))
     scale = np.maximum(np.max(np.abs(a), axis=(1, 2)), np.max(np.abs(b), axis=(1, 2))) + 1e-300
 
-    def value_slopes_at(idx: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """f, its left and its right derivative at ``s`` for the rows ``idx``."""
-        bb = b[idx]
-        v = a[idx] + s[:, None, None] * bb
-        top = np.max(v, axis=-1, keepdims=True)
-        act = v >= top - 1e-13 * scale[idx, None, None]
-        right = np.sum(np.max(np.where(act, bb, -np.inf), axis=-1), axis=-1)
-        left = np.sum(np.min(np.where(act, bb, np.inf), axis=-1), axis=-1)
-        return np.sum(top[..., 0], axis=-1), left, right
+    eps = 1e-13 * scale[:, None, None]
 
-    def value_slopes(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return value_slopes_at(np.arange(k), s)
+    def value_slopes_at(idx: np.ndarray | None, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """f, its left and its right derivative at ``s`` for the rows ``idx`` (None: every row)."""
+        aa, bb, ee = (a, b, eps) if idx is None else (a[idx], b[idx], eps[idx])
+        v = s[:, None, None] * bb
+        v += aa
+        top = np.max(v, axis=-1, keepdims=True)
+        act = v >= top - ee
+        right = np.sum(np.max(bb, axis=-1, where=act, initial=-np.inf), axis=-1)
+        left = np.sum(np.min(bb, axis=-1, where=act, initial=np.inf), axis=-1)
+        return np.sum(top[..., 0], axis=-1), left, right
 
     # bracket the minimiser: the right derivative is negative at lo, the left one positive at hi
     width = np.full(k, 1.0) / np.sqrt(norm2)
     lo, hi = -width.copy(), width.copy()
+    both = np.concatenate([np.arange(k), np.arange(k)])  # lo and hi in one evaluation (each row its own)
     for _ in range(80):
-        f_lo, _, g_lo = value_slopes(lo)
-        f_hi, g_hi, _ = value_slopes(hi)
+        f, left, right = value_slopes_at(both, np.concatenate([lo, hi]))
+        f_lo, g_lo, f_hi, g_hi = f[:k], right[:k], f[k:], left[k:]
         bad_lo, bad_hi = g_lo >= 0, g_hi <= 0
         if not (bad_lo.any() or bad_hi.any()):
             break
