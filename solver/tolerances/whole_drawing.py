@@ -53,7 +53,9 @@ def _pieces_matrix(model, f: np.ndarray) -> np.ndarray:
     """``pieces(u) = sum_j u_j P[j]``: the linear pieces of ``h_Y(F^T u)`` per unit of each closure row, (m, T, N)."""
     from hyperstat.solver.tolerances.clearance import _dual_pieces
 
-    return np.stack([_dual_pieces(model, f[j]) for j in range(f.shape[0])])
+    # every row in one call, each as a (1, n_g) matrix: numpy multiplies each by the polygon's vertices as it does a
+    # single row (a vector-matrix product: the same bits, unlike one (m, n_g) matrix product)
+    return _dual_pieces(model, np.asarray(f)[:, None, :])[:, 0]
 
 
 def _need_at(model, f: np.ndarray, w: np.ndarray, v: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
