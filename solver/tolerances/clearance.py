@@ -514,24 +514,46 @@ def _dual_pieces(model: ClearanceModel, c: np.ndarray) -> np.ndarray:
 
     ``c`` (..., n_g) -> (..., n_terms, POLYGON_SIDES): per support (a polygon), the products with its
     vertices; per segment, ``+c`` and ``-c`` (padded).  Linear in ``c``.
+
+    The supports of one kind are multiplied in one stacked product whose every factor is the ``(..., 2)`` matrix of
+    one support (a ``(1, 2)`` row for a single ``c``), as one product per support would be: numpy hands each to
+    BLAS alike, so the pieces are the same bits as support by support.
     """
     sides = POLYGON_SIDES
     theta = (2 * np.arange(sides) + 1) * np.pi / sides  # the vertices of the inscribed polygon (radius 1)
     vert = np.stack([np.cos(theta), np.sin(theta)])  # (2, N)
-    terms = []
+    c = np.asarray(c)
+    single = c.ndim == 1
+    if single:
+        c = c[None]
+    pads, pairs, segments, order = [], [], [], []  # order: (kind, index) of each term, in the groups' order
     for kind, cols in model.groups:
-        cc = c[..., cols]
         if kind == "pads":  # y = (v1, v2, w1, w2); support A: (v1 - w2, v2 + w1), B: (v1 + w2, v2 - w1)
-            ca = np.stack([(cc[..., 0] - cc[..., 3]) / 2, (cc[..., 1] + cc[..., 2]) / 2], axis=-1)
-            cb = np.stack([(cc[..., 0] + cc[..., 3]) / 2, (cc[..., 1] - cc[..., 2]) / 2], axis=-1)
-            terms += [ca @ vert, cb @ vert]
+            order += [("a", len(pads)), ("b", len(pads))]
+            pads.append(cols)
         elif kind in ("pad", "disc"):
-            terms.append(cc @ vert)
+            order.append(("p", len(pairs)))
+            pairs.append(cols)
         else:
-            x = cc[..., 0:1]
-            terms.append(np.concatenate([np.repeat(x, sides // 2, axis=-1), np.repeat(-x, sides // 2, axis=-1)],
-                                        axis=-1))
-    return np.stack(terms, axis=-2) if terms else np.zeros(c.shape[:-1] + (0, sides))
+            order.append(("s", len(segments)))
+            segments.append(cols[0])
+    if not order:
+        out = np.zeros(c.shape[:-1] + (0, sides))
+        return out[0] if single else out
+    blocks = {}
+    if pads:
+        cc = np.moveaxis(c[..., np.array(pads)], -2, 0)  # (n_pads, ..., 4)
+        ca = np.stack([(cc[..., 0] - cc[..., 3]) / 2, (cc[..., 1] + cc[..., 2]) / 2], axis=-1)
+        cb = np.stack([(cc[..., 0] + cc[..., 3]) / 2, (cc[..., 1] - cc[..., 2]) / 2], axis=-1)
+        blocks["a"], blocks["b"] = ca @ vert, cb @ vert
+    if pairs:
+        blocks["p"] = np.ascontiguousarray(np.moveaxis(c[..., np.array(pairs)], -2, 0)) @ vert
+    if segments:
+        x = np.moveaxis(c[..., np.array(segments)], -1, 0)[..., None]  # (n_seg, ..., 1)
+        blocks["s"] = np.concatenate([np.repeat(x, sides // 2, axis=-1), np.repeat(-x, sides // 2, axis=-1)],
+                                     axis=-1)
+    out = np.stack([blocks[kind][i] for kind, i in order], axis=-2)
+    return out[0] if single else out
 
 
 def _violation_dual(model: ClearanceModel, cg: np.ndarray, av: np.ndarray) -> np.ndarray:
