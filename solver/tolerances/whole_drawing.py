@@ -150,12 +150,8 @@ def _polar_box(pieces: np.ndarray) -> np.ndarray:
 def _edges(pieces: np.ndarray) -> np.ndarray:
     """Edge directions of the images of the play set's pieces (polygons, segments) in the closure rows, (E, m)."""
     m, n_t, n_p = pieces.shape
-    out = []
-    for t in range(n_t):
-        pts = pieces[:, t, :].T  # (N, m)
-        d = np.roll(pts, -1, axis=0) - pts
-        out.append(d)
-    e = np.concatenate(out) if out else np.zeros((0, m))
+    pts = pieces.transpose(1, 2, 0)  # (T, N, m): each piece's vertices
+    e = (np.roll(pts, -1, axis=1) - pts).reshape(n_t * n_p, m)  # piece by piece, as one concatenation of them
     norm = np.linalg.norm(e, axis=1)
     e = e[norm > 1e-12 * max(float(norm.max(initial=0.0)), 1e-300)]
     e = e / np.linalg.norm(e, axis=1, keepdims=True)
