@@ -582,11 +582,12 @@ def _violation_dual(model: ClearanceModel, cg: np.ndarray, av: np.ndarray) -> np
         aa, bb, ee = (a, b, eps) if idx is None else (a[idx], b[idx], eps[idx])
         v = s[:, None, None] * bb
         v += aa
-        top = np.max(v, axis=-1, keepdims=True)
+        # the ufuncs' reductions called directly (numpy.max and numpy.sum call them, through Python wrappers)
+        top = np.maximum.reduce(v, axis=-1, keepdims=True)
         act = v >= top - ee
-        right = np.sum(np.max(bb, axis=-1, where=act, initial=-np.inf), axis=-1)
-        left = np.sum(np.min(bb, axis=-1, where=act, initial=np.inf), axis=-1)
-        return np.sum(top[..., 0], axis=-1), left, right
+        right = np.add.reduce(np.maximum.reduce(bb, axis=-1, where=act, initial=-np.inf), axis=-1)
+        left = np.add.reduce(np.minimum.reduce(bb, axis=-1, where=act, initial=np.inf), axis=-1)
+        return np.add.reduce(top[..., 0], axis=-1), left, right
 
     # bracket the minimiser: the right derivative is negative at lo, the left one positive at hi
     width = np.full(k, 1.0) / np.sqrt(norm2)
