@@ -151,7 +151,7 @@ def _cmd_report(args) -> int:
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
     from hyperstat.cad_plugin.report import (cached_diagnosis, decode_entry, diagnosis_entry, part_pages_worker,
-                                             skeleton_views, store_diagnosis, write_report)
+                                             preload_pictures, skeleton_views, store_diagnosis, write_report)
 
     date = _report_date(args.date)  # a bad date is refused before any work
     if args.workspace_loss is not None:  # and a bad budget
@@ -177,6 +177,8 @@ def _cmd_report(args) -> int:
 
         with_workspace_loss(tolerances, args.workspace_loss)
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
+        if not args.json_only:  # once here rather than in each child forked below
+            preload_pictures()
         views = None if args.json_only else Background(skeleton_views, mech, early)
         pages = None
 

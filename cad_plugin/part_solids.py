@@ -406,25 +406,62 @@ def _sphere_of(face) -> tuple[np.ndarray, float]:
     return np.array([c.X(), c.Y(), c.Z()]), float(sph.Radius())
 
 
+class _FaceGeometry:
+    """A face's type, centre, normal, cylinder and sphere, each computed once (every feature of the part tests every
+    face: ``Face.Center`` integrates the face's area)."""
+
+    def __init__(self, face) -> None:
+        self.face = face
+        self.kind = face.geomType()
+        self._centre = self._normal = self._cylinder = self._sphere = None
+
+    @property
+    def centre(self) -> np.ndarray:
+        if self._centre is None:
+            self._centre = np.array(self.face.Center().toTuple())
+        return self._centre
+
+    @property
+    def normal(self) -> np.ndarray:
+        if self._normal is None:
+            self._normal = np.array(self.face.normalAt().toTuple())
+        return self._normal
+
+    @property
+    def cylinder(self) -> tuple[np.ndarray, np.ndarray, float]:
+        if self._cylinder is None:
+            self._cylinder = _cylinder_of(self.face)
+        return self._cylinder
+
+    @property
+    def sphere(self) -> tuple[np.ndarray, float]:
+        if self._sphere is None:
+            self._sphere = _sphere_of(self.face)
+        return self._sphere
+
+
 def _matches(face, f: _Feature, tol: float) -> bool:
-    """Whether ``face`` realises (part of) feature ``f`` (geometry within ``tol`` mm and 1e-6 rad)."""
-    kind = face.geomType()
-    centre = np.array(face.Center().toTuple())
-    r = centre - f.p
+    """Whether ``face`` (a face or its :class:`_FaceGeometry`) realises (part of) feature ``f`` (geometry within
+    ``tol`` mm and 1e-6 rad)."""
+    g = face if isinstance(face, _FaceGeometry) else _FaceGeometry(face)
+    kind = g.kind
     if f.role in ("bore", "journal"):
         if kind != "CYLINDER":
             return False
-        axis, origin, radius = _cylinder_of(face)
+        r = g.centre - f.p
+        axis, origin, radius = g.cylinder
         return (abs(radius - 0.5 * f.diameter) <= tol and abs(abs(float(axis @ f.u)) - 1) < 1e-6
                 and np.linalg.norm(np.cross(f.p - origin, axis)) < tol and abs(float(r @ f.u)) <= 0.5 * f.length + tol)
     if f.role == "socket":
         if kind != "SPHERE":
             return False
-        c, radius = _sphere_of(face)
+        c, radius = g.sphere
         return abs(radius - 0.5 * f.diameter) <= tol and np.linalg.norm(c - f.p) < tol
     if kind != "PLANE":
         return False
-    normal = np.array(face.normalAt().toTuple())
+    centre = g.centre
+    r = centre - f.p
+    normal = g.normal
     if f.role in ("guide", "slide"):  # the channel's (the bar's) flanks and floor (bottom)
         return (abs(float(normal @ f.u)) < 1e-6 and abs(float(r @ f.u)) <= 0.5 * f.length + tol
                 and abs(float(r @ f.v)) <= 0.5 * f.diameter + tol and -0.5 * f.diameter - tol <= float(r @ f.w) < -tol)
@@ -505,7 +542,8 @@ def part_solid(drawing: dict, joint_types: dict | None = None) -> PartSolid:
     if len(pieces) > 1:  # a bar's end cap cut off by a bore or a channel: a sliver, not part of the part
         shape = max(pieces, key=lambda x: x.Volume())
     tol = 1e-5 * max(1.0, max(float(np.linalg.norm(f.p)) for f in features))  # 10 nm at 1 m
-    faces = {f.id: [face for face in shape.Faces() if _matches(face, f, tol)] for f in features}
+    geometry = [_FaceGeometry(face) for face in shape.Faces()]  # each face's centre, normal, ... once
+    faces = {f.id: [g.face for g in geometry if _matches(g, f, tol)] for f in features}
     missing = [fid for fid, found in faces.items() if not found]
     if missing:
         raise HyperstatError(f"drawing of part '{part}': no face of its solid realises feature '{missing[0]}' "

@@ -177,31 +177,35 @@ def _hlr(shape, view: dict) -> dict:
 
 def _chain(segments: list) -> list:
     """Segments joined end to end into polylines (fewer, smoother strokes in the SVG)."""
-    ends: dict = {}
     key = lambda q: (round(float(q[0]), 6), round(float(q[1]), 6))  # noqa: E731
-    for i, seg in enumerate(segments):
-        for q in (seg[0], seg[-1]):
-            ends.setdefault(key(q), []).append(i)
+    first = [key(seg[0]) for seg in segments]  # each end's key once
+    last = [key(seg[-1]) for seg in segments]
+    ends: dict = {}
+    for i in range(len(segments)):
+        for k in (first[i], last[i]):
+            ends.setdefault(k, []).append(i)
     used = [False] * len(segments)
     out = []
     for i in range(len(segments)):
         if used[i]:
             continue
         used[i] = True
-        line = [segments[i][0], segments[i][-1]]
+        line, keys = [segments[i][0], segments[i][-1]], [first[i], last[i]]
         for forward in (True, False):
             while True:
-                tip = line[-1] if forward else line[0]
-                nxt = next((j for j in ends.get(key(tip), []) if not used[j]), None)
-                if nxt is None or len(ends[key(tip)]) > 2:  # a branch point: stop the stroke there
+                tip = keys[-1] if forward else keys[0]
+                nxt = next((j for j in ends.get(tip, []) if not used[j]), None)
+                if nxt is None or len(ends[tip]) > 2:  # a branch point: stop the stroke there
                     break
                 used[nxt] = True
                 seg = segments[nxt]
-                other = seg[-1] if key(seg[0]) == key(tip) else seg[0]
+                other, other_key = (seg[-1], last[nxt]) if first[nxt] == tip else (seg[0], first[nxt])
                 if forward:
                     line.append(other)
+                    keys.append(other_key)
                 else:
                     line.insert(0, other)
+                    keys.insert(0, other_key)
         out.append(np.array(line))
     return out
 

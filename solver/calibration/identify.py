@@ -39,7 +39,7 @@ from hyperstat.solver.calibration.fit_checks import (FIT_QUALITY, MAX_CONDITION,
                                                      fit_quality, joint_region, noise_ratios, target_label,
                                                      target_stats)
 from hyperstat.solver.calibration.measurements import MeasurementSet
-from hyperstat.solver.calibration.outliers import (FAMILY_ALPHA, coincident_across, coincident_poses,
+from hyperstat.solver.calibration.outliers import (FAMILY_ALPHA, chi2_median, coincident_across, coincident_poses,
                                                    deleted_residual_test, threshold)
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
@@ -1244,9 +1244,7 @@ def identify(
         # below the identification's
         vw = np.linalg.norm(val_res, axis=1) / (1.0 if unweighted else
                                                 (val_sigma if val_sigma is not None else sigma_axis.mean()))
-        from scipy.stats import chi2  # imported here: import hyperstat.solver stays fast
-
-        val_scale = max(out_scale, float(np.sqrt(np.median(vw**2) / chi2.ppf(0.5, 3))))
+        val_scale = max(out_scale, float(np.sqrt(np.median(vw**2) / chi2_median(3))))
         limit_v = threshold(3, len(vw))
         for i, r in enumerate(val_table):
             r["deleted_z"] = float(vw[i] / val_scale)

@@ -25,7 +25,7 @@ RMS worse (``z`` below ``|d| / 2 f``).
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import norm
+from scipy.special import ndtr  # scipy.stats.norm.sf(z) is ndtr(-z); scipy.stats costs 0.3 s more to import
 
 __all__ = ["validation_confirms", "CONFIRM_P"]
 
@@ -67,5 +67,5 @@ def validation_confirms(before: np.ndarray, after: np.ndarray) -> dict:
     if f <= 0.0 or size <= 0.0:
         return {"z": 0.0, "p_value": 1.0, "noise_factor": f, "prediction": 0.0, "confirmed": False}
     z = float(eb @ d / (f * size))
-    p = float(norm.sf(z))
+    p = float(ndtr(-z))  # the normal survival function, as scipy.stats.norm.sf computes it
     return {"z": z, "p_value": p, "noise_factor": f, "prediction": size / f, "confirmed": p < CONFIRM_P}

@@ -304,9 +304,11 @@ def _constraint_blocks(model: ClearanceModel, q: np.ndarray, kin: Kinematics | N
     a = kin.scaled_rows(st.closure_xi)  # (K, m, n_aug)
     bp = kin.scaled_rows(st.closure_q)[:, :, model.mechanism.passive]
     out = []
+    if bp.shape[2] and len(q):  # one batched call: LAPACK factors each matrix alone, as one call per matrix would
+        us, ss = np.linalg.svd(bp, full_matrices=True)[:2]
     for k in range(len(q)):
         if bp.shape[2]:
-            u, s, _ = np.linalg.svd(bp[k], full_matrices=True)
+            u, s = us[k], ss[k]
             r = int(np.sum(s > 1e-9 * s[0])) if s.size and s[0] > 0 else 0
         else:
             u, r = np.eye(a.shape[1]), 0
@@ -512,24 +514,46 @@ def _dual_pieces(model: ClearanceModel, c: np.ndarray) -> np.ndarray:
 
     ``c`` (..., n_g) -> (..., n_terms, POLYGON_SIDES): per support (a polygon), the products with its
     vertices; per segment, ``+c`` and ``-c`` (padded).  Linear in ``c``.
+
+    The supports of one kind are multiplied in one stacked product whose every factor is the ``(..., 2)`` matrix of
+    one support (a ``(1, 2)`` row for a single ``c``), as one product per support would be: numpy hands each to
+    BLAS alike, so the pieces are the same bits as support by support.
     """
     sides = POLYGON_SIDES
     theta = (2 * np.arange(sides) + 1) * np.pi / sides  # the vertices of the inscribed polygon (radius 1)
     vert = np.stack([np.cos(theta), np.sin(theta)])  # (2, N)
-    terms = []
+    c = np.asarray(c)
+    single = c.ndim == 1
+    if single:
+        c = c[None]
+    pads, pairs, segments, order = [], [], [], []  # order: (kind, index) of each term, in the groups' order
     for kind, cols in model.groups:
-        cc = c[..., cols]
         if kind == "pads":  # y = (v1, v2, w1, w2); support A: (v1 - w2, v2 + w1), B: (v1 + w2, v2 - w1)
-            ca = np.stack([(cc[..., 0] - cc[..., 3]) / 2, (cc[..., 1] + cc[..., 2]) / 2], axis=-1)
-            cb = np.stack([(cc[..., 0] + cc[..., 3]) / 2, (cc[..., 1] - cc[..., 2]) / 2], axis=-1)
-            terms += [ca @ vert, cb @ vert]
+            order += [("a", len(pads)), ("b", len(pads))]
+            pads.append(cols)
         elif kind in ("pad", "disc"):
-            terms.append(cc @ vert)
+            order.append(("p", len(pairs)))
+            pairs.append(cols)
         else:
-            x = cc[..., 0:1]
-            terms.append(np.concatenate([np.repeat(x, sides // 2, axis=-1), np.repeat(-x, sides // 2, axis=-1)],
-                                        axis=-1))
-    return np.stack(terms, axis=-2) if terms else np.zeros(c.shape[:-1] + (0, sides))
+            order.append(("s", len(segments)))
+            segments.append(cols[0])
+    if not order:
+        out = np.zeros(c.shape[:-1] + (0, sides))
+        return out[0] if single else out
+    blocks = {}
+    if pads:
+        cc = np.moveaxis(c[..., np.array(pads)], -2, 0)  # (n_pads, ..., 4)
+        ca = np.stack([(cc[..., 0] - cc[..., 3]) / 2, (cc[..., 1] + cc[..., 2]) / 2], axis=-1)
+        cb = np.stack([(cc[..., 0] + cc[..., 3]) / 2, (cc[..., 1] - cc[..., 2]) / 2], axis=-1)
+        blocks["a"], blocks["b"] = ca @ vert, cb @ vert
+    if pairs:
+        blocks["p"] = np.ascontiguousarray(np.moveaxis(c[..., np.array(pairs)], -2, 0)) @ vert
+    if segments:
+        x = np.moveaxis(c[..., np.array(segments)], -1, 0)[..., None]  # (n_seg, ..., 1)
+        blocks["s"] = np.concatenate([np.repeat(x, sides // 2, axis=-1), np.repeat(-x, sides // 2, axis=-1)],
+                                     axis=-1)
+    out = np.stack([blocks[kind][i] for kind, i in order], axis=-2)
+    return out[0] if single else out
 
 
 def _violation_dual(model: ClearanceModel, cg: np.ndarray, av: np.ndarray) -> np.ndarray:
@@ -551,25 +575,27 @@ def _violation_dual(model: ClearanceModel, cg: np.ndarray, av: np.ndarray) -> np
     b = _dual_pieces(model, np.einsum("krg,kr->kg", cg, n))
     scale = np.maximum(np.max(np.abs(a), axis=(1, 2)), np.max(np.abs(b), axis=(1, 2))) + 1e-300
 
-    def value_slopes_at(idx: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """f, its left and its right derivative at ``s`` for the rows ``idx``."""
-        bb = b[idx]
-        v = a[idx] + s[:, None, None] * bb
-        top = np.max(v, axis=-1, keepdims=True)
-        act = v >= top - 1e-13 * scale[idx, None, None]
-        right = np.sum(np.max(np.where(act, bb, -np.inf), axis=-1), axis=-1)
-        left = np.sum(np.min(np.where(act, bb, np.inf), axis=-1), axis=-1)
-        return np.sum(top[..., 0], axis=-1), left, right
+    eps = 1e-13 * scale[:, None, None]
 
-    def value_slopes(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return value_slopes_at(np.arange(k), s)
+    def value_slopes_at(idx: np.ndarray | None, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """f, its left and its right derivative at ``s`` for the rows ``idx`` (None: every row)."""
+        aa, bb, ee = (a, b, eps) if idx is None else (a[idx], b[idx], eps[idx])
+        v = s[:, None, None] * bb
+        v += aa
+        # the ufuncs' reductions called directly (numpy.max and numpy.sum call them, through Python wrappers)
+        top = np.maximum.reduce(v, axis=-1, keepdims=True)
+        act = v >= top - ee
+        right = np.add.reduce(np.maximum.reduce(bb, axis=-1, where=act, initial=-np.inf), axis=-1)
+        left = np.add.reduce(np.minimum.reduce(bb, axis=-1, where=act, initial=np.inf), axis=-1)
+        return np.add.reduce(top[..., 0], axis=-1), left, right
 
     # bracket the minimiser: the right derivative is negative at lo, the left one positive at hi
     width = np.full(k, 1.0) / np.sqrt(norm2)
     lo, hi = -width.copy(), width.copy()
+    both = np.concatenate([np.arange(k), np.arange(k)])  # lo and hi in one evaluation (each row its own)
     for _ in range(80):
-        f_lo, _, g_lo = value_slopes(lo)
-        f_hi, g_hi, _ = value_slopes(hi)
+        f, left, right = value_slopes_at(both, np.concatenate([lo, hi]))
+        f_lo, g_lo, f_hi, g_hi = f[:k], right[:k], f[k:], left[k:]
         bad_lo, bad_hi = g_lo >= 0, g_hi <= 0
         if not (bad_lo.any() or bad_hi.any()):
             break

@@ -53,7 +53,9 @@ def _pieces_matrix(model, f: np.ndarray) -> np.ndarray:
     """``pieces(u) = sum_j u_j P[j]``: the linear pieces of ``h_Y(F^T u)`` per unit of each closure row, (m, T, N)."""
     from hyperstat.solver.tolerances.clearance import _dual_pieces
 
-    return np.stack([_dual_pieces(model, f[j]) for j in range(f.shape[0])])
+    # every row in one call, each as a (1, n_g) matrix: numpy multiplies each by the polygon's vertices as it does a
+    # single row (a vector-matrix product: the same bits, unlike one (m, n_g) matrix product)
+    return _dual_pieces(model, np.asarray(f)[:, None, :])[:, 0]
 
 
 def _need_at(model, f: np.ndarray, w: np.ndarray, v: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -148,12 +150,8 @@ def _polar_box(pieces: np.ndarray) -> np.ndarray:
 def _edges(pieces: np.ndarray) -> np.ndarray:
     """Edge directions of the images of the play set's pieces (polygons, segments) in the closure rows, (E, m)."""
     m, n_t, n_p = pieces.shape
-    out = []
-    for t in range(n_t):
-        pts = pieces[:, t, :].T  # (N, m)
-        d = np.roll(pts, -1, axis=0) - pts
-        out.append(d)
-    e = np.concatenate(out) if out else np.zeros((0, m))
+    pts = pieces.transpose(1, 2, 0)  # (T, N, m): each piece's vertices
+    e = (np.roll(pts, -1, axis=1) - pts).reshape(n_t * n_p, m)  # piece by piece, as one concatenation of them
     norm = np.linalg.norm(e, axis=1)
     e = e[norm > 1e-12 * max(float(norm.max(initial=0.0)), 1e-300)]
     e = e / np.linalg.norm(e, axis=1, keepdims=True)
