@@ -61,6 +61,10 @@ TASK_POSES = 40
 IDENTIFIABLE = 1e-8
 #: compensation steps with the nominal machine's actuator map before the fitted model's own (Newton)
 CHORD_STEPS = 6
+#: largest move (rad, or per length scale) an assembly of a simulated machine starts with from the nominal machine's
+#: first-order passive response: one Gauss-Newton step of the assembly at most (its ``max_step``); a larger predicted
+#: move (a nominal configuration near a singularity of its passive joints) is not taken, that row starts as before
+PREDICTED = 0.3
 #: the largest share of the task configurations a compensated machine may miss (its reachable set moved: the
 #: workspace's edge); more, and the defects are refused
 MISSED = 0.05
@@ -98,7 +102,9 @@ def calibration_setup(kin: Kinematics, analysis, decl, q_cal: np.ndarray, q_task
     The nominal measurement design (its identifiable subspace by SVD), the nominal measurements at
     ``q_cal`` and the nominal task poses, actuator maps and chord inverses at ``q_task`` depend on the
     poses only, not on the simulated machines: computed once (one batched Jacobian evaluation at each
-    set of poses) and handed to every simulation of :func:`calibrated_values`.
+    set of poses) and handed to every simulation of :func:`calibrated_values`.  So do the nominal
+    machine's first-order passive responses (``-B_p^+ A`` to the defects at both sets of poses,
+    ``-B_p^+ B_a`` to the actuators at ``q_task``), the simulations' assembly starts.
     """
     from hyperstat.solver.tolerances.classification import _measurement_maps
 
@@ -115,7 +121,27 @@ def calibration_setup(kin: Kinematics, analysis, decl, q_cal: np.ndarray, q_task
     sel_n = task_rows(decl.task, st_n.output_pose)
     rows_n = sel_n @ output_twist_maps(kin, st_n)[1]  # (K_t, r, n_a)
     return {"q_cal": q_cal, "q_task": q_task, "design": design, "seen": seen,
-            "at_nominal": _measure(kin, q_cal, None, decl), "goal": st_n.output_pose, "chord": _damped_inverse(rows_n)}
+            "at_nominal": _measure(kin, q_cal, None, decl), "goal": st_n.output_pose, "chord": _damped_inverse(rows_n),
+            **_passive_responses(kin, st0, st_n)}
+
+
+def _passive_responses(kin: Kinematics, st_cal, st_task) -> dict:
+    """The nominal machine's first-order passive responses at the calibration and task poses (an assembly's start).
+
+    ``passive_cal`` (K_c, n_p, n_xi) and ``passive_task`` (K_t, n_p, n_xi): ``-B_p^+ A``, the passive joints' move
+    per unit of each defect; ``passive_act`` (K_t, n_p, n_a): ``-B_p^+ B_a``, per unit of each actuator (closure
+    rows scaled as :meth:`Kinematics.assemble` scales them).  Empty (no entries) without closures or passive joints:
+    the assemblies then start as given.
+    """
+    m = kin.mechanism
+    passive, act = np.asarray(m.passive), np.asarray(m.actuated)
+    if not len(m.closures) or not len(passive):
+        return {}
+    inv_cal = _damped_inverse(kin.scaled_rows(st_cal.closure_q[:, :, passive]))
+    inv_task = _damped_inverse(kin.scaled_rows(st_task.closure_q[:, :, passive]))
+    return {"passive_cal": -inv_cal @ kin.scaled_rows(st_cal.closure_xi),
+            "passive_task": -inv_task @ kin.scaled_rows(st_task.closure_xi),
+            "passive_act": -inv_task @ kin.scaled_rows(st_task.closure_q[:, :, act]) if len(act) else None}
 
 
 def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, xi_true: np.ndarray,
@@ -174,9 +200,29 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         rhs = -np.einsum("krs,ks->kr", sel, _pose_error(st.output_pose, goal[rows]))
         return batched_lstsq(sel @ output_twist_maps(kin, st)[1], rhs[..., None], damping=1e-14)[..., 0], rhs
 
+    if setup is None or setup["q_cal"] is not q_cal or setup["q_task"] is not q_task:
+        setup = calibration_setup(kin, analysis, decl, q_cal, q_task)
+    passive = np.asarray(m.passive)
+    step_scale = kin.joint_scale[passive] * PREDICTED if len(passive) else None
+
+    def predicted(q: np.ndarray, key: str, dxi: np.ndarray) -> np.ndarray:
+        # an assembly's start: ``q`` (M K, n_q; machine-major, K poses each) with its passive joints moved by the
+        # nominal machine's first-order response to the change of defects ``dxi`` (M, n_xi) since ``q`` was
+        # assembled (or from the nominal machine).  The fixed point is the assembly's, as from any start in its
+        # basin; only the Gauss-Newton iterations to reach it are fewer (an error of second order in the defects
+        # instead of first).  A predicted move beyond PREDICTED of a joint's scale is not taken
+        if key not in setup:
+            return q
+        dq = np.einsum("kpx,mx->mkp", setup[key], dxi).reshape(len(q), -1)
+        small = np.max(np.abs(dq) / step_scale, axis=1) <= 1.0
+        q = q.copy()
+        q[np.ix_(np.nonzero(small)[0], passive)] += dq[small]
+        return q
+
     # the true machines' measurements; each machine's element matrices computed once and repeated to its rows
-    # (every row's are its own: the same bits as computed row by row), for this assembly and the last one
-    qc = np.tile(q_cal, (n_m, 1))
+    # (every row's are its own: the same bits as computed row by row), for this assembly and the last one.  Each
+    # assembly starts from the nominal configuration moved by the passive joints' first-order response
+    qc = predicted(np.tile(q_cal, (n_m, 1)), "passive_cal", xi_true)
     xc = np.repeat(xi_true, k_c, axis=0)
     elements_true = _machine_elements(kin, xi_true)
     qe, pose_e = assembled(qc, xc, _per_row(elements_true, n_m, k_c, len(xc)))
@@ -187,16 +233,16 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     # identify fits them); a direction they do not see stays at zero.  Orientation rows compare rotations (the
     # rotation from the predicted to the measured one), as the measurement maps' rows do.  The first step starts
     # from the nominal machine, whose configurations and maps are known (one design for every machine)
-    if setup is None or setup["q_cal"] is not q_cal or setup["q_task"] is not q_task:
-        setup = calibration_setup(kin, analysis, decl, q_cal, q_task)
     design, seen, at_nominal = setup["design"], setup["seen"], setup["at_nominal"]
     at_nominal = (np.tile(at_nominal[0], (n_m, 1)),
                   None if at_nominal[1] is None else np.tile(at_nominal[1], (n_m, 1, 1)))
     first = _misfit(y, at_nominal, ls).reshape(n_m, -1)
     coef = np.linalg.lstsq(design @ seen, first.T, rcond=None)[0].T  # coordinates in the identifiable subspace
+    xi_at = xi_true  # the machines ``qe`` is assembled for
     for _ in range(iterations - 1):  # then Gauss-Newton at the estimate, warm-started at the true machines
         x = coef @ seen.T
         xi_est = (basis @ x[:, :n_s].T).T * pscale[None, :]
+        qe, xi_at = predicted(qe, "passive_cal", xi_est - xi_at), xi_est
         xe = np.repeat(xi_est, k_c, axis=0)
         machines = _machine_elements(kin, xi_est)
         elements_e = _per_row(machines, n_m, k_c, len(xe))  # for the assembly
@@ -212,34 +258,45 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     xi_est = (basis @ (coef @ seen.T)[:, :n_s].T).T * pscale[None, :]
     # compensation: actuators solved in the fitted model for the nominal task poses, steps capped: chord steps with
     # the nominal machine's actuator map (the same for every machine: no Jacobian per machine), then Newton steps
-    # with the fitted model's own map where the chord has not converged
+    # with the fitted model's own map where the chord has not converged.  The assemblies start from the nominal
+    # configuration moved by the passive joints' first-order response to the fitted defects, and after each actuator
+    # step by their nominal response to it (the fixed points are the assemblies' own, reached in fewer iterations)
     n_rot = n_rotation_rows(decl.task)
     chord = np.tile(setup["chord"], (n_m, 1, 1))
     goal = np.tile(setup["goal"], (n_m, 1, 1))
-    qt = np.tile(q_task, (n_m, 1))
+    qt = predicted(np.tile(q_task, (n_m, 1)), "passive_task", xi_est)
     xt = np.repeat(xi_est, k_t, axis=0)
     elements_t = _per_row(_machine_elements(kin, xi_est), n_m, k_t, len(xt))  # the fitted models', for every step
     cap = 0.05 * kin.joint_scale[act]
     tscale = _task_scale(decl, ls)
     todo = np.arange(len(qt))
+    pose = np.empty((len(qt), 4, 4))  # each row's last assembled pose
+    follow = setup.get("passive_act")
     for it in range(CHORD_STEPS + iterations):
-        qt[todo], pose = assembled(qt[todo], xt[todo], _element_rows(elements_t, todo, len(qt)))
+        qt[todo], pose[todo] = assembled(qt[todo], xt[todo], _element_rows(elements_t, todo, len(qt)))
         if it < CHORD_STEPS:
-            rhs = -np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal[todo]))
+            rhs = -np.einsum("krs,ks->kr", task_rows(decl.task, pose[todo]), _pose_error(pose[todo], goal[todo]))
             done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
             da = np.einsum("kar,kr->ka", chord[todo], rhs)
         else:  # Newton with the fitted model's map
             da, rhs = _joined([newton_rows(idx) for idx in _row_blocks(len(todo))])
             done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
         da = da / np.maximum(np.max(np.abs(da) / cap, axis=1, keepdims=True), 1.0)
-        qt[todo[~done][:, None], act[None, :]] += da[~done]
-        todo = todo[~done]
+        moved = todo[~done]
+        qt[moved[:, None], act[None, :]] += da[~done]
+        if follow is not None:
+            dq = np.einsum("kpa,ka->kp", follow[moved % k_t], da[~done])
+            small = np.max(np.abs(dq) / step_scale, axis=1) <= 1.0
+            qt[np.ix_(moved[small], passive)] += dq[small]
+        todo = moved
         if not len(todo):
             break
-    qt, pose = assembled(qt, xt, elements_t)
+    if len(todo):  # the rows moved by the last step; the others were assembled at their actuated values already
+        qt[todo], pose[todo] = assembled(qt[todo], xt[todo], _element_rows(elements_t, todo, len(qt)))
     reached = np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal))
     reached = np.linalg.norm(reached * tscale[None, :], axis=1) <= 1e-9
     xt_true = np.repeat(xi_true, k_t, axis=0)
+    qt = predicted(qt, "passive_task", xi_true - xi_est)
     qt, true_pose = assembled(qt, xt_true, _per_row(elements_true, n_m, k_t, len(xt_true)))
     err = np.einsum("krs,ks->kr", task_rows(decl.task, true_pose), _pose_error(true_pose, goal))
     pos = np.linalg.norm(err[:, n_rot:], axis=1).reshape(n_m, k_t)
