@@ -47,6 +47,32 @@ def _wait(stat, predicate, what, timeout=30.0):
     raise RuntimeError(f"timed out waiting for {what}")
 
 
+def _turn_on(stat, cmd, timeout=90.0, retry_after=5.0):
+    """Estop reset, then machine on; each command sent again while the task has not reached its state.
+
+    The task takes a command only in a state that allows it: a "machine on" that arrives before the estop reset
+    has been processed is dropped, and the machine then never turns on (a clean-clone suite at load 6-7 timed out
+    after 30 s waiting for "machine on" on the hexapod, while the same test passed in 15 s alone).  So the reset is
+    confirmed before "on" is sent, and each is sent again every ``retry_after`` seconds until ``timeout``.
+    """
+    import linuxcnc
+
+    t0 = time.time()
+    for state, reached, what in ((linuxcnc.STATE_ESTOP_RESET, lambda: stat.task_state != linuxcnc.STATE_ESTOP,
+                                  "estop reset"),
+                                 (linuxcnc.STATE_ON, lambda: stat.task_state == linuxcnc.STATE_ON, "machine on")):
+        while True:
+            cmd.state(state)
+            cmd.wait_complete()
+            try:
+                _wait(stat, reached, what, timeout=min(retry_after, max(timeout - (time.time() - t0), 0.01)))
+                break
+            except RuntimeError:
+                if time.time() - t0 >= timeout:
+                    raise RuntimeError(f"timed out waiting for {what} ({timeout:.0f} s, the command sent again "
+                                       f"every {retry_after:.0f} s; task state {stat.task_state})") from None
+
+
 SETTLED_FOR = 0.2  #: seconds the joints must stay still (s): five polls 10 ms apart can all fall in one stall of the
 # servo thread on a loaded machine, and a move read there was 2.9e-5 rad short of its target (a suite run at load 5)
 
@@ -105,9 +131,7 @@ def drive(moves_path, results_path):
     out = {"coordinates": letters, "moves": [], "error": None}
     stat, cmd, err = linuxcnc.stat(), linuxcnc.command(), linuxcnc.error_channel()
     try:
-        cmd.state(linuxcnc.STATE_ESTOP_RESET)
-        cmd.state(linuxcnc.STATE_ON)
-        _wait(stat, lambda: stat.task_state == linuxcnc.STATE_ON, "machine on")
+        _turn_on(stat, cmd)
         cmd.mode(linuxcnc.MODE_MANUAL)
         cmd.wait_complete()
         cmd.home(-1)
