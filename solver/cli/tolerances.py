@@ -38,8 +38,7 @@ def _ranges(specs: list | None) -> dict:
 def _accuracy_inputs(args: argparse.Namespace, progress, spill: bool = False):
     """The model, its analysis and the workspace sample; ``spill``: the sample in a temporary file, read a block at
     a time (:class:`~hyperstat.solver.tolerances.spilled.SpilledArray`: ``accuracy``'s memory does not grow with
-    the count, issue 39)."""
-    from hyperstat.solver.tolerances.accuracy import sample_workspace
+    the count, issue 39), drawn in a forked child: returned is then what waits for it (the caller computes meanwhile)."""
     from hyperstat.solver.tolerances.workspace import workspace_of
 
     progress.next("stationarity analysis")
@@ -58,43 +57,38 @@ def _accuracy_inputs(args: argparse.Namespace, progress, spill: bool = False):
         raise HyperstatError(f"--workspace-configurations must be at least 1, got {args.configurations_workspace}.")
     ws = workspace_of(mech, ranges)
     progress.next("workspace sampling")
-
-    def sample():
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return sample_workspace(mech, args.configurations_workspace, seed=args.seed, kinematics=kin, workspace=ws,
-                                    spill=spill)
-
+    n, seed = args.configurations_workspace, args.seed
     if spill:  # sampled in a forked child, written to the sample's temporary file, while the caller goes on
-        q = cached_sample_started(args, mech, args.configurations_workspace, args.seed, ws,
-                                  lambda: _sampling_started(mech, args.configurations_workspace, args.seed, kin, ws))
+        started = cached_sample_started(args, mech, n, seed, ws, lambda: _sampling_started(mech, n, seed, kin, ws))
+    else:
+        q = cached_sample(args, mech, n, seed, ws, lambda: _sampled(mech, n, seed, kin, ws))
+        started = lambda: q  # noqa: E731
 
-        def sampled():
-            out = q()
-            if len(out) == 0:
-                raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
-            return out
-        args.workspace_used = ws
-        over = result.overconstraint > 0
-        args._stationarity = result
-        return mech, provenance, kin, (result if over else None), sampled, over
-    q = cached_sample(args, mech, args.configurations_workspace, args.seed, ws, sample)
-    if len(q) == 0:
-        raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
+    def sampled():
+        out = started()
+        if len(out) == 0:
+            raise HyperstatError(f"no configuration of '{mech.name}' assembles in the workspace ({ws.source}).")
+        return out
     args.workspace_used = ws
     over = result.overconstraint > 0
     args._stationarity = result  # the tolerance classes need it whatever the over-constraint
-    return mech, provenance, kin, (result if over else None), q, over
+    return mech, provenance, kin, (result if over else None), (sampled if spill else sampled()), over
+
+
+def _sampled(mech, n: int, seed: int, kin, ws, spill=False):
+    """The workspace sample (``n`` draws, ``seed``), warnings of the corrector silenced; ``spill``: written into that
+    :class:`~hyperstat.solver.tolerances.spilled.SpilledArray`."""
+    from hyperstat.solver.tolerances.accuracy import sample_workspace
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return sample_workspace(mech, n, seed=seed, kinematics=kin, workspace=ws, spill=spill)
 
 
 def _sample_into(mech, n: int, seed: int, kin, ws, out) -> int:
     """The workspace sample written into ``out`` (a :class:`~hyperstat.solver.tolerances.spilled.SpilledArray`);
     its number of rows (what a forked child hands back: the rows are in the file)."""
-    from hyperstat.solver.tolerances.accuracy import sample_workspace
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return len(sample_workspace(mech, n, seed=seed, kinematics=kin, workspace=ws, spill=out))
+    return len(_sampled(mech, n, seed, kin, ws, spill=out))
 
 
 def _sampling_started(mech, n: int, seed: int, kin, ws):

@@ -205,18 +205,22 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     passive = np.asarray(m.passive)
     step_scale = kin.joint_scale[passive] * PREDICTED if len(passive) else None
 
+    def shift(q: np.ndarray, rows: np.ndarray, dq: np.ndarray) -> None:
+        # the passive joints of ``q[rows]`` moved by ``dq`` (in place), except where the move exceeds PREDICTED of
+        # a joint's scale (more than one assembly step: that row starts where it was)
+        small = np.max(np.abs(dq) / step_scale, axis=1) <= 1.0
+        q[np.ix_(rows[small], passive)] += dq[small]
+
     def predicted(q: np.ndarray, key: str, dxi: np.ndarray) -> np.ndarray:
         # an assembly's start: ``q`` (M K, n_q; machine-major, K poses each) with its passive joints moved by the
         # nominal machine's first-order response to the change of defects ``dxi`` (M, n_xi) since ``q`` was
         # assembled (or from the nominal machine).  The fixed point is the assembly's, as from any start in its
         # basin; only the Gauss-Newton iterations to reach it are fewer (an error of second order in the defects
-        # instead of first).  A predicted move beyond PREDICTED of a joint's scale is not taken
+        # instead of first)
         if key not in setup:
             return q
-        dq = np.einsum("kpx,mx->mkp", setup[key], dxi).reshape(len(q), -1)
-        small = np.max(np.abs(dq) / step_scale, axis=1) <= 1.0
         q = q.copy()
-        q[np.ix_(np.nonzero(small)[0], passive)] += dq[small]
+        shift(q, np.arange(len(q)), np.einsum("kpx,mx->mkp", setup[key], dxi).reshape(len(q), -1))
         return q
 
     # the true machines' measurements; each machine's element matrices computed once and repeated to its rows
@@ -285,9 +289,7 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         moved = todo[~done]
         qt[moved[:, None], act[None, :]] += da[~done]
         if follow is not None:
-            dq = np.einsum("kpa,ka->kp", follow[moved % k_t], da[~done])
-            small = np.max(np.abs(dq) / step_scale, axis=1) <= 1.0
-            qt[np.ix_(moved[small], passive)] += dq[small]
+            shift(qt, moved, np.einsum("kpa,ka->kp", follow[moved % k_t], da[~done]))
         todo = moved
         if not len(todo):
             break

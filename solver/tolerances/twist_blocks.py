@@ -16,11 +16,12 @@ computing them again: the same arrays, bit for bit (a block is computed once), r
 
 from __future__ import annotations
 
-import hashlib
 import threading
 from collections import OrderedDict
 
 import numpy as np
+
+from hyperstat.solver.tolerances.spilled import array_digest
 
 __all__ = ["nominal_twist_maps", "KEPT_BLOCKS", "KEPT_ROWS"]
 
@@ -59,8 +60,7 @@ def nominal_twist_maps(kin, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     keep = len(q) >= KEPT_ROWS
     if keep:
         # the evaluation path is part of the key (the plan and the element-by-element pass agree to round-off only)
-        key = (id(kin), bool(getattr(kin, "use_plan", True)), q.shape,
-               hashlib.sha256(memoryview(q.reshape(-1)).cast("B")).hexdigest())
+        key = (id(kin), bool(getattr(kin, "use_plan", True)), q.shape, array_digest(q))
         with _LOCK:
             hit = _KEPT.get(key)
             if hit is not None:

@@ -310,14 +310,12 @@ _MEDIANS: dict = {}
 def _median_conditioning(kin: Kinematics, q: np.ndarray) -> float:
     """The median of :func:`branch_conditioning` over ``q``, kept for the last few (kinematics, configurations): the
     searches of one command share their sample (issue 39: the hexapod's three searches computed it three times)."""
-    import hashlib
+    from hyperstat.solver.tolerances.spilled import array_digest
 
-    q = np.ascontiguousarray(q, dtype=float)
-    key = (id(kin), q.shape, hashlib.sha256(memoryview(q.reshape(-1)).cast("B")).hexdigest())
+    q = np.asarray(q, dtype=float)
+    key = (id(kin), q.shape, array_digest(q))
     if key not in _MEDIANS:
-        if len(_MEDIANS) >= 4:
-            _MEDIANS.pop(next(iter(_MEDIANS)))
-        _MEDIANS[key] = (kin, float(np.median(branch_conditioning(kin, q))))  # the kinematics kept: its id not reused
+        _remember(key, kin, float(np.median(branch_conditioning(kin, q))), _MEDIANS)
     return _MEDIANS[key][1]
 
 
@@ -586,11 +584,13 @@ def _candidates_key(kin: Kinematics, workspace: Workspace, sample: np.ndarray, o
     return (id(kin), workspace.passive_declared is None, workspace.revolute is None, digest.hexdigest(), options)
 
 
-def _remember(key, kin: Kinematics, value) -> None:
-    """Keep the candidates of the last few (kinematics, workspace, sample) in memory (one command uses two or three)."""
-    if len(_CANDIDATES) >= 4:
-        _CANDIDATES.pop(next(iter(_CANDIDATES)))
-    _CANDIDATES[key] = (kin, value)
+def _remember(key, kin: Kinematics, value, store: dict | None = None) -> None:
+    """Keep ``value`` for the last few keys of ``store`` (default: the candidates of (kinematics, workspace, sample);
+    one command uses two or three), with the kinematics its key names by ``id`` (kept alive: the id is not reused)."""
+    store = _CANDIDATES if store is None else store
+    if len(store) >= 4:
+        store.pop(next(iter(store)))
+    store[key] = (kin, value)
 
 
 def _passive_velocity(kin: Kinematics, q: np.ndarray, axis) -> np.ndarray:
