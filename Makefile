@@ -20,7 +20,7 @@ PIPLOG := $(VENV)/pip.log
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
 # The packages are installed by uv (PyPI 'uv', Astral's installer: parallel downloads, a cache of unpacked wheels,
-# bytecode compiled on both cores): the same versions as pip resolves, in about 20 s instead of 50 s on a fresh
+# bytecode compiled on both cores): the same versions as pip resolves, in about 25 s instead of 54 s on a fresh
 # 2-core machine. pip stays in the venv (`make bench`) and is the fallback when uv cannot be installed or fails
 # (an index that only pip's configuration knows, for example).
 $(STAMP): pyproject.toml
