@@ -1,4 +1,4 @@
-"""A part of a drawing as a CadQuery solid whose toleranced and datum features are real faces.
+"""A part of a drawing as a solid whose toleranced and datum features are real faces.
 
 Units: lengths in mm (the base frame at the home configuration, as ``report.json``'s ``drawings``).
 
@@ -38,12 +38,17 @@ says so.
 >>> s = part_solid(d)
 >>> sorted(s.faces), [f.geomType() for f in s.faces["rod.bore3"]]
 (['rod.bore3', 'rod.journal2'], ['CYLINDER'])
+
+The solid is built with OCCT's own calls (:mod:`hyperstat.cad_plugin.occ_solids`, the calls CadQuery makes, so
+the same shapes): the report's part pages need no CadQuery import.  :attr:`PartSolid.shape` and
+:attr:`PartSolid.faces` give CadQuery's wrappers of them (the STEP export uses them).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -64,14 +69,32 @@ _SLIDE_WORDS = ("slide",)
 
 @dataclass
 class PartSolid:
-    """A part's solid and, per feature id, the faces that realise the feature."""
+    """A part's solid and, per feature id, the faces that realise the feature.
+
+    ``wrapped`` and ``face_shapes`` are OCCT's shapes (OCP's ``TopoDS_Shape`` and ``TopoDS_Face``);
+    :attr:`shape` and :attr:`faces` are the same as CadQuery objects (CadQuery imported on first use)."""
 
     part: str
-    shape: Any  # cq.Shape: the solid
-    faces: dict = field(default_factory=dict)  # feature id -> list of cq.Face
+    wrapped: Any  # TopoDS_Shape: the solid
+    face_shapes: dict = field(default_factory=dict)  # feature id -> list of TopoDS_Face
     features: dict = field(default_factory=dict)  # feature id -> the drawing's feature (dict)
     assumed: list = field(default_factory=list)  # sentences: sizes and places the drawing did not give
     parsed: dict = field(default_factory=dict)  # feature id -> _Feature: the geometry drawn (role, point, sizes)
+
+    @cached_property
+    def shape(self) -> Any:
+        """The solid as a ``cadquery.Shape`` (a ``Solid`` or ``Compound``, as CadQuery's operations would give)."""
+        import cadquery as cq
+
+        return cq.Shape.cast(self.wrapped)
+
+    @cached_property
+    def faces(self) -> dict:
+        """Feature id -> list of ``cadquery.Face`` (one wrapper per face, shared by the features it realises)."""
+        import cadquery as cq
+
+        made: dict = {}
+        return {fid: [made.setdefault(id(f), cq.Face(f)) for f in found] for fid, found in self.face_shapes.items()}
 
 
 def _unit(v, where: str) -> np.ndarray:
@@ -270,27 +293,28 @@ def _clear_pad(f: _Feature, features: list[_Feature], notes: list[str]) -> None:
 
 
 def _cylinder(radius: float, start: np.ndarray, axis: np.ndarray, length: float):
-    import cadquery as cq
+    from hyperstat.cad_plugin import occ_solids
 
-    return cq.Solid.makeCylinder(radius, length, cq.Vector(*start), cq.Vector(*axis))
+    return occ_solids.cylinder(radius, length, start, axis)
 
 
 def _box(centre: np.ndarray, u: np.ndarray, v: np.ndarray, w: np.ndarray, size: tuple[float, float, float]):
     """A box of ``size`` (along u, v, w) centred on ``centre`` (w's sign is free: the box is symmetric, and the
     placement must be a rotation, never a mirror, or OCCT turns the solid inside out)."""
-    import cadquery as cq
     from OCP.gp import gp_Trsf
 
+    from hyperstat.cad_plugin import occ_solids
+
     w = np.cross(u, v)
-    box = cq.Solid.makeBox(*size, pnt=cq.Vector(-size[0] / 2, -size[1] / 2, -size[2] / 2))
+    box = occ_solids.box(*size, pnt=(-size[0] / 2, -size[1] / 2, -size[2] / 2))
     t = gp_Trsf()
     t.SetValues(u[0], v[0], w[0], centre[0], u[1], v[1], w[1], centre[1], u[2], v[2], w[2], centre[2])
-    return box.moved(cq.Location(t))
+    return occ_solids.moved(box, t)
 
 
 def _material_and_voids(features: list[_Feature]) -> tuple[list, list]:
     """Solids to fuse (bosses, pins, blocks, pads) and to cut (bores, channels, slots, sockets)."""
-    import cadquery as cq
+    from hyperstat.cad_plugin import occ_solids
 
     solids, voids = [], []
     for f in features:
@@ -325,8 +349,8 @@ def _material_and_voids(features: list[_Feature]) -> tuple[list, list]:
                 centre, length = h.p + 0.5 * h.diameter * t, h.length + 0.2
             voids.append(_box(centre, h.u, f.u, t, (length, f.length, 2 * depth)))
         elif f.role == "socket":
-            solids.append(cq.Solid.makeSphere(R, cq.Vector(*f.p), angleDegrees1=-90, angleDegrees2=90))
-            voids.append(cq.Solid.makeSphere(0.5 * d, cq.Vector(*f.p), angleDegrees1=-90, angleDegrees2=90))
+            solids.append(occ_solids.sphere(R, f.p, angle1_deg=-90, angle2_deg=90))
+            voids.append(occ_solids.sphere(0.5 * d, f.p, angle1_deg=-90, angle2_deg=90))
     return solids, voids
 
 
@@ -385,14 +409,16 @@ def _bars(features: list[_Feature]) -> list:
 
 
 def _fuse(shapes: list):
+    from hyperstat.cad_plugin import occ_solids
+
     first, rest = shapes[0], shapes[1:]
-    return (first.fuse(*rest) if rest else first).clean()
+    return occ_solids.clean(occ_solids.fuse(first, *rest) if rest else first)
 
 
 def _cylinder_of(face) -> tuple[np.ndarray, np.ndarray, float]:
     from OCP.BRepAdaptor import BRepAdaptor_Surface
 
-    cyl = BRepAdaptor_Surface(face.wrapped).Cylinder()
+    cyl = BRepAdaptor_Surface(face).Cylinder()
     ax = cyl.Axis()
     d, o = ax.Direction(), ax.Location()
     return np.array([d.X(), d.Y(), d.Z()]), np.array([o.X(), o.Y(), o.Z()]), float(cyl.Radius())
@@ -401,30 +427,36 @@ def _cylinder_of(face) -> tuple[np.ndarray, np.ndarray, float]:
 def _sphere_of(face) -> tuple[np.ndarray, float]:
     from OCP.BRepAdaptor import BRepAdaptor_Surface
 
-    sph = BRepAdaptor_Surface(face.wrapped).Sphere()
+    sph = BRepAdaptor_Surface(face).Sphere()
     c = sph.Location()
     return np.array([c.X(), c.Y(), c.Z()]), float(sph.Radius())
 
 
 class _FaceGeometry:
-    """A face's type, centre, normal, cylinder and sphere, each computed once (every feature of the part tests every
-    face: ``Face.Center`` integrates the face's area)."""
+    """A face's (a TopoDS_Face's) type, centre, normal, cylinder and sphere, each computed once (every feature of the
+    part tests every face: the centre integrates the face's area)."""
 
     def __init__(self, face) -> None:
+        from hyperstat.cad_plugin import occ_solids
+
         self.face = face
-        self.kind = face.geomType()
+        self.kind = occ_solids.face_type(face)
         self._centre = self._normal = self._cylinder = self._sphere = None
 
     @property
     def centre(self) -> np.ndarray:
         if self._centre is None:
-            self._centre = np.array(self.face.Center().toTuple())
+            from hyperstat.cad_plugin.occ_solids import face_centre
+
+            self._centre = np.array(face_centre(self.face))
         return self._centre
 
     @property
     def normal(self) -> np.ndarray:
         if self._normal is None:
-            self._normal = np.array(self.face.normalAt().toTuple())
+            from hyperstat.cad_plugin.occ_solids import face_normal
+
+            self._normal = np.array(face_normal(self.face))
         return self._normal
 
     @property
@@ -441,7 +473,7 @@ class _FaceGeometry:
 
 
 def _matches(face, f: _Feature, tol: float) -> bool:
-    """Whether ``face`` (a face or its :class:`_FaceGeometry`) realises (part of) feature ``f`` (geometry within
+    """Whether ``face`` (a TopoDS_Face or its :class:`_FaceGeometry`) realises (part of) feature ``f`` (geometry within
     ``tol`` mm and 1e-6 rad)."""
     g = face if isinstance(face, _FaceGeometry) else _FaceGeometry(face)
     kind = g.kind
@@ -534,15 +566,17 @@ def part_solid(drawing: dict, joint_types: dict | None = None) -> PartSolid:
                       for f in features if f.kind == "axis" and not f.diameter_given})
     assumed += notes
     assumed.append("walls, collars and bars join the features (not toleranced)")
+    from hyperstat.cad_plugin import occ_solids
+
     solids, voids = _material_and_voids(features)
     shape = _fuse(solids + _bars(features))
     if voids:
-        shape = shape.cut(*voids).clean()
-    pieces = shape.Solids()
+        shape = occ_solids.clean(occ_solids.cut(shape, *voids))
+    pieces = occ_solids.solids(shape)
     if len(pieces) > 1:  # a bar's end cap cut off by a bore or a channel: a sliver, not part of the part
-        shape = max(pieces, key=lambda x: x.Volume())
+        shape = max(pieces, key=occ_solids.volume)
     tol = 1e-5 * max(1.0, max(float(np.linalg.norm(f.p)) for f in features))  # 10 nm at 1 m
-    geometry = [_FaceGeometry(face) for face in shape.Faces()]  # each face's centre, normal, ... once
+    geometry = [_FaceGeometry(face) for face in occ_solids.faces(shape)]  # each face's centre, normal, ... once
     faces = {f.id: [g.face for g in geometry if _matches(g, f, tol)] for f in features}
     missing = [fid for fid, found in faces.items() if not found]
     if missing:

@@ -68,12 +68,13 @@ def skeleton_drawing(rendered: dict, items: list, title: str) -> tuple[str, byte
 
 
 def _prepare_pages(provisional=None) -> None:
-    """What every part page needs whatever the drawing: CadQuery and OCCT's hidden-line removal, matplotlib's SVG
+    """What every part page needs whatever the drawing: OCCT's modelling and hidden-line removal, matplotlib's SVG
     writer and the font (imported by the part pages' child while the report computes the values); then the solids
     and views of the drawings ``provisional()`` predicts (``(drawings, joint types)``;
-    :func:`hyperstat.cad_plugin.report_parts.prebuild`)."""
-    import cadquery  # noqa: F401 - about 2 s of imports
+    :func:`hyperstat.cad_plugin.report_parts.prebuild`).  Not CadQuery: the solids are made with OCP directly
+    (:mod:`hyperstat.cad_plugin.occ_solids`), without CadQuery's imports of VTK and ezdxf."""
     from matplotlib.backends import backend_svg  # noqa: F401
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse  # noqa: F401 - about 0.6 s of imports
     from OCP.HLRBRep import HLRBRep_PolyAlgo  # noqa: F401
 
     from hyperstat.cad_plugin import part_solids, report_parts  # noqa: F401

@@ -139,7 +139,7 @@ def _direction_words(d: np.ndarray) -> str:
 
 
 def _hlr(shape, view: dict) -> dict:
-    """Visible and hidden edges of ``shape`` in ``view``: 2-D polylines (mm) from OCCT's polygonal hidden-line
+    """Visible and hidden edges of ``shape`` (an OCCT ``TopoDS_Shape``) in ``view``: 2-D polylines (mm) from OCCT's polygonal hidden-line
     removal on a mesh whose deflection is 1/1500 of the part's size (the exact algorithm takes seconds on a bar
     meeting a boss; 1/1500 of the view is under a tenth of a millimetre on the page)."""
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
@@ -151,9 +151,11 @@ def _hlr(shape, view: dict) -> dict:
     from OCP.TopoDS import TopoDS
     from OCP.BRepAdaptor import BRepAdaptor_Curve
 
-    bb = shape.BoundingBox()
-    BRepMesh_IncrementalMesh(shape.wrapped, max(0.02, max(bb.xlen, bb.ylen, bb.zlen) / 1500.0), False, 0.2, True)
-    algo = HLRBRep_PolyAlgo(shape.wrapped)
+    from hyperstat.cad_plugin.occ_solids import bounding_box
+
+    x0, y0, z0, x1, y1, z1 = bounding_box(shape)  # CadQuery's BoundingBox(): its lengths are max - min
+    BRepMesh_IncrementalMesh(shape, max(0.02, max(x1 - x0, y1 - y0, z1 - z0) / 1500.0), False, 0.2, True)
+    algo = HLRBRep_PolyAlgo(shape)
     algo.Projector(HLRAlgo_Projector(gp_Ax2(gp_Pnt(0, 0, 0), gp_Dir(*view["toward"]), gp_Dir(*view["right"]))))
     algo.Update()
     out = HLRBRep_PolyHLRToShape()
@@ -398,7 +400,7 @@ def _views_of(features: list, solid) -> list[dict]:
     """The part's two views (:func:`view_axes`) with their visible and hidden edges (:func:`_hlr`)."""
     views = view_axes(features)
     for v in views:
-        v.update(_hlr(solid.shape, v))
+        v.update(_hlr(solid.wrapped, v))
     return views
 
 
