@@ -151,7 +151,8 @@ def _cmd_report(args) -> int:
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
     from hyperstat.cad_plugin.report import (cached_diagnosis, decode_entry, diagnosis_entry, part_pages_worker,
-                                             preload_pictures, skeleton_views, store_diagnosis, write_report)
+                                             preload_pictures, skeleton_views_drawn, store_diagnosis,
+                                             write_report)
 
     date = _report_date(args.date)  # a bad date is refused before any work
     if args.workspace_loss is not None:  # and a bad budget
@@ -171,7 +172,9 @@ def _cmd_report(args) -> int:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = solver_cli.analysis_of(args)
         # the tolerance classes colour the skeleton views: classified now, the views are drawn by a forked
-        # child (pyvista import and rendering) while this process verifies, diagnoses and allocates
+        # child (pyvista import and rendering) while this process verifies, diagnoses and allocates; the child
+        # also lays out the skeleton drawing without frames (a report with part drawings has its frames on the
+        # parts' pages), which write_report would otherwise draw at the end, alone on the critical path
         tolerances = classify(mech, result, kin)
         from hyperstat.solver.cli.tolerances import with_workspace_loss
 
@@ -179,7 +182,7 @@ def _cmd_report(args) -> int:
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
         if not args.json_only:  # once here rather than in each child forked below
             preload_pictures()
-        views = None if args.json_only else Background(skeleton_views, mech, early)
+        views = None if args.json_only else Background(skeleton_views_drawn, mech, early)
         pages = None
 
         def start_pages() -> None:  # values to compute: a child imports CadQuery meanwhile, then draws the part pages
@@ -271,7 +274,7 @@ def _cmd_report(args) -> int:
         else:
             drawn = views.result()
             if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
-                images["rendered"] = drawn
+                images["rendered"], images["skeleton"] = drawn["rendered"], drawn["drawing"]
             written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
                                    step_drawings=args.step_drawings, pdf=args.pdf, cache=command_cache(args))
     if not args.quiet:

@@ -22,7 +22,7 @@ from hyperstat.solver.atomic import all_or_nothing, dumps_json, write_bytes, wri
 from hyperstat.cad_plugin.report_html import SECTIONS, render_html
 from hyperstat.cad_plugin.report_markdown import render_markdown
 
-__all__ = ["write_report", "skeleton_views", "skeleton_drawing", "render_html", "render_markdown", "SECTIONS",
+__all__ = ["write_report", "skeleton_views", "skeleton_views_drawn", "skeleton_drawing", "render_html", "render_markdown", "SECTIONS",
            "step_name", "part_pages_worker", "cached_diagnosis", "store_diagnosis",
            "diagnosis_entry", "decode_entry", "preload_pictures"]
 
@@ -65,6 +65,22 @@ def skeleton_drawing(rendered: dict, items: list, title: str) -> tuple[str, byte
 
     fig, words = skeleton_figure(rendered, items, title)
     return figure_svg(fig), figure_png(fig, 1800), words
+
+
+def skeleton_views_drawn(mechanism, analysis_json: dict | None = None) -> dict:
+    """The skeleton views (:func:`skeleton_views`) and their drawing without feature control frames, drawn ahead of
+    the tolerance values (by the report's views child, while the values are computed).
+
+    Returns ``{"rendered": views, "drawing": {"title", "svg", "png", "words"}}``.  The drawing is
+    :func:`skeleton_drawing` of the views with no tolerance item: the same bytes as the drawing of the final items
+    when none of them carries a ``drawing`` (frames) list, as in a report with part drawings, whose frames are on
+    the parts' pages (:func:`hyperstat.cad_plugin.drawing.skeleton_figure` reads the items only for their
+    ``drawing`` lists); :func:`write_report` uses it only then (``images["skeleton"]``), and draws it otherwise.
+    """
+    rendered = skeleton_views(mechanism, analysis_json)
+    title = f"Skeleton of {mechanism.name}"
+    svg, png, words = skeleton_drawing(rendered, [], title)
+    return {"rendered": rendered, "drawing": {"title": title, "svg": svg, "png": png, "words": words}}
 
 
 def _prepare_pages(provisional=None) -> None:
@@ -189,7 +205,9 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
     """Draw the skeleton and write the report's files atomically into ``out_dir``.
 
     ``images`` may hold ``rendered`` (views already rendered, e.g. by a background process), or a
-    finished ``views`` picture; otherwise the views of ``mechanism`` are rendered here.  The part
+    finished ``views`` picture; otherwise the views of ``mechanism`` are rendered here.  With ``rendered``,
+    ``skeleton`` may hold their drawing without frames (:func:`skeleton_views_drawn`'s ``drawing``), used when
+    no tolerance item draws frames on the skeleton and its title is this document's.  The part
     drawings of ``doc["drawings"]`` get a page each (:mod:`hyperstat.cad_plugin.report_parts`); with
     ``step_drawings``, each part is also written as ``parts/<part>.step``, STEP AP242 with its datums
     and frames as semantic PMI (:mod:`hyperstat.cad_plugin.pmi`), with the report's files or not at all;
@@ -200,6 +218,7 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
     out_dir = Path(out_dir)
     images = dict(images or {})
     rendered = images.pop("rendered", None)
+    ahead = images.pop("skeleton", None)
     if rendered is None and mechanism is not None and "views" not in images:
         rendered = skeleton_views(mechanism, analysis_json)
     extra = []
@@ -207,7 +226,11 @@ def write_report(doc: dict, out_dir: str | Path, mechanism=None, analysis_json: 
         items = doc["tolerances"]["items"]
         if doc.get("drawings"):  # the frames are on the part drawings' pages; the skeleton calls out the ids
             items = [{**t, "drawing": []} for t in items]
-        svg, png, words = skeleton_drawing(rendered, items, f"Skeleton of {doc['mechanism']}")
+        title = f"Skeleton of {doc['mechanism']}"
+        if ahead is not None and ahead.get("title") == title and not any(t.get("drawing") for t in items):
+            svg, png, words = ahead["svg"], ahead["png"], ahead["words"]  # the same drawing, drawn by a child
+        else:
+            svg, png, words = skeleton_drawing(rendered, items, title)
         images["views"] = svg
         views = [(out_dir / "skeleton_views.png", png), (out_dir / "skeleton_views.png.json", dumps_json(words))]
     else:

@@ -272,7 +272,9 @@ def render_views(mech: Mechanism, analysis: dict | None = None, tile: tuple[int,
         plotter.render()
         img = plotter.screenshot(return_img=True)
         buf = io.BytesIO()
-        Image.fromarray(img).save(buf, format="PNG", optimize=True)
+        # the fastest zlib level: these PNGs only carry the pixels to skeleton_figure (lossless at any level, the same
+        # pixels); optimize=True took 0.14 s of CPU for the four 900 px views, level 1 0.04 s (about 2.4x the bytes)
+        Image.fromarray(img).save(buf, format="PNG", compress_level=1)
         out.append({"name": view["name"], "label": view["label"], "png": buf.getvalue(), "size": [width, height],
                     "side": side, "direction": [float(c) for c in cam["direction"]],
                     "anchors": {e: _project(cam, p) for e, p in anchors.items()}})
