@@ -185,7 +185,7 @@ def _cmd_report(args) -> int:
         views = None if args.json_only else Background(skeleton_views_drawn, mech, early)
         pages = None
 
-        def start_pages() -> None:  # values to compute: a child imports CadQuery meanwhile, then draws the part pages
+        def start_pages() -> None:  # values to compute: a child imports OCCT meanwhile, then draws the part pages
             nonlocal pages
             if not (args.json_only or args.step_drawings or all(t.cls == "non-influent" for t in tolerances.items)):
                 pages = part_pages_worker(command_cache(args), provisional)

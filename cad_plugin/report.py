@@ -22,8 +22,8 @@ from hyperstat.solver.atomic import all_or_nothing, dumps_json, write_bytes, wri
 from hyperstat.cad_plugin.report_html import SECTIONS, render_html
 from hyperstat.cad_plugin.report_markdown import render_markdown
 
-__all__ = ["write_report", "skeleton_views", "skeleton_views_drawn", "skeleton_drawing", "render_html", "render_markdown", "SECTIONS",
-           "step_name", "part_pages_worker", "cached_diagnosis", "store_diagnosis",
+__all__ = ["write_report", "skeleton_views", "skeleton_views_drawn", "skeleton_drawing", "render_html",
+           "render_markdown", "SECTIONS", "step_name", "part_pages_worker", "cached_diagnosis", "store_diagnosis",
            "diagnosis_entry", "decode_entry", "preload_pictures"]
 
 
@@ -112,7 +112,7 @@ def _pages_of(cache, doc: dict) -> list:
 
 def part_pages_worker(cache=None, provisional=None):
     """The part pages drawn by a forked child started now (:class:`hyperstat.cad_plugin.background.Deferred`): it
-    imports CadQuery while the report computes the values, then draws the pages of the ``{"drawings", "joints"}``
+    imports OCCT (OCP) while the report computes the values, then draws the pages of the ``{"drawings", "joints"}``
     given to its ``result`` (:func:`hyperstat.cad_plugin.report_parts.part_pages`, without the solids; read from
     and stored in ``cache``).  The same pages as drawing them in-process; drawn here if the child fails, and
     without a child once OCCT is loaded in this process.  ``provisional`` (a function returning ``(drawings, joint

@@ -139,9 +139,9 @@ def _direction_words(d: np.ndarray) -> str:
 
 
 def _hlr(shape, view: dict) -> dict:
-    """Visible and hidden edges of ``shape`` (an OCCT ``TopoDS_Shape``) in ``view``: 2-D polylines (mm) from OCCT's polygonal hidden-line
-    removal on a mesh whose deflection is 1/1500 of the part's size (the exact algorithm takes seconds on a bar
-    meeting a boss; 1/1500 of the view is under a tenth of a millimetre on the page)."""
+    """Visible and hidden edges of ``shape`` (OCP's ``TopoDS_Shape``) in ``view``: 2-D polylines (mm) from OCCT's
+    polygonal hidden-line removal on a mesh whose deflection is 1/1500 of the part's size (the exact algorithm takes
+    seconds on a bar meeting a boss; 1/1500 of the view is under a tenth of a millimetre on the page)."""
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
     from OCP.HLRAlgo import HLRAlgo_Projector
@@ -554,7 +554,8 @@ def part_pages(doc: dict, solids: bool = False, cache=None) -> list[dict]:
     ``cache`` (a :class:`hyperstat.solver.cache.Cache`) keeps each page under its drawing, the joint types and the
     version of the drawing code (:func:`page_key`): a report of the same drawings reads its pages (the solids and
     the hidden-line views are most of a report's drawing time).  With ``solids`` every page also carries its
-    CadQuery solid (``--step-drawings`` writes them) and is computed; else ``solid`` is None.
+    solid (a :class:`hyperstat.cad_plugin.part_solids.PartSolid`; ``--step-drawings`` writes them) and is
+    computed; else ``solid`` is None.
     """
     types = {str(j["element"]): j.get("type") for j in doc.get("joints") or []}
     pages = []
