@@ -283,10 +283,11 @@ class _Layout:
         self.height = y
 
     def page(self, k: int, xy: np.ndarray) -> np.ndarray:
-        """A point of view ``k`` (part mm, view coordinates) on the page (mm, y down)."""
+        """A point of view ``k`` (part mm, view coordinates) on the page (mm, y down); or the rows of an ``(n, 2)``
+        array of points, each as the point alone would be (the same operations, element by element)."""
         x0, y0, w, h, lo = self.boxes[k]
-        rel = (xy - lo) * self.scale
-        return np.array([x0 + rel[0] + 0.5 * (self.width - w), y0 + h - rel[1]])
+        rel = (np.asarray(xy) - lo) * self.scale
+        return np.stack([x0 + rel[..., 0] + 0.5 * (self.width - w), y0 + h - rel[..., 1]], axis=-1)
 
 
 def _anchor(f, views: list[dict], part_centre: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
@@ -468,8 +469,7 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
         for key, style in (("hidden", {"lw": 0.35, "linestyle": (0, (3, 2)), "color": "#555555"}),
                            ("visible", {"lw": 0.7, "color": "black", "capstyle": "round", "joinstyle": "round"})):
             if v[key]:
-                ax.add_collection(LineCollection([np.array([lay.page(k, q) for q in line]) for line in v[key]],
-                                                 **style))
+                ax.add_collection(LineCollection([lay.page(k, line) for line in v[key]], **style))
     centre = np.mean([np.asarray(f["point_mm"], float) for f in features], axis=0) if features else np.zeros(3)
     anchors = {fid: _anchor(f, views, centre) for fid, f in solid.parsed.items()}
 
