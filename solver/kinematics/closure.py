@@ -668,6 +668,7 @@ class Kinematics:
         max_iter: int = 40,
         max_step: float = 0.3,
         _elements: tuple | None = None,
+        _inverse: np.ndarray | None = None,
     ) -> AssemblyResult:
         """Solve the passive joints by Gauss-Newton (least squares when over-constrained).
 
@@ -687,6 +688,14 @@ class Kinematics:
         _elements : tuple, optional
             Internal: the element matrices of ``xi`` (one defect vector per configuration,
             :meth:`_all_element_matrices`) computed before, when the same machines are assembled again.
+        _inverse : ndarray, (K, n_p, n_r), optional
+            Internal: an approximate inverse of each row's passive closure map (rotation rows scaled by the
+            length scale, as the iterations scale them), e.g. the nominal machine's at a nearby configuration.
+            The rows then take chord steps with it (the residual only: no Jacobian, no solve) while they contract
+            by :data:`CHORD_RATE` at least, and stop when the step is below ``tol`` and the error the chord
+            leaves (the step times its contraction) is below :data:`CHORD_LEFT`: the same fixed point (the residual's
+            zero), to the round-off.  A row whose chord does not contract goes on by Gauss-Newton.  Square passive
+            maps only (an over-constrained map's least-squares point depends on its own Jacobian): otherwise ignored.
 
         Returns
         -------
@@ -708,29 +717,72 @@ class Kinematics:
         if xi is not None and np.ndim(xi) == 2 and len(xi) == len(q) > 1:
             xi = np.asarray(xi, dtype=float)
             every = self._all_element_matrices(xi) if _elements is None else _elements
+        chord = _inverse is not None and 6 * len(self.mechanism.closures) == len(passive)
+        # the rows taking chord steps with ``_inverse`` (the others Gauss-Newton), and each row's last step
+        by_chord = np.full(q.shape[0], chord)
+        last = np.full(q.shape[0], np.inf)
         for _ in range(max_iter):
             idx = np.nonzero(active)[0]
             if idx.size == 0:
                 break
-            st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), "joints",
-                               _elements=_element_rows(every, idx, len(q)))
-            r = self.scaled(st.residual)
-            b = st.closure_q[:, :, passive]  # a copy (an index array), scaled in place as scaled_rows scales its copy
-            for c in range(b.shape[-2] // 6):
-                b[..., 6 * c : 6 * c + 3, :] *= self.length_scale
-            dq = -batched_lstsq(b, r[..., None])[..., 0]
+            if not chord:
+                r, dq = self._gauss_newton_steps(q, xi, every, idx)
+            else:
+                r, dq = self._chord_steps(q, xi, every, idx, by_chord[idx], _inverse)
             ratio = np.max(np.abs(dq) / step_cap, axis=1, keepdims=True)
             dq = dq / np.maximum(ratio, 1.0)
             q[np.ix_(idx, passive)] += dq
             stepn = np.max(np.abs(dq) / step_cap * max_step, axis=1)
             rn = np.linalg.norm(r, axis=1)
             stalled = (rn >= prev[idx] * 0.999999) & (stepn < 1e-6)
-            done = (stepn < tol) | (rn < 1e-13 * self.length_scale) | stalled
+            converged = stepn < tol
+            if chord:
+                # a Gauss-Newton step leaves an error of the order of its square, a chord step the step times its
+                # contraction (this step over the last one; one, unknown, at the first): a chord row stops when that
+                # error, too, is at the round-off; a chord that does not contract hands its row to Gauss-Newton
+                known = np.isfinite(last[idx])
+                rate = np.where(known, stepn / np.where(known, last[idx], 1.0), 1.0)
+                on = by_chord[idx]
+                converged &= ~on | (stepn * np.minimum(rate, 1.0) < CHORD_LEFT)
+                by_chord[idx[on & known & (rate > CHORD_RATE)]] = False
+                last[idx] = stepn
+            done = converged | (rn < 1e-13 * self.length_scale) | stalled
             prev[idx] = rn
             active[idx[done]] = False
         st = self.evaluate(q, xi, jacobians=False, _elements=every)
         res = self.residual_norm(st.residual)
         return AssemblyResult(q, res, res <= 1e-7 * self.length_scale, output_pose=np.array(st.output_pose))
+
+    def _gauss_newton_steps(self, q: np.ndarray, xi, every, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The scaled residuals and the Gauss-Newton steps of the passive joints at the rows ``idx`` of ``q``
+        (:meth:`assemble`'s iteration)."""
+        passive = self.mechanism.passive
+        st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), "joints",
+                           _elements=_element_rows(every, idx, len(q)))
+        r = self.scaled(st.residual)
+        # a copy of the passive columns (the same values as ``closure_q[:, :, passive]``, gathered at half the cost of
+        # the advanced index on the last axis), scaled in place as scaled_rows scales its copy
+        b = np.take(st.closure_q, passive, axis=2)
+        for c in range(b.shape[-2] // 6):
+            b[..., 6 * c : 6 * c + 3, :] *= self.length_scale
+        return r, -batched_lstsq(b, r[..., None])[..., 0]
+
+    def _chord_steps(self, q: np.ndarray, xi, every, idx: np.ndarray, on: np.ndarray,
+                     inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The scaled residuals and the steps at the rows ``idx`` of ``q``: chord steps with ``inverse`` where ``on``
+        (the residual only), Gauss-Newton steps elsewhere (:meth:`assemble` with ``_inverse``)."""
+        if not on.all():
+            r = np.empty((idx.size, 6 * len(self.mechanism.closures)))
+            dq = np.empty((idx.size, len(self.mechanism.passive)))
+            if (~on).any():
+                r[~on], dq[~on] = self._gauss_newton_steps(q, xi, every, idx[~on])
+            if on.any():
+                r[on], dq[on] = self._chord_steps(q, xi, every, idx[on], on[on], inverse)
+            return r, dq
+        st = self.evaluate(q[idx], None if xi is None else (xi if np.ndim(xi) == 1 else xi[idx]), False,
+                           _elements=_element_rows(every, idx, len(q)))
+        r = self.scaled(st.residual)
+        return r, -np.einsum("kpr,kr->kp", inverse[idx], r)
 
     def scaled_rows(self, jac: np.ndarray) -> np.ndarray:
         """Jacobian with rotation rows multiplied by the length scale."""
@@ -882,6 +934,13 @@ def _element_rows(elements: tuple | None, idx: np.ndarray, k: int) -> tuple | No
     return ({key: d[idx] for key, d in mats.items()},
             {key: {name: v[idx] for name, v in e.items()} for key, e in extras.items()})
 
+
+#: :meth:`Kinematics.assemble` with ``_inverse``: a chord step must be shorter than this share of the step before it,
+#: else its row goes on by Gauss-Newton
+CHORD_RATE = 0.02
+#: a chord row stops when its step is below the tolerance and the error it leaves (the step times its contraction) is
+#: below this (rad, or per length scale): the round-off of joint values of order one
+CHORD_LEFT = 1e-16
 
 #: a loop's members are taken as column runs (:func:`_member_runs`) when at most this share of the
 #: (loop, column) weights is non-zero (the hexapod's defects: 31 %; the Triflex-II's: 63 %, dense)

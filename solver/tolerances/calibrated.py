@@ -65,6 +65,11 @@ CHORD_STEPS = 6
 #: first-order passive response: one Gauss-Newton step of the assembly at most (its ``max_step``); a larger predicted
 #: move (a nominal configuration near a singularity of its passive joints) is not taken, that row starts as before
 PREDICTED = 0.3
+#: the largest defect (rad, or per length scale) whose machines are assembled by chord steps with the nominal
+#: machine's passive inverse (Kinematics.assemble's ``_inverse``): it contracts about as much as the defects move the
+#: passive map (hexapod: 1e-3 to 1e-2 per step at the probe, 0.05 to 0.2 at the validity cap, where Gauss-Newton's
+#: fewer, dearer iterations cost less)
+CHORD_DEFECTS = 2 * PROBE
 #: the largest share of the task configurations a compensated machine may miss (its reachable set moved: the
 #: workspace's edge); more, and the defects are refused
 MISSED = 0.05
@@ -139,7 +144,8 @@ def _passive_responses(kin: Kinematics, st_cal, st_task) -> dict:
         return {}
     inv_cal = _damped_inverse(kin.scaled_rows(st_cal.closure_q[:, :, passive]))
     inv_task = _damped_inverse(kin.scaled_rows(st_task.closure_q[:, :, passive]))
-    return {"passive_cal": -inv_cal @ kin.scaled_rows(st_cal.closure_xi),
+    return {"inverse_cal": inv_cal, "inverse_task": inv_task,
+            "passive_cal": -inv_cal @ kin.scaled_rows(st_cal.closure_xi),
             "passive_task": -inv_task @ kin.scaled_rows(st_task.closure_xi),
             "passive_act": -inv_task @ kin.scaled_rows(st_task.closure_q[:, :, act]) if len(act) else None}
 
@@ -175,12 +181,15 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     n_s = basis.shape[1]
     act = np.asarray(m.actuated)
 
-    def assembled(q0: np.ndarray, xi: np.ndarray, elements: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def assembled(q0: np.ndarray, xi: np.ndarray, elements: tuple | None = None,
+                  inverse: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         # the assembled configurations and their output poses (the assembly's last evaluation at them); ``elements``:
-        # the element matrices of ``xi`` when the same machines were assembled before (computed once: the same bits).
+        # the element matrices of ``xi`` when the same machines were assembled before (computed once: the same bits);
+        # ``inverse``: the nominal machine's passive inverse at each row's pose (chord steps, Kinematics.assemble).
         # Block by block of rows: each configuration's Gauss-Newton is its own (the same bits), in a working set that
         # stays in the cache
-        parts = [kin.assemble(q0[idx], xi[idx], _elements=_element_rows(elements, idx, len(q0)))
+        parts = [kin.assemble(q0[idx], xi[idx], _elements=_element_rows(elements, idx, len(q0)),
+                              _inverse=None if inverse is None else inverse[idx])
                  for idx in _row_blocks(len(q0), ASSEMBLY_ROWS)]
         return _joined([(res.q, res.output_pose) for res in parts])
 
@@ -203,6 +212,10 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     if setup is None or setup["q_cal"] is not q_cal or setup["q_task"] is not q_task:
         setup = calibration_setup(kin, analysis, decl, q_cal, q_task)
     passive = np.asarray(m.passive)
+    # the nominal machine's passive inverses at every row's pose (machine-major): each assembly's chord steps
+    chordal = "inverse_cal" in setup and float(np.max(np.abs(xi_true) / pscale, initial=0.0)) <= CHORD_DEFECTS
+    inverse_cal = np.tile(setup["inverse_cal"], (n_m, 1, 1)) if chordal else None
+    inverse_task = np.tile(setup["inverse_task"], (n_m, 1, 1)) if chordal else None
     step_scale = kin.joint_scale[passive] * PREDICTED if len(passive) else None
 
     def shift(q: np.ndarray, rows: np.ndarray, dq: np.ndarray) -> None:
@@ -229,7 +242,7 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     qc = predicted(np.tile(q_cal, (n_m, 1)), "passive_cal", xi_true)
     xc = np.repeat(xi_true, k_c, axis=0)
     elements_true = _machine_elements(kin, xi_true)
-    qe, pose_e = assembled(qc, xc, _per_row(elements_true, n_m, k_c, len(xc)))
+    qe, pose_e = assembled(qc, xc, _per_row(elements_true, n_m, k_c, len(xc)), inverse_cal)
     y = _measure(kin, qe, xc, decl, pose_e)
     # Gauss-Newton over (admissible coordinates, nuisances); the nuisances enter linearly (tracker frame as a
     # small rigid motion, offsets in the output frame), so their columns are those of the analysis' design.  The
@@ -252,7 +265,7 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         elements_e = _per_row(machines, n_m, k_c, len(xe))  # for the assembly
         # and for the Jacobians, with the axis tilts' velocities of each machine (computed once per machine)
         elements_d = _per_row(_with_tilt_velocities(kin, machines), n_m, k_c, len(xe))
-        qe, pose_e = assembled(qe, xe, elements_e)
+        qe, pose_e = assembled(qe, xe, elements_e, inverse_cal)
         meas_s, nuisance = _joined([design_rows(idx) for idx in _row_blocks(len(qe))])
         jac = meas_s.reshape(n_m, k_c, -1, n_s).reshape(n_m, -1, n_s)
         nj = nuisance.reshape(n_m, k_c * nuisance.shape[1], -1)
@@ -277,7 +290,8 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
     pose = np.empty((len(qt), 4, 4))  # each row's last assembled pose
     follow = setup.get("passive_act")
     for it in range(CHORD_STEPS + iterations):
-        qt[todo], pose[todo] = assembled(qt[todo], xt[todo], _element_rows(elements_t, todo, len(qt)))
+        qt[todo], pose[todo] = assembled(qt[todo], xt[todo], _element_rows(elements_t, todo, len(qt)),
+                                          None if inverse_task is None else inverse_task[todo])
         if it < CHORD_STEPS:
             rhs = -np.einsum("krs,ks->kr", task_rows(decl.task, pose[todo]), _pose_error(pose[todo], goal[todo]))
             done = np.linalg.norm(rhs * tscale[None, :], axis=1) <= 1e-12
@@ -294,12 +308,13 @@ def simulate_calibration(mechanism: Mechanism, kin: Kinematics, analysis, decl, 
         if not len(todo):
             break
     if len(todo):  # the rows moved by the last step; the others were assembled at their actuated values already
-        qt[todo], pose[todo] = assembled(qt[todo], xt[todo], _element_rows(elements_t, todo, len(qt)))
+        qt[todo], pose[todo] = assembled(qt[todo], xt[todo], _element_rows(elements_t, todo, len(qt)),
+                                          None if inverse_task is None else inverse_task[todo])
     reached = np.einsum("krs,ks->kr", task_rows(decl.task, pose), _pose_error(pose, goal))
     reached = np.linalg.norm(reached * tscale[None, :], axis=1) <= 1e-9
     xt_true = np.repeat(xi_true, k_t, axis=0)
     qt = predicted(qt, "passive_task", xi_true - xi_est)
-    qt, true_pose = assembled(qt, xt_true, _per_row(elements_true, n_m, k_t, len(xt_true)))
+    qt, true_pose = assembled(qt, xt_true, _per_row(elements_true, n_m, k_t, len(xt_true)), inverse_task)
     err = np.einsum("krs,ks->kr", task_rows(decl.task, true_pose), _pose_error(true_pose, goal))
     pos = np.linalg.norm(err[:, n_rot:], axis=1).reshape(n_m, k_t)
     rot = np.linalg.norm(err[:, :n_rot], axis=1).reshape(n_m, k_t)

@@ -257,3 +257,23 @@ def test_the_coefficients_in_blocks_of_configurations_are_the_same_bit_for_bit(t
         blocks = o.values(q)
         assert blocks.keys() == w.keys() and len(q) > 20
         assert all(np.array_equal(blocks[n], w[n]) for n in w) and max(float(v.max()) for v in w.values()) > 0
+
+
+def test_the_passive_velocities_by_lu_are_the_pseudo_inverses_to_the_round_off():
+    """``_pinv_apply`` (the dead centres' passive velocities, issue 39): a square, regular matrix solved by LU gives the
+    pseudo-inverse's vector to the round-off; a singular one (a passive joint's dead centre) and a non-square one
+    go through ``numpy.linalg.pinv`` itself, the same bits."""
+    from hyperstat.solver.tolerances.worst_case import _pinv_apply
+
+    rng = np.random.default_rng(5)
+    a = rng.normal(size=(12, 6, 6))
+    a[3, :, 5] = a[3, :, 4]  # singular: rank 5
+    v = rng.normal(size=(12, 6))
+    ref = np.einsum("kpr,kr->kp", np.linalg.pinv(a, rcond=1e-10), v)
+    out = _pinv_apply(a, v, 1e-10)
+    assert np.array_equal(out[3], ref[3])
+    regular = np.arange(12) != 3
+    assert np.abs(out[regular] - ref[regular]).max() <= 1e-12 * np.abs(ref[regular]).max()
+    tall = rng.normal(size=(4, 8, 6))
+    w = rng.normal(size=(4, 8))
+    assert np.array_equal(_pinv_apply(tall, w, 1e-10), np.einsum("kpr,kr->kp", np.linalg.pinv(tall, rcond=1e-10), w))
