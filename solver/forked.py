@@ -18,6 +18,7 @@ which never imports the CAD side.)
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import sys
@@ -68,6 +69,7 @@ class Forked:
             except (AttributeError, ValueError):
                 pass
         read, write = os.pipe()
+        gc.freeze()  # the heap so far out of the collector's reach: the child's collections skip what it inherits
         try:
             pid = os.fork()
         except OSError:  # no process left: computed in-process later
