@@ -103,7 +103,10 @@ def _prepare_pages(provisional=None) -> None:
     finally:
         if enabled:
             gc.enable()
-    gc.freeze()
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:  # in the pages' forked child only: never a caller's heap for good
+        gc.freeze()
     report_parts.text_width_pt("M")
     if provisional is not None:
         try:

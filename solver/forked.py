@@ -69,10 +69,11 @@ class Forked:
             except (AttributeError, ValueError):
                 pass
         read, write = os.pipe()
-        gc.freeze()  # the heap so far out of the collector's reach: the child's collections skip what it inherits
+        gc.freeze()  # the heap so far out of the child's collector's reach: its collections skip what it inherits
         try:
             pid = os.fork()
         except OSError:  # no process left: computed in-process later
+            gc.unfreeze()
             os.close(read)
             os.close(write)
             return
@@ -92,6 +93,7 @@ class Forked:
                 pass
             finally:
                 os._exit(code)
+        gc.unfreeze()  # this process' collector gets its heap back (a long-lived caller keeps collecting it)
         os.close(write)
         self._pid, self._read = pid, read
 
