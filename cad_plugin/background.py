@@ -17,6 +17,7 @@ enter: never as a pickle, whose loading runs code (the trust boundary of the REA
 from __future__ import annotations
 
 import base64
+import gc
 import json
 import os
 import shutil
@@ -104,11 +105,17 @@ class Background:
                 stream.flush()
             except (AttributeError, ValueError):
                 pass
+        # the heap so far out of the child's collector's reach: its collections do not go over the objects it
+        # inherits (modules, data); given back to this process' collector once the child is started, so that a
+        # long-lived caller (a notebook, a workbench) keeps collecting what was garbage at the fork
+        gc.freeze()
         try:
             self._proc = ctx.Process(target=_child, args=(fn, args, self._path), daemon=True)
             self._proc.start()
         except OSError:  # pragma: no cover - no process left: do it in-process later
             self._proc = None
+        finally:
+            gc.unfreeze()
 
     def result(self, timeout: float = 180.0) -> Any:
         """The child's result; ``fn(*args)`` in-process if there is no child, it failed, or it ran past ``timeout`` s."""

@@ -362,7 +362,7 @@ def _draw_block(ax, x: float, y: float, fr: dict, text: dict, words: dict) -> fl
     drawn = []
     for i, cell in enumerate(frame_cells(fr)):
         w = h if i == 0 else (text_width_pt(cell) + 5.0) * _PT
-        ax.add_patch(Rectangle((x, row_y), w, h, fc="white", ec="black", lw=0.6))
+        ax.add_artist(Rectangle((x, row_y), w, h, fc="white", ec="black", lw=0.6))  # add_patch less the limits
         if i == 0:
             if not draw_symbol(ax, cell, x + 0.15 * h, row_y + 0.85 * h, 0.7 * h):
                 ax.text(x + 0.5 * w, row_y + 0.5 * h, cell[:4], ha="center", va="center", **text)
@@ -451,7 +451,8 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
     ax = fig.add_axes([0, 0, 1, 1])
     ax.set_xlim(0, WIDTH_MM)
     ax.set_ylim(height, 0)
-    ax.set_axis_off()
+    ax.set_axis_off()  # the limits set, no autoscaling: patches are added by add_artist (add_patch also computes
+    # the data limits, a fifth of this function's time) and collections without autolim, to the same picture
     part = drawing.get("part", "")
     words = {"format": "hyperstat-picture-words", "version": 1, "title": f"Part drawing: {part}", "views": [],
              "datums": [], "frames": [], "callouts": []}
@@ -468,8 +469,10 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
         words["views"].append(label)
         for key, style in (("hidden", {"lw": 0.35, "linestyle": (0, (3, 2)), "color": "#555555"}),
                            ("visible", {"lw": 0.7, "color": "black", "capstyle": "round", "joinstyle": "round"})):
-            if v[key]:
-                ax.add_collection(LineCollection([lay.page(k, line) for line in v[key]], **style))
+            if v[key]:  # every line's points on the page at once (element by element: the same numbers)
+                points = lay.page(k, np.concatenate(v[key]))
+                lines = np.split(points, np.cumsum([len(line) for line in v[key]])[:-1])
+                ax.add_collection(LineCollection(lines, **style), autolim=False)  # the limits are set
     centre = np.mean([np.asarray(f["point_mm"], float) for f in features], axis=0) if features else np.zeros(3)
     anchors = {fid: _anchor(f, views, centre) for fid, f in solid.parsed.items()}
 
@@ -488,14 +491,14 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
             direction = np.array([0.0, 1.0])
         direction = direction / np.linalg.norm(direction) * np.array([1.0, -1.0])  # page y points down
         normal = np.array([-direction[1], direction[0]])
-        ax.add_patch(Polygon([base + 1.2 * normal, base - 1.2 * normal, base + 2.0 * direction], closed=True,
+        ax.add_artist(Polygon([base + 1.2 * normal, base - 1.2 * normal, base + 2.0 * direction], closed=True,
                              fc="black", ec="black", lw=0.4))
         stem_end = base + 6.0 * direction
         ax.plot([base[0] + 2.0 * direction[0], stem_end[0]], [base[1] + 2.0 * direction[1], stem_end[1]],
                 color="black", lw=0.5)
         box = 4.6
         middle = stem_end + 0.5 * box * direction
-        ax.add_patch(Rectangle(middle - 0.5 * box, box, box, fc="white", ec="black", lw=0.6))
+        ax.add_artist(Rectangle(middle - 0.5 * box, box, box, fc="white", ec="black", lw=0.6))
         ax.text(middle[0], middle[1], d["letter"], ha="center", va="center", **text)
         words["datums"].append(str(d["letter"]))
     # feature control frames, each with a leader to its feature

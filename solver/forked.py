@@ -18,6 +18,7 @@ which never imports the CAD side.)
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import sys
@@ -68,9 +69,11 @@ class Forked:
             except (AttributeError, ValueError):
                 pass
         read, write = os.pipe()
+        gc.freeze()  # the heap so far out of the child's collector's reach: its collections skip what it inherits
         try:
             pid = os.fork()
         except OSError:  # no process left: computed in-process later
+            gc.unfreeze()
             os.close(read)
             os.close(write)
             return
@@ -90,6 +93,7 @@ class Forked:
                 pass
             finally:
                 os._exit(code)
+        gc.unfreeze()  # this process' collector gets its heap back (a long-lived caller keeps collecting it)
         os.close(write)
         self._pid, self._read = pid, read
 

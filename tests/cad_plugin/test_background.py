@@ -63,3 +63,21 @@ def test_a_deferred_child_that_fails_or_cannot_fork_leaves_the_work_to_this_proc
     monkeypatch.setenv("HYPERSTAT_NO_FORK", "1")
     pid, value = Deferred(_pid_and_square).result(6)
     assert value == 36 and pid == os.getpid()
+
+
+def _frozen_in_the_child() -> tuple[int, int]:
+    import gc
+
+    return os.getpid(), gc.get_freeze_count()
+
+
+def test_the_child_skips_the_inherited_heap_and_the_caller_keeps_collecting_its_own():
+    """gc.freeze before the fork: the child's collections leave out what it inherits; the caller's heap is given back
+    to its collector once the child is started (a workbench or a notebook keeps collecting the garbage of that moment)."""
+    import gc
+
+    assert gc.get_freeze_count() == 0
+    job = Background(_frozen_in_the_child)
+    assert gc.get_freeze_count() == 0
+    pid, frozen = job.result()
+    assert pid != os.getpid() and frozen > 1000

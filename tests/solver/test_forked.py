@@ -73,3 +73,21 @@ def test_a_hung_child_is_killed_and_the_caller_computes():
     assert job.result(timeout=0.5) == 7
     with pytest.raises(ChildProcessError):  # killed and reaped, not left running
         os.waitpid(pid, os.WNOHANG)
+
+
+def _frozen_in_the_child() -> dict:
+    import gc
+
+    return {"pid": os.getpid(), "frozen": gc.get_freeze_count()}
+
+
+def test_the_child_skips_the_inherited_heap_and_the_caller_keeps_collecting_its_own():
+    """The child's collector leaves out what it inherits (gc.freeze before the fork); the caller's heap is given back
+    to its collector at once (a long-lived caller must not keep the garbage of the moment of a fork for good)."""
+    import gc
+
+    assert gc.get_freeze_count() == 0
+    job = Forked(_frozen_in_the_child)
+    assert gc.get_freeze_count() == 0  # given back in the caller, right after the fork
+    got = job.result()
+    assert got["pid"] != os.getpid() and got["frozen"] > 1000  # the interpreter's and the modules' objects at least
