@@ -150,9 +150,9 @@ def _cmd_report(args) -> int:
 
     from hyperstat.cad_plugin.background import Background
     from hyperstat.cad_plugin.palette import element_classes
-    from hyperstat.cad_plugin.report import (cached_diagnosis, decode_entry, diagnosis_entry, part_pages_worker,
-                                             preload_pictures, skeleton_views_drawn, store_diagnosis,
-                                             write_report)
+    from hyperstat.cad_plugin.report import (cached_diagnosis, cached_views, decode_entry, diagnosis_entry,
+                                             part_pages_worker, preload_pictures, skeleton_views_drawn,
+                                             store_diagnosis, store_views, write_report)
 
     date = _report_date(args.date)  # a bad date is refused before any work
     if args.workspace_loss is not None:  # and a bad budget
@@ -182,7 +182,9 @@ def _cmd_report(args) -> int:
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
         if not args.json_only:  # once here rather than in each child forked below
             preload_pictures()
-        views = None if args.json_only else Background(skeleton_views_drawn, mech, early)
+        # this model's views as an earlier report drew them (the same bytes), else drawn now by the child
+        drawn_before = None if args.json_only else cached_views(args, mech, early)
+        views = None if args.json_only or drawn_before is not None else Background(skeleton_views_drawn, mech, early)
         pages = None
 
         def start_pages() -> None:  # values to compute: a child imports OCCT meanwhile, then draws the part pages
@@ -272,7 +274,10 @@ def _cmd_report(args) -> int:
 
             written = [write_text(Path(args.out) / "report.json", dumps_json(solver_cli.jsonable(doc)))]
         else:
-            drawn = views.result()
+            drawn = drawn_before
+            if drawn is None:
+                drawn = views.result()
+                store_views(args, mech, early, drawn)
             if element_classes(analysis_json) == element_classes(early):  # else write_report renders them again
                 images["rendered"], images["skeleton"] = drawn["rendered"], drawn["drawing"]
             written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,

@@ -24,7 +24,7 @@ from hyperstat.cad_plugin.report_markdown import render_markdown
 
 __all__ = ["write_report", "skeleton_views", "skeleton_views_drawn", "skeleton_drawing", "render_html",
            "render_markdown", "SECTIONS", "step_name", "part_pages_worker", "cached_diagnosis", "store_diagnosis",
-           "diagnosis_entry", "decode_entry", "preload_pictures"]
+           "diagnosis_entry", "decode_entry", "preload_pictures", "cached_views", "store_views"]
 
 
 def step_name(part: str) -> str:
@@ -81,6 +81,62 @@ def skeleton_views_drawn(mechanism, analysis_json: dict | None = None) -> dict:
     title = f"Skeleton of {mechanism.name}"
     svg, png, words = skeleton_drawing(rendered, [], title)
     return {"rendered": rendered, "drawing": {"title": title, "svg": svg, "png": png, "words": words}}
+
+
+def _views_key(args, mechanism, analysis_json: dict | None) -> str | None:
+    """The cache key of the skeleton views and their drawing (:func:`skeleton_views_drawn`): the model (its
+    canonical text), the whole analysis JSON the views are coloured and called out from, the drawing code's version
+    (:func:`hyperstat.cad_plugin.report_parts.drawing_code_version`: the ``cad_plugin`` sources, CadQuery, OCP,
+    matplotlib), the versions of the renderer and the image libraries (pyvista, VTK, Pillow), and the solver's
+    (:func:`hyperstat.solver.cache.key`); None without a cache."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from hyperstat.solver.cache import key
+    from hyperstat.solver.cli.cached import _digest, command_cache, model_identity
+
+    from hyperstat.cad_plugin.report_parts import drawing_code_version
+
+    if not command_cache(args).enabled:
+        return None
+    libraries = []
+    for name in ("pyvista", "vtk", "pillow"):
+        try:
+            libraries.append(f"{name}={version(name)}")
+        except PackageNotFoundError:  # pragma: no cover - a library installed without metadata
+            libraries.append(f"{name}=?")
+    return key("skeleton-views", drawing_code_version(), libraries, model_identity(args, mechanism),
+               _digest(analysis_json))
+
+
+def cached_views(args, mechanism, analysis_json: dict | None) -> dict | None:
+    """The skeleton views and their drawing as :func:`store_views` kept them for this model and analysis (what
+    :func:`skeleton_views_drawn` returns, the same bytes), or None.  A report run again on the same model (new data,
+    hypotheses, revision) then renders nothing: the views' child was the last process of a cached report."""
+    from hyperstat.solver.cli.cached import command_cache
+
+    from hyperstat.cad_plugin.background import _decode
+
+    k = _views_key(args, mechanism, analysis_json)
+    stored = command_cache(args).load("skeleton-views", k) if k else None
+    try:
+        drawn = _decode(stored) if isinstance(stored, dict) else None
+    except (TypeError, ValueError, AttributeError, KeyError):
+        return None
+    if not (isinstance(drawn, dict) and isinstance(drawn.get("rendered"), dict)
+            and isinstance(drawn.get("drawing"), dict) and isinstance(drawn["drawing"].get("png"), bytes)):
+        return None
+    return drawn
+
+
+def store_views(args, mechanism, analysis_json: dict | None, drawn: dict) -> None:
+    """Keep the skeleton views and their drawing (:func:`cached_views`)."""
+    from hyperstat.solver.cli.cached import command_cache
+
+    from hyperstat.cad_plugin.background import _encode
+
+    k = _views_key(args, mechanism, analysis_json)
+    if k:
+        command_cache(args).store("skeleton-views", k, _encode(drawn))
 
 
 def _prepare_pages(provisional=None) -> None:

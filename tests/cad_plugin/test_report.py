@@ -383,3 +383,35 @@ def test_a_second_report_reads_the_diagnosis_from_the_cache_and_writes_the_same_
     with pytest.raises(AssertionError, match="computed again"):
         main(["report", str(TEMPLATES / "tripteor_x7.py"), "--data", str(changed), "--validation",
               str(out.parent / "d.validation.csv"), "--out", str(tmp_path / "other"), "--quiet", "--json-only"])
+
+
+def test_a_second_report_of_the_same_model_draws_the_skeleton_views_from_the_cache(tmp_path, monkeypatch):
+    """The skeleton views and their drawing are kept per model and analysis: a report run again on the same model
+    renders nothing (the renderer made to fail proves it) and writes the same files, byte for byte, as the first and
+    as a run without the cache; another model (a changed parameter) is another entry, rendered."""
+    import hyperstat.cad_plugin.report as report_module
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("HYPERSTAT_CACHE", str(cache))
+    source = str(TEMPLATES / "slider_crank.py")
+
+    def run(out: str, *extra: str) -> dict:
+        assert main(["report", source, "--out", str(tmp_path / out), "--date", "2026-01-01", "--quiet", *extra]) == 0
+        return {p.name: p.read_bytes() for p in (tmp_path / out).iterdir()}
+
+    first = run("first")
+    assert len(list((cache / "skeleton-views").rglob("*.json"))) == 1
+    fresh = run("fresh", "--no-cache")
+
+    def no_rendering(*args, **kwargs):
+        raise AssertionError("the skeleton views were rendered again")
+
+    monkeypatch.setattr(report_module, "skeleton_views", no_rendering)  # the forked child inherits it too
+    again = run("again")
+    assert again == first == fresh
+    with pytest.raises(AssertionError, match="rendered again"):
+        run("other", "-p", "L1=41")
+    monkeypatch.undo()
+    monkeypatch.setenv("HYPERSTAT_CACHE", str(cache))
+    run("other", "-p", "L1=41")
+    assert len(list((cache / "skeleton-views").rglob("*.json"))) == 2
