@@ -180,16 +180,26 @@ def _cmd_report(args) -> int:
 
         with_workspace_loss(tolerances, args.workspace_loss)
         early = solver_cli.jsonable({**result.to_dict(), "tolerances": tolerances.to_dict()})
-        if not args.json_only:  # once here rather than in each child forked below
-            preload_pictures()
+        preloaded = False
+
+        def before_a_fork() -> None:  # matplotlib imported once, before the first child that draws, not in each
+            nonlocal preloaded
+            if not (args.json_only or preloaded):
+                preload_pictures()
+                preloaded = True
+
         # this model's views as an earlier report drew them (the same bytes), else drawn now by the child
         drawn_before = None if args.json_only else cached_views(args, mech, early)
-        views = None if args.json_only or drawn_before is not None else Background(skeleton_views_drawn, mech, early)
+        views = None
+        if not (args.json_only or drawn_before is not None):
+            before_a_fork()
+            views = Background(skeleton_views_drawn, mech, early)
         pages = None
 
         def start_pages() -> None:  # values to compute: a child imports OCCT meanwhile, then draws the part pages
             nonlocal pages
             if not (args.json_only or args.step_drawings or all(t.cls == "non-influent" for t in tolerances.items)):
+                before_a_fork()
                 pages = part_pages_worker(command_cache(args), provisional)
 
         kinds = {el.name: getattr(el, "type", "F") for ch in mech.chains for el in ch.elements}
@@ -225,6 +235,7 @@ def _cmd_report(args) -> int:
                     store_selection(args, mech, result, data_files, SimpleNamespace(
                         selected=stored["selected"], violated_defect=stored["violated_defect"]))
                 elif data.noise is not None:  # diagnosed and plotted by a forked child while this computes the values
+                    before_a_fork()
                     diagnosing = Background(diagnosis_entry, mech, result, data, validation, kin, not args.json_only)
                 else:
                     from hyperstat.solver.calibration.identify import identify
