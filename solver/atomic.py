@@ -22,6 +22,7 @@ import contextlib
 import glob
 import json
 import os
+import secrets
 import shutil
 import tempfile
 import time
@@ -129,8 +130,7 @@ class OutputSet:
         try:
             if staging is None:
                 _remove_stale_staging(anchor)
-                staging = Path(tempfile.mkdtemp(prefix=f"{_STAGING_PREFIX}{self.pid}-", suffix=".part", dir=anchor))
-                self._staging[anchor] = staging
+                staging = self._new_staging(anchor)
             rel = target.relative_to(anchor)
             staged = staging / "new" / rel
             staged.parent.mkdir(parents=True, exist_ok=True)
@@ -142,6 +142,22 @@ class OutputSet:
                                  f"no output was written.") from None
         self._entries[target] = (anchor, rel)
         return Path(path)
+
+    def _new_staging(self, anchor: Path) -> Path:
+        """A new staging directory in ``anchor``, known to :meth:`discard` before it exists: a ``SIGTERM`` that
+        lands right after its creation (before ``tempfile.mkdtemp`` would have returned it) still has it removed."""
+        for _ in range(100):
+            staging = anchor / f"{_STAGING_PREFIX}{self.pid}-{secrets.token_hex(6)}.part"
+            self._staging[anchor] = staging
+            try:
+                staging.mkdir(mode=0o700)  # as mkdtemp: no other user can put a file there
+                return staging
+            except FileExistsError:  # another directory's name: not ours to remove
+                del self._staging[anchor]
+            except OSError:
+                del self._staging[anchor]
+                raise
+        raise FileExistsError(f"no free name for a staging directory in {anchor}")
 
     def discard(self) -> None:
         """Remove every staged file: nothing was written."""
@@ -294,15 +310,27 @@ def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     started = time.time()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    tmp = None
     try:
+        # the temporary file's name is chosen before it is created, and removed below whatever interrupts this
+        # block: a SIGTERM that lands right after the creation leaves no hidden file (tempfile.mkstemp would have)
+        for _ in range(100):
+            tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.part"
+            try:
+                fd = os.open(tmp, os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o600)
+                break
+            except FileExistsError:  # another file's name: not ours to remove
+                tmp = None
+        else:
+            raise FileExistsError(f"no free name for a temporary file beside {path}")
         _write_file(fd, data)
         os.replace(tmp, path)
     except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
         raise
     for stale in path.parent.glob(f".{glob.escape(path.name)}.*.part"):  # left by a killed writer
         try:

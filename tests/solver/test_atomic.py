@@ -136,3 +136,42 @@ def test_output_locations_are_checked_before_the_work(tmp_path):
         _mutable(kept)
     check_writable(files=[tmp_path / "new" / "deeper" / "out.json"], directories=[tmp_path / "report"])
     assert _visible(tmp_path) == ["a_dir", "a_file", "kept.json", "locked"]  # nothing created by the check
+
+
+class _Interrupted(BaseException):
+    """What the command line's SIGTERM handler raises (a BaseException, as a signal's exception is)."""
+
+
+def _interrupt_right_after(monkeypatch, name: str, created: list) -> None:
+    """``os.<name>`` (mkdir or open) does its work, then is interrupted before it returns: a signal landing there."""
+    real = getattr(os, name)
+
+    def interrupted(path, *args, **kwargs):
+        result = real(path, *args, **kwargs)
+        if str(os.fspath(path)).endswith(".part"):
+            created.append(os.fspath(path))
+            if name == "open":
+                os.close(result)
+            raise _Interrupted
+        return result
+
+    monkeypatch.setattr(os, name, interrupted)
+
+
+def test_an_interrupt_right_after_the_staging_directory_is_made_leaves_nothing(tmp_path, monkeypatch):
+    created: list = []
+    _interrupt_right_after(monkeypatch, "mkdir", created)
+    with pytest.raises(_Interrupted):
+        with all_or_nothing():
+            write_text(tmp_path / "a.txt", "a")
+    monkeypatch.undo()
+    assert created and list(tmp_path.iterdir()) == []  # made, then removed by the block's discard
+
+
+def test_an_interrupt_right_after_the_temporary_file_is_made_leaves_nothing(tmp_path, monkeypatch):
+    created: list = []
+    _interrupt_right_after(monkeypatch, "open", created)
+    with pytest.raises(_Interrupted):
+        write_text(tmp_path / "a.txt", "a")
+    monkeypatch.undo()
+    assert created and list(tmp_path.iterdir()) == []
