@@ -322,6 +322,9 @@ def _constraint_blocks(model: ClearanceModel, q: np.ndarray, kin: Kinematics | N
 #: of blocks (per block on the revolute Delta, the polygon form: 4.1 ms in programmes of 8 blocks, 4.9 ms of 32,
 #: 8.9 ms of 128, 15.9 ms of 256); each block's maximum is its own, so the grouping changes the time, not the programme
 LP_GROUP = 8
+#: groups of :data:`LP_GROUP` blocks from which :func:`_solve` gives half of them to a child when a core is idle
+#: (:func:`hyperstat.solver.forked.beside`): 8 groups take about 0.25-0.4 s, a fork about 5-10 ms
+PARALLEL_GROUPS = 8
 
 
 def _solve(model: ClearanceModel, pairs: list, plays: bool = False) -> tuple[np.ndarray, list]:
@@ -335,11 +338,24 @@ def _solve(model: ClearanceModel, pairs: list, plays: bool = False) -> tuple[np.
     names the joints whose play is used up (the value is the same).
     """
     if len(pairs) > LP_GROUP:
-        t, ys = np.full(len(pairs), np.inf), []
-        for start in range(0, len(pairs), LP_GROUP):
-            t[start:start + LP_GROUP], y = _solve_group(model, pairs[start:start + LP_GROUP], plays)
-            ys += y
-        return t, ys
+        starts = list(range(0, len(pairs), LP_GROUP))
+
+        def groups(part: list) -> tuple:
+            ts, ys = [], []
+            for start in part:
+                t, y = _solve_group(model, pairs[start:start + LP_GROUP], plays)
+                ts.append(t)
+                ys += y
+            return np.concatenate(ts), ys
+        if len(starts) < PARALLEL_GROUPS:
+            return groups(starts)
+        # many groups: the second half by a forked child when a core is idle (the same groups, so the same
+        # programmes and bits; issue 39: the planar 3-RRR's searches and whole drawing solve thousands of blocks)
+        from hyperstat.solver.forked import beside
+
+        half = (len(starts) + 1) // 2
+        (t1, y1), (t2, y2) = beside(lambda: groups(starts[:half]), lambda: groups(starts[half:]))
+        return np.concatenate([t1, t2]), list(y1) + list(y2)
     return _solve_group(model, pairs, plays)
 
 

@@ -91,3 +91,65 @@ def test_the_child_skips_the_inherited_heap_and_the_caller_keeps_collecting_its_
     assert gc.get_freeze_count() == 0  # given back in the caller, right after the fork
     got = job.result()
     assert got["pid"] != os.getpid() and got["frozen"] > 1000  # the interpreter's and the modules' objects at least
+
+
+def _pid_and(x: np.ndarray) -> tuple:
+    return os.getpid(), x @ x.T
+
+
+def test_beside_gives_the_second_half_to_a_child_when_a_core_is_idle(monkeypatch):
+    from hyperstat.solver import forked
+
+    x = np.random.default_rng(5).normal(size=(9, 4))
+    monkeypatch.setattr(forked, "idle_core", lambda: True)
+    (p1, a1), (p2, a2) = forked.beside(lambda: _pid_and(x), lambda: _pid_and(x))
+    assert p1 == os.getpid() != p2  # the second computed by a child
+    assert a1.tobytes() == a2.tobytes()  # the same arithmetic, handed back bit for bit
+    monkeypatch.setattr(forked, "idle_core", lambda: False)
+    (p1, _), (p2, _) = forked.beside(lambda: _pid_and(x), lambda: _pid_and(x))
+    assert p1 == p2 == os.getpid()  # no idle core: both here
+
+
+def test_beside_stops_its_child_when_the_first_half_fails(monkeypatch):
+    from hyperstat.solver import forked
+
+    started = []
+
+    class Recorded(forked.Forked):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            started.append((self, self._pid))
+    monkeypatch.setattr(forked, "idle_core", lambda: True)
+    monkeypatch.setattr(forked, "Forked", Recorded)
+    with pytest.raises(ZeroDivisionError):
+        forked.beside(lambda: 1 / 0, lambda: 2)
+    (job, pid), = started
+    assert pid is not None and job._pid is None  # a child was started, then killed
+    with pytest.raises(ChildProcessError):  # and reaped
+        os.waitpid(pid, os.WNOHANG)
+
+
+def test_idle_core_reads_the_running_tasks(monkeypatch, tmp_path):
+    from hyperstat.solver import forked
+
+    monkeypatch.setenv("HYPERSTAT_NO_FORK", "1")
+    assert forked.idle_core() is False
+    monkeypatch.delenv("HYPERSTAT_NO_FORK")
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
+    real_open = open
+
+    def loadavg(running: int):
+        def fake(path, *a, **k):
+            if path == "/proc/loadavg":
+                p = tmp_path / "loadavg"
+                p.write_text(f"0.50 0.40 0.30 {running}/120 4242\n")
+                return real_open(p, *a, **k)
+            return real_open(path, *a, **k)
+        return fake
+    monkeypatch.setattr("builtins.open", loadavg(1))
+    assert forked.idle_core() is True  # only this task runs on two cores
+    monkeypatch.setattr("builtins.open", loadavg(2))
+    assert forked.idle_core() is False
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
+    monkeypatch.setattr("builtins.open", loadavg(1))
+    assert forked.idle_core() is False  # one core: nothing beside

@@ -227,3 +227,41 @@ def test_the_zonotope_programme_gives_the_polygon_programmes_value(slider):
                                                       "dual_feasibility_tolerance": 1e-10})
             assert res.success
             assert got[t.id][k] == pytest.approx(unit * res.x[-1], rel=1e-8), (t.statement, k)
+
+
+def test_many_blocks_are_split_with_a_child_when_a_core_is_idle_with_the_same_values(slider, monkeypatch):
+    """clearance._solve gives half its groups of blocks to a forked child when a core is idle: the same groups, so
+    the same bits as without the child, and each configuration's values those it has when evaluated alone."""
+    from hyperstat.solver import forked
+    from hyperstat.solver.tolerances.clearance import LP_GROUP, PARALLEL_GROUPS, AssemblyConditions
+
+    mech, result, cl, items, model, values = slider
+    q = np.repeat(result.configurations, 2, axis=0)[: 2 * PARALLEL_GROUPS * LP_GROUP // len(items) + 1]
+    assert len(q) * len(items) >= PARALLEL_GROUPS * LP_GROUP  # enough blocks for the split
+    objective = AssemblyConditions(model, items)
+    children = []
+
+    class Counted(forked.Forked):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            children.append(self._pid)
+    monkeypatch.setattr(forked, "Forked", Counted)
+    got = {}
+    for idle in (False, True):
+        monkeypatch.setattr(forked, "idle_core", lambda idle=idle: idle)
+        which = [t.id for _ in q for t in items]
+        got[idle] = objective.plays(np.repeat(q, len(items), axis=0), which, exact=True)
+        got[(idle, "values")] = objective.values(q)
+    assert children and None not in children  # the split happened, in children
+    t_true, y_true = got[True]
+    t_false, y_false = got[False]
+    assert t_true.tobytes() == t_false.tobytes()
+    assert all((a is None and b is None) or a.tobytes() == b.tobytes() for a, b in zip(y_true, y_false))
+    for t in items:
+        assert got[(True, "values")][t.id].tobytes() == got[(False, "values")][t.id].tobytes()
+    # every configuration's values as when it is evaluated alone (one group of its own blocks: the same programme
+    # up to the solver's round-off), in order
+    for k in range(len(q)):
+        alone = objective.values(q[k:k + 1])
+        for t in items:
+            assert got[(True, "values")][t.id][k] == pytest.approx(alone[t.id][0], rel=1e-8, abs=1e-15), (k, t.id)
