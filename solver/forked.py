@@ -28,7 +28,7 @@ import os
 import sys
 from typing import Any, Callable
 
-__all__ = ["Forked", "HUNG_AFTER", "beside", "idle_core"]
+__all__ = ["Forked", "HUNG_AFTER", "beside", "idle_core", "when_idle"]
 
 HUNG_AFTER = 600.0  #: seconds without a byte from the child after which :meth:`Forked.result` kills it (s)
 
@@ -195,3 +195,35 @@ def beside(first: Callable[[], Any], second: Callable[[], Any]) -> tuple[Any, An
         child.cancel()
         raise
     return head, child.result()
+
+
+class _Done:
+    """A result computed at once, with :class:`Forked`'s interface (:func:`when_idle`)."""
+
+    def __init__(self, value: Any) -> None:
+        self._value = value
+
+    def result(self, timeout: float = HUNG_AFTER) -> Any:
+        return self._value
+
+    def cancel(self) -> None:
+        pass
+
+
+def when_idle(fn: Callable, *args: Any) -> "Forked | _Done":
+    """``fn(*args)`` started in a forked child when a core is idle now (:func:`idle_core`), else computed here at
+    once; its ``result()`` either way (and ``cancel()``, which stops a child).
+
+    For a stage the caller does not need before its next one: the same result wherever it is computed
+    (:class:`Forked`), so the choice depends only on the load.  ``fn`` must not change this process' state.
+
+    Examples
+    --------
+    >>> when_idle(sum, [1, 2, 3.5]).result()
+    6.5
+    """
+    import threading
+
+    if threading.current_thread() is threading.main_thread() and idle_core():
+        return Forked(fn, *args)
+    return _Done(fn(*args))

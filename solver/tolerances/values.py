@@ -364,21 +364,30 @@ def _assign_values(cl, mechanism, kin, configurations, position_accuracy, orient
         from hyperstat.solver.forked import Forked
 
         calibrating = Forked(_with_calibration, cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
+    bounding = None
     try:
-        qa = _assembly_and_bounds(cl, mechanism, kin, q, assembly, assembly_configurations, workspace, info,
-                                  influential, dirs if influential else None, is_len if influential else None,
-                                  spec_p, spec_o, memo)
+        qa = _assembly_values(cl, mechanism, kin, q, assembly, assembly_configurations, workspace, info, memo)
+        if influential:
+            # the bounds read the allocations only, and nothing after them reads the bounds: by a child beside the
+            # values with calibration and the drawing when a core is idle (the same values; issue 39)
+            from hyperstat.solver.forked import when_idle
+
+            bounding = when_idle(_bounds, cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p,
+                                 spec_o)
+        if calibrate and influential:
+            done = calibrating.result() if calibrating is not None else \
+                _with_calibration(cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
+            for t, (value, limit) in zip(cl.items, done["items"]):
+                t.value_with_calibration, t.value_with_calibration_limit = value, limit
+            info["with_calibration"] = done["evidence"]
+        info.update(_drawing_values(cl, mechanism, kin, qa, workspace, memo))
     except BaseException:
-        if calibrating is not None:
-            calibrating.cancel()
+        for job in (calibrating, bounding):
+            if job is not None:
+                job.cancel()
         raise
-    if calibrate and influential:
-        done = calibrating.result() if calibrating is not None else \
-            _with_calibration(cl, mechanism, kin, q, spec_p, spec_o, workspace, reserve)
-        for t, (value, limit) in zip(cl.items, done["items"]):
-            t.value_with_calibration, t.value_with_calibration_limit = value, limit
-        info["with_calibration"] = done["evidence"]
-    info.update(_drawing_values(cl, mechanism, kin, qa, workspace, memo))
+    if bounding is not None:
+        _apply_bounds(bounding.result(), influential, info)
     cl.allocation = info
     return cl
 
@@ -400,9 +409,8 @@ def _state(t) -> dict:
     return dict(vars(t))
 
 
-def _assembly_and_bounds(cl, mechanism, kin, q, assembly, assembly_configurations, workspace, info, influential, dirs,
-                         is_len, spec_p, spec_o, memo=None):
-    """The assembly conditions' values and the bounds of the allocations (in place); the assembly configurations."""
+def _assembly_values(cl, mechanism, kin, q, assembly, assembly_configurations, workspace, info, memo=None):
+    """The assembly conditions' values (in place); the assembly configurations."""
     decl = cl.declaration
     qa = None
     if assembly:
@@ -452,17 +460,19 @@ def _assembly_and_bounds(cl, mechanism, kin, q, assembly, assembly_configuration
                 if rv is not None and n_ref and rv > v["value"] * (1 + 1e-9):
                     t.value_source += (f"; the analysis configurations alone give {rv:.4g} {t.unit} "
                                        f"({100 * (rv / v['value'] - 1):.0f} % looser)")
-    if influential:
-        _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o)
     return qa
 
 
-def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o) -> None:
-    """The attainable linear worst case and the triangle bound of each allocation, searched over the workspace."""
+def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, spec_p, spec_o) -> list:
+    """The attainable linear worst case and the triangle bound of each allocation, searched over the workspace:
+    ``[(allocation key, its bounds, which of influential it holds)]`` (JSON-ready; :func:`_apply_bounds` puts them
+    in ``info`` and on the tolerances).  Reads ``info`` and ``cl``, changes neither: a forked child may compute it
+    (:func:`hyperstat.solver.forked.when_idle`)."""
     from hyperstat.solver.tolerances.bounds import LinearWorstCase
 
     decl = cl.declaration
     n_rot = n_rotation_rows(decl.task)
+    out = []
     for key, members in (("uncalibrated", [True] * len(influential)),
                          ("calibrated", [t.cls == "accuracy-critical" for t in influential])):
         if not info.get(key):
@@ -492,6 +502,14 @@ def _bounds(cl, influential, mechanism, kin, q, workspace, info, dirs, is_len, s
                              "within its value (the worst sign pattern at the worst configuration found); triangle: "
                              "every tolerance at its extreme with every effect adding up (a bound no machine need "
                              "reach)"}
+        out.append((key, bounds, [bool(c) for c in cols]))
+    return out
+
+
+def _apply_bounds(found: list, influential: list, info: dict) -> None:
+    """The bounds of :func:`_bounds` in ``info`` (per allocation) and on the tolerances of each allocation whose
+    value they are (an accuracy-critical tolerance carries the calibrated one, the others the uncalibrated)."""
+    for key, bounds, cols in found:
         info[key]["bounds"] = bounds
         for t, c in zip(influential, cols):
             if c and (key == "calibrated") == (t.cls == "accuracy-critical"):

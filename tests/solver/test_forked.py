@@ -153,3 +153,23 @@ def test_idle_core_reads_the_running_tasks(monkeypatch, tmp_path):
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
     monkeypatch.setattr("builtins.open", loadavg(1))
     assert forked.idle_core() is False  # one core: nothing beside
+
+
+def test_when_idle_forks_on_an_idle_core_and_otherwise_computes_at_once(monkeypatch):
+    from hyperstat.solver import forked
+
+    calls = []
+
+    def job(x):
+        calls.append(x)
+        return os.getpid(), x * 2.5
+    monkeypatch.setattr(forked, "idle_core", lambda: True)
+    started = forked.when_idle(job, 3)
+    assert calls == []  # in the child: nothing ran here
+    pid, value = started.result()
+    assert pid != os.getpid() and value == 7.5
+    monkeypatch.setattr(forked, "idle_core", lambda: False)
+    done = forked.when_idle(job, 4)
+    assert calls == [4]  # computed here, at once (the order of the work without a child)
+    assert done.result() == (os.getpid(), 10.0)
+    done.cancel()  # nothing to stop

@@ -149,3 +149,31 @@ def test_machine_tool_templates_declare_the_sourced_clearances(name):
     assert r["radial_mm"] == pytest.approx(0.010 / 2) and r["tilt_rad"] == pytest.approx(2 * 0.005 / 50.0)
     assert r["span_mm"] == 50.0 and r["side"] == "fixed"
     assert "ISO 5753-1" in r["source"] and "assumed" in declared["P"]["source"]
+
+
+def test_the_bounds_by_a_child_beside_the_drawing_are_the_same_bits(triflex, monkeypatch):
+    """When a core is idle, the attainable and triangle bounds are searched by a forked child while the drawing
+    values are computed (:func:`hyperstat.solver.forked.when_idle`): every value, bound and word the same."""
+    import json
+
+    from hyperstat.solver import forked
+
+    mech, kin, result, q = triflex
+    started = []
+
+    class Recorded(forked.Forked):
+        def __init__(self, fn, *a, **k):
+            super().__init__(fn, *a, **k)
+            started.append((fn.__name__, self._pid))
+    monkeypatch.setattr(forked, "Forked", Recorded)
+    out = {}
+    for idle in (False, True):
+        monkeypatch.setattr(forked, "idle_core", lambda idle=idle: idle)
+        cl = _values(mech, kin, result, q[:60], refine=True)
+        out[idle] = json.dumps({"items": cl.to_dict(), "allocation": cl.allocation}, sort_keys=True, default=repr)
+        if not idle:
+            assert not started
+    assert [n for n, _ in started] == ["_bounds"] and started[0][1] is not None  # searched by a child
+    assert '"attainable_linear_worst_case": null' not in out[True]
+    assert json.loads(out[True])["allocation"]["uncalibrated"]["bounds"]["triangle_bound"] > 0
+    assert out[True] == out[False]
