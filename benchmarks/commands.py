@@ -97,6 +97,8 @@ GOALS = {
     "montecarlo": (5.0, None, "hyperstat montecarlo, Triflex-II, 100,000 samples"),
     "diagnose": (5.0, None, "hyperstat diagnose, Tripteor X7, 107 + 30 points"),
     "report-delta_r": (None, None, "hyperstat report, the corpus' revolute Delta (47 assembly conditions), cold"),
+    "report-planar_3rrr": (None, None, "hyperstat report, planar 3-RRR template (21 assembly conditions, the values "
+                                       "together by linear programmes), cold"),
     **{f"analyze-{t}": (None, None, f"hyperstat analyze templates/{t}.py (2 samples)") for t in TEMPLATES},
 }
 
@@ -139,6 +141,8 @@ def _arguments(work: Path) -> dict:
                    "--validation", str(data / "measurements.validation.csv"),
                    "--hypotheses", str(t / "tripteor_x7.hypotheses.yaml"), "--out", str(work / "report")],
         "report-delta_r": ["report", str(t / "corpus" / "delta_r.py"), "--out", str(work / "report-delta_r"), "--quiet"],
+        "report-planar_3rrr": ["report", str(t / "planar_3rrr.py"), "--out", str(work / "report-planar_3rrr"),
+                               "--quiet"],
         "diagnose": ["diagnose", str(t / "tripteor_x7.py"), str(data / "measurements.csv"),
                      "--validation", str(data / "measurements.validation.csv"), "--quiet"],
     })
@@ -366,7 +370,7 @@ def _verdicts(goal, mem_goal, med: float, cpu: float, peak: float, peaks: dict |
 
 
 #: rows without a kernel row (the kernels of issue 32 exist for the rows before issue 39)
-NO_KERNEL = {"demo", "report-cached", "accuracy-hexapod", "freecad", "report-delta_r"}
+NO_KERNEL = {"demo", "report-cached", "accuracy-hexapod", "freecad", "report-delta_r", "report-planar_3rrr"}
 
 
 def _freecad_setup(work: Path) -> dict | None:
