@@ -65,6 +65,7 @@ class Forked:
     def __init__(self, fn: Callable, *args: Any, fork: bool = True) -> None:
         self._fn, self._args = fn, args
         self._pid = self._read = None
+        self._owner = os.getpid()
         if not fork or os.environ.get("HYPERSTAT_NO_FORK") or not sys.platform.startswith("linux"):
             return
         for stream in (sys.stdout, sys.stderr):  # nothing buffered may be written twice
@@ -131,6 +132,14 @@ class Forked:
                 except ValueError:
                     pass
         return self._fn(*self._args)
+
+    def __del__(self) -> None:
+        # a child whose result nobody asked for (the caller raised in between): stopped and reaped, never a zombie
+        if getattr(self, "_pid", None) is not None and os.getpid() == getattr(self, "_owner", None):
+            try:
+                self.cancel()
+            except Exception:  # noqa: BLE001 - at interpreter exit, os may be half torn down
+                pass
 
     def cancel(self) -> None:
         """Stop the child (the caller failed and will not ask for the result)."""

@@ -434,6 +434,7 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
         residuals, the limits per tolerance.
     """
     from hyperstat.solver.tolerances.workspace import workspace_of
+    from hyperstat.solver.tolerances.worst_case import remember_candidates
 
     items = [t for t in cl.items if t.cls == "compensable" and t.value]
     if not items or cl.analysis is None:
@@ -460,6 +461,12 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     units = {t.id: t.unit for t in items}
     probe = {t.id: PROBE * (ls if t.unit == "mm" else 1.0) for t in items}
     dirs = np.stack([t.direction for t in items])  # (n, n_xi) per unit of each tolerance
+    # the task's dead centres (4. below) do not depend on the simulations: a forked child searches them meanwhile
+    # (the same arithmetic: the same bits), and hands back the workspace's candidates too, which loss_together
+    # reads next (issue 39: 0.4 s of the Triflex-II's values with calibration, on the command's critical path)
+    from hyperstat.solver.forked import Forked
+
+    dead_centres = Forked(_task_space_loss_and_candidates, kin, decl, q_all, dirs, cl)
     # 1. every direction alone at its probe: kappa (residual per probe^2), position and orientation
     sizes = np.array([probe[t.id] for t in items])
     setup = calibration_setup(kin, cl.analysis, decl, q_cal, q_task)  # shared by every simulation below
@@ -535,7 +542,8 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     # the task's dead centres (where the actuators lose a task direction: the slider-crank's stroke ends): there the
     # defect moves the reachable task space itself, by its uncancelled task effect; the loss is held to
     # WORKSPACE_LOSS of the task's extent over the sample
-    loss_task, loss_where = _task_space_loss(kin, decl, q_all, dirs, cl)
+    (loss_task, loss_where), found = dead_centres.result()
+    remember_candidates(kin, workspace_of(m), q_all, found)
     extent = _task_extent(kin, decl, q_all)
     with np.errstate(divide="ignore"):
         task_limit = np.where(loss_task > 0, loss * extent / loss_task, np.inf)
@@ -607,6 +615,14 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
                                    "kappa_orientation": float(kappa["orientation_rad"][i]), "limits": limits,
                                    "binding": limit}
     return evidence
+
+
+def _task_space_loss_and_candidates(kin: Kinematics, decl, q: np.ndarray, dirs: np.ndarray, cl) -> tuple:
+    """:func:`_task_space_loss` and the workspace's candidates it searched (what a forked child hands back)."""
+    from hyperstat.solver.tolerances.workspace import workspace_of
+    from hyperstat.solver.tolerances.worst_case import workspace_candidates
+
+    return _task_space_loss(kin, decl, q, dirs, cl), workspace_candidates(kin, workspace_of(kin.mechanism), q)
 
 
 def _task_space_loss(kin: Kinematics, decl, q: np.ndarray, dirs: np.ndarray, cl) -> tuple[np.ndarray, int]:

@@ -562,6 +562,15 @@ def prepare_searches(kin: Kinematics, workspace: Workspace, sample) -> None:
         _median_conditioning(kin, _spread(sample, POOL))
 
 
+def remember_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarray, found: tuple, points_per_edge: int = 3,
+                        grid: int = 16, max_edges: int = 96, varied: np.ndarray | None = None) -> None:
+    """Keep ``found``, what :func:`workspace_candidates` returned for these arguments in another process (a forked
+    child, its arrays handed back bit for bit), as this process' answer to them: the next call reads it."""
+    varied = np.ones(len(kin.mechanism.actuated), dtype=bool) if varied is None else np.asarray(varied, dtype=bool)
+    key = _candidates_key(kin, workspace, sample, (points_per_edge, grid, max_edges, tuple(varied)))
+    _remember(key, kin, (np.asarray(found[0], dtype=float).reshape(-1, kin.n_q), list(found[1])))
+
+
 def _candidates_key(kin: Kinematics, workspace: Workspace, sample: np.ndarray, options: tuple) -> tuple:
     """What the candidates depend on: the kinematics (the object: it is kept alive with its entry, so its ``id`` is
     not reused), the workspace's bounds by value (every stage builds its own :class:`Workspace` of the same

@@ -173,3 +173,15 @@ def test_when_idle_forks_on_an_idle_core_and_otherwise_computes_at_once(monkeypa
     assert calls == [4]  # computed here, at once (the order of the work without a child)
     assert done.result() == (os.getpid(), 10.0)
     done.cancel()  # nothing to stop
+
+
+def test_a_child_whose_result_nobody_asks_for_is_reaped_when_its_job_is_dropped():
+    import gc
+
+    job = Forked(lambda: [1.0] * 5)
+    pid = job._pid
+    assert pid is not None
+    del job  # the caller raised before asking (calibrated_values' dead centres)
+    gc.collect()
+    with pytest.raises(ChildProcessError):
+        os.waitpid(pid, os.WNOHANG)

@@ -180,3 +180,40 @@ def test_the_predicted_assembly_starts_reach_the_fixed_points_of_the_unpredicted
         gap = np.abs(a - b).max()
         assert gap <= 1e-9 * scale and gap <= 1e-2 * np.abs(b).max(), (gap, np.abs(b).max(), scale)
     assert any(not np.array_equal(a, b) for a, b in zip(predicted[:2], plain[:2]))
+
+
+def test_the_task_dead_centres_searched_by_a_child_give_the_same_values_with_calibration(tripteor, monkeypatch):
+    """The values with calibration search the task's dead centres in a forked child during the simulations (issue
+    39), and take back the workspace's candidates for loss_together: everything the same bits as searched here."""
+    import copy
+
+    from hyperstat.solver import forked
+    from hyperstat.solver.tolerances import worst_case
+    from hyperstat.solver.tolerances.values import _with_calibration
+
+    mech, kin, result, cl = tripteor
+    decl = cl.declaration
+    started = []
+
+    class Recorded(forked.Forked):
+        def __init__(self, fn, *a, **k):
+            super().__init__(fn, *a, **k)
+            started.append((fn.__name__, self._pid))
+    monkeypatch.setattr(forked, "Forked", Recorded)
+    out = {}
+    for fork in (False, True):
+        if fork:
+            monkeypatch.delenv("HYPERSTAT_NO_FORK", raising=False)
+        else:
+            monkeypatch.setenv("HYPERSTAT_NO_FORK", "1")
+        monkeypatch.setattr(worst_case, "_CANDIDATES", {})  # searched again: nothing from an earlier test
+        c = copy.deepcopy(cl)
+        out[fork] = _with_calibration(c, mech, kin, None, decl.position_mm, decl.orientation_rad, None,
+                                      cl.allocation["second_order_share"])
+        if fork:  # the candidates loss_together read were the child's, kept here
+            assert len(worst_case._CANDIDATES) == 1
+    assert ("_task_space_loss_and_candidates", None) in started  # without fork: computed here
+    assert any(n == "_task_space_loss_and_candidates" and p is not None for n, p in started)  # with: by a child
+    assert out[True] == out[False]
+    assert out[True]["evidence"]["configurations"]["task_dead_centres"] == \
+        out[False]["evidence"]["configurations"]["task_dead_centres"]

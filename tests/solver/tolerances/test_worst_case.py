@@ -277,3 +277,31 @@ def test_the_passive_velocities_by_lu_are_the_pseudo_inverses_to_the_round_off()
     tall = rng.normal(size=(4, 8, 6))
     w = rng.normal(size=(4, 8))
     assert np.array_equal(_pinv_apply(tall, w, 1e-10), np.einsum("kpr,kr->kp", np.linalg.pinv(tall, rcond=1e-10), w))
+
+
+def test_candidates_searched_by_a_child_are_remembered_here_bit_for_bit(monkeypatch):
+    """remember_candidates keeps what a forked child's workspace_candidates handed back (calibrated_values' dead
+    centres): the next call here returns those arrays, equal to the bit to searching them here, without searching."""
+    from hyperstat.cad_plugin.templates import build_template
+    from hyperstat.solver import forked
+    from hyperstat.solver.tolerances import worst_case
+
+    mech = build_template(TEMPLATES / "tripteor_x7.py").mechanism()
+    kin = Kinematics(mech)
+    q = sample_workspace(mech, 40, seed=0, kinematics=kin)
+    monkeypatch.setattr(worst_case, "_CANDIDATES", {})
+    job = forked.Forked(worst_case.workspace_candidates, kin, workspace_of(mech), q)
+    assert job._pid is not None
+    found = job.result()
+    assert not worst_case._CANDIDATES  # searched by the child only
+    worst_case.remember_candidates(kin, workspace_of(mech), q, found)
+
+    def no_search(*a, **k):
+        raise AssertionError("searched again")
+    monkeypatch.setattr("hyperstat.solver.kinematics.continuation.continue_nearest", no_search)
+    cq, labels = worst_case.workspace_candidates(kin, workspace_of(mech), q)
+    monkeypatch.undo()
+    monkeypatch.setattr(worst_case, "_CANDIDATES", {})
+    here_q, here_labels = worst_case.workspace_candidates(kin, workspace_of(mech), q)
+    assert len(here_q) > 100 and any(lab.startswith("dead centre") for lab in here_labels)
+    assert cq.tobytes() == here_q.tobytes() and cq.shape == here_q.shape and labels == here_labels
