@@ -67,7 +67,8 @@ from hyperstat.solver.tolerances.spilled import SpilledArray, row_blocks, take_r
 from hyperstat.solver.tolerances.workspace import Workspace, workspace_of
 
 __all__ = ["Extreme", "Objective", "Coefficients", "TaskCoefficients", "search_extremes", "refine_extremes",
-           "workspace_candidates", "coefficient_at", "branch_conditioning", "prepare_searches", "TASK_COEFFICIENTS"]
+           "workspace_candidates", "remember_candidates", "coefficient_at", "branch_conditioning", "prepare_searches",
+           "TASK_COEFFICIENTS"]
 
 #: passive bounds are moved inwards by this much (rad; times the length scale for mm)
 MARGIN = 1e-4
