@@ -16,7 +16,7 @@ from hyperstat.solver.tolerances.values import ASSEMBLY_SAMPLE, assign_values
 
 from tests.conftest import TEMPLATES
 
-__all__ = ["classified"]
+__all__ = ["classified", "recorded_forks"]
 
 
 def classified(name: str, values: bool = False, assembly: bool = True):
@@ -57,3 +57,18 @@ def _report_values(path, cl, mech, kin, result) -> None:
     q = cached_sample(args, mech, 200, 0, workspace_of(mech), lambda: sample_workspace(mech, 200, seed=0, kinematics=kin))
     cached_values(args, cl, mech, kin, q, assign_values, position_accuracy=None, orientation_accuracy=None,
                   assembly_configurations=result.configurations[:ASSEMBLY_SAMPLE])
+
+
+def recorded_forks(monkeypatch) -> list:
+    """``(function name, child pid or None)`` of every :class:`hyperstat.solver.forked.Forked` started from now on
+    (the class replaced, for the test, by one that records them): which stages a child computed."""
+    from hyperstat.solver import forked
+
+    started = []
+
+    class Recorded(forked.Forked):
+        def __init__(self, fn, *a, **k):
+            super().__init__(fn, *a, **k)
+            started.append((getattr(fn, "__name__", "?"), self._pid))
+    monkeypatch.setattr(forked, "Forked", Recorded)
+    return started

@@ -24,7 +24,7 @@ from hyperstat.solver.kinematics.frames import so3_log
 from hyperstat.solver.tolerances.accuracy import output_twist_maps, sample_workspace
 from hyperstat.solver.tolerances.declaration import task_rows
 
-from tests.solver.tolerances.common import classified
+from tests.solver.tolerances.common import classified, recorded_forks
 
 LIMITS = ("second-order residual", "identification noise", "actuator stroke", "workspace loss", "workspace loss together")
 
@@ -187,19 +187,12 @@ def test_the_task_dead_centres_searched_by_a_child_give_the_same_values_with_cal
     39), and take back the workspace's candidates for loss_together: everything the same bits as searched here."""
     import copy
 
-    from hyperstat.solver import forked
     from hyperstat.solver.tolerances import worst_case
     from hyperstat.solver.tolerances.values import _with_calibration
 
     mech, kin, result, cl = tripteor
     decl = cl.declaration
-    started = []
-
-    class Recorded(forked.Forked):
-        def __init__(self, fn, *a, **k):
-            super().__init__(fn, *a, **k)
-            started.append((fn.__name__, self._pid))
-    monkeypatch.setattr(forked, "Forked", Recorded)
+    started = recorded_forks(monkeypatch)
     out = {}
     for fork in (False, True):
         if fork:

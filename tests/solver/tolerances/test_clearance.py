@@ -24,7 +24,7 @@ from hyperstat.solver.tolerances.clearance import (POLYGON_SIDES, assembly_toler
 from hyperstat.solver.tolerances.declaration import declaration_of, parse_declaration
 
 from tests.conftest import TEMPLATES
-from tests.solver.tolerances.common import classified
+from tests.solver.tolerances.common import classified, recorded_forks
 
 
 @pytest.fixture(scope="module")
@@ -239,20 +239,14 @@ def test_many_blocks_are_split_with_a_child_when_a_core_is_idle_with_the_same_va
     q = np.repeat(result.configurations, 2, axis=0)[: 2 * PARALLEL_GROUPS * LP_GROUP // len(items) + 1]
     assert len(q) * len(items) >= PARALLEL_GROUPS * LP_GROUP  # enough blocks for the split
     objective = AssemblyConditions(model, items)
-    children = []
-
-    class Counted(forked.Forked):
-        def __init__(self, *a, **k):
-            super().__init__(*a, **k)
-            children.append(self._pid)
-    monkeypatch.setattr(forked, "Forked", Counted)
+    started = recorded_forks(monkeypatch)
     got = {}
     for idle in (False, True):
         monkeypatch.setattr(forked, "idle_core", lambda idle=idle: idle)
         which = [t.id for _ in q for t in items]
         got[idle] = objective.plays(np.repeat(q, len(items), axis=0), which, exact=True)
         got[(idle, "values")] = objective.values(q)
-    assert children and None not in children  # the split happened, in children
+    assert started and all(pid is not None for _, pid in started)  # the split happened, in children
     t_true, y_true = got[True]
     t_false, y_false = got[False]
     assert t_true.tobytes() == t_false.tobytes()

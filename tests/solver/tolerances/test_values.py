@@ -25,7 +25,7 @@ from hyperstat.solver.tolerances.clearance import AssemblyConditions, _solve, _c
 from hyperstat.solver.tolerances.values import assign_values
 
 from tests.conftest import TEMPLATES
-from tests.solver.tolerances.common import classified
+from tests.solver.tolerances.common import classified, recorded_forks
 
 
 def _setup(name: str, n: int = 200):
@@ -159,13 +159,7 @@ def test_the_bounds_by_a_child_beside_the_drawing_are_the_same_bits(triflex, mon
     from hyperstat.solver import forked
 
     mech, kin, result, q = triflex
-    started = []
-
-    class Recorded(forked.Forked):
-        def __init__(self, fn, *a, **k):
-            super().__init__(fn, *a, **k)
-            started.append((fn.__name__, self._pid))
-    monkeypatch.setattr(forked, "Forked", Recorded)
+    started = recorded_forks(monkeypatch)
     out = {}
     for idle in (False, True):
         monkeypatch.setattr(forked, "idle_core", lambda idle=idle: idle)

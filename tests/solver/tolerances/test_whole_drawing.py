@@ -23,6 +23,7 @@ from hyperstat.solver.tolerances.clearance import _constraint_blocks, _lift, ass
 from hyperstat.solver.tolerances.whole_drawing import _decision_rule, allocate_together
 
 from tests.conftest import TEMPLATES
+from tests.solver.tolerances.common import recorded_forks
 
 
 @pytest.fixture(scope="module")
@@ -44,13 +45,7 @@ def rrr3():
 
 def test_the_values_together_are_the_same_bits_with_a_child_solving_half_the_programmes(rrr3, monkeypatch):
     mech, kin, cl, q = rrr3
-    children = []
-
-    class Counted(forked.Forked):
-        def __init__(self, *a, **k):
-            super().__init__(*a, **k)
-            children.append(self._pid)
-    monkeypatch.setattr(forked, "Forked", Counted)
+    started = recorded_forks(monkeypatch)
     out = {}
     for idle in (False, True):
         monkeypatch.setattr(forked, "idle_core", lambda idle=idle: idle)
@@ -58,11 +53,11 @@ def test_the_values_together_are_the_same_bits_with_a_child_solving_half_the_pro
         evidence = allocate_together(c, mech, kin, q)
         out[idle] = (json.dumps(evidence, sort_keys=True), [(t.id, t.value, t.value_source) for t in c.items])
         if not idle:
-            assert not children
+            assert not started
     assert "more than three closure rows" in json.loads(out[True][0])["method"]  # the decision rule's path
     assert json.loads(out[True][0])["solved"] >= 2
     # children: the decision rule's programmes and the blocks of each condition alone (clearance._solve)
-    assert len(children) >= 2 and None not in children
+    assert len(started) >= 2 and all(pid is not None for _, pid in started)
     assert out[True] == out[False]
     # what it says, from the programme itself: the need stated is the decision rule's at the configuration it names
     # (each programme put back with its own configuration), and the values are the single ones scaled by 1 / need
