@@ -180,9 +180,9 @@ class OwnModel:
     def _play(self, joint: str, pvals: np.ndarray, c: dict) -> np.ndarray:
         y = pvals[:, self.play_joint_cols[joint]]
         tilt = c["tilt_rad"] if math.isfinite(c["tilt_rad"]) else 0.0
-        v = y[:, :3] * np.array([c["radial_mm"], c["radial_mm"], c["axial_mm"]])
-        w = y[:, 3:] * np.array([tilt, tilt, c["twist_rad"]])
-        return _displacement(v, w, c["centre_mm"])
+        scale = np.array([c["radial_mm"], c["radial_mm"], c["axial_mm"], tilt, tilt, c["twist_rad"]])
+        return _per_distinct_row(lambda yy: _displacement(yy[:, :3] * scale[:3], yy[:, 3:] * scale[3:],
+                                                          c["centre_mm"]), y)
 
     def residual(self, q: np.ndarray, defects=None, plays=None) -> np.ndarray:
         """Closure residuals (K, 6 L): rotation (times 1000 mm) and position, per closing chain."""
@@ -428,8 +428,29 @@ def _placement(p) -> np.ndarray:
     return t
 
 
+def _per_distinct_row(build, vals: np.ndarray) -> np.ndarray:
+    """``build(vals)`` with the rows of ``vals`` (K, n) that are all zero computed once: the same values, row by row.
+
+    The probes of a central difference perturb one parameter at a time, so most rows of a batch are zero for any
+    one element or joint.
+    """
+    moved = np.any(vals != 0.0, axis=1)
+    n_moved = int(np.count_nonzero(moved))
+    if n_moved > len(vals) // 2:
+        return build(vals)
+    rows = build(np.concatenate([np.zeros((1, vals.shape[1])), vals[moved]]))
+    out = np.empty((len(vals),) + rows.shape[1:])
+    out[:] = rows[0]
+    out[moved] = rows[1:]
+    return out
+
+
 def _element(p, vals: np.ndarray) -> np.ndarray:
     """The geometric matrix D (K, 4, 4) of a placement with defects ``vals`` (K, 7) = (I, J, K, a, b, c, G)."""
+    return _per_distinct_row(lambda v: _element_rows(p, v), vals)
+
+
+def _element_rows(p, vals: np.ndarray) -> np.ndarray:
     base = _placement(p)
     n0 = base[:3, 2]
     n = n0 + vals[:, :3]
