@@ -873,6 +873,14 @@ def orientation_residual(rotation: np.ndarray, data: MeasurementSet) -> np.ndarr
     return so3_log(rotation @ np.swapaxes(so3_exp(data.rotation), -1, -2))
 
 
+#: Largest change of a joint between two evaluations of a fit (rad; a slider's in units of the machine's length
+#: scale) with which the new configuration of a pose becomes its next start.  A trial step of the fit can move the
+#: geometry far enough for a pose to assemble on another branch (the corpus' RSSR: its rocker 1.4 rad away at every
+#: pose); such a configuration must not start the next evaluations, or the fit's cost depends on the path and not on
+#: its parameters alone, and the fit wanders off the machine's branch.
+BRANCH_JUMP = 0.1
+
+
 class _Fitter:
     """Weighted least squares over a subset of the parameters (Gauss-Newton, then MINPACK LM)."""
 
@@ -880,12 +888,26 @@ class _Fitter:
         self.model, self.data, self.w = model, data, w
         self.q = q
         self.evaluations = 0
+        kin = model.kin
+        self._joint_unit = np.array([1.0 if j.type == "R" else max(kin.length_scale, 1e-12)
+                                     for j in model.mechanism.joints])
+
+    def _continued(self, q: np.ndarray) -> np.ndarray:
+        """The next evaluation's start: ``q`` at the poses that moved continuously (:data:`BRANCH_JUMP`), the
+        current start at those that jumped."""
+        moved = np.max(np.abs(q - self.q) / self._joint_unit, axis=1)
+        stayed = moved <= BRANCH_JUMP
+        if stayed.all():
+            return q
+        out = self.q.copy()
+        out[stayed] = q[stayed]
+        return out
 
     def residual(self, theta: np.ndarray, jacobian: bool = True):
         """Prediction, weighted residual and weighted Jacobian (position rows, then orientation rows)."""
         p = self.model.predict(theta, self.data, jacobian=jacobian, q_start=self.q)
         if p.converged.all():
-            self.q = p.q
+            self.q = self._continued(p.q)
         r = ((p.position - self.data.position) * self.w[:, None]).ravel()
         j = None if p.jacobian is None else (p.jacobian * self.w[:, None, None]).reshape(-1, self.model.n)
         if p.rotation is not None:
