@@ -1,6 +1,9 @@
-"""The fit stays on the machine's assembly branch: a trial step that flips a pose's branch does not start the next.
+"""The fit and its held-out predictions stay on the machine's assembly branch.
 
 Units: mm and rad.
+
+A trial step of a fit that flips a pose's branch does not start the next evaluation (the RSSR below), and a
+held-out pose is predicted from the nominal machine's configuration (the Bricard line, last test).
 
 The corpus' RSSR spatial four-bar has two assembly modes for a crank angle (the rocker on either side of the
 rod).  Its Gauss-Newton steps move the geometry far enough along weakly determined combinations for the rocker
@@ -125,3 +128,32 @@ def test_a_jumped_pose_keeps_its_start_and_the_others_move_on(rssr):
     got = fitter._continued(q1)
     assert np.array_equal(got[0], q1[0]) and np.array_equal(got[1], q0[1]) and np.array_equal(got[2], q1[2])
     assert np.array_equal(fitter._continued(q0 + 1e-3), q0 + 1e-3)  # every pose moved on: the new configurations
+
+
+def test_held_out_poses_of_a_bricard_line_are_predicted_on_the_nominal_branch(tmp_path):
+    """The corpus' Bricard line moves only by its special geometry; an identified geometry breaks that mobility at
+    second order, so its loop closes in the least-squares sense only.  Followed from home, such a geometry left the
+    branch: 8 of 30 held-out poses did not assemble and the others were predicted up to 150 mm away ("absurd: the
+    inputs are wrong").  Predicted from the nominal configurations, every held-out pose closes and is predicted to
+    the noise.  The campaign is ``hyperstat simulate``'s (its defects satisfy the Bricard conditions, so the machine
+    moves); what is checked is the prediction's branch, against the stated noise."""
+    from hyperstat.cad_plugin.templates import build_template
+    from hyperstat.solver.analysis.stationarity import analyze
+    from hyperstat.solver.calibration.measurements import read_measurements
+    from hyperstat.solver.kinematics.closure import Kinematics
+    from tests.conftest import TEMPLATES, run_cli
+
+    src = TEMPLATES / "corpus" / "bricard_line.py"
+    assert run_cli(["simulate", src, "--out", tmp_path / "d.csv", "--quiet"])[0] == 0
+    mech = build_template(src).mechanism()
+    kin = Kinematics(mech)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        analysis = analyze(mech, n_configurations=24, seed=0, kinematics=kin)
+        data = read_measurements(tmp_path / "d.csv", mech)
+        val = read_measurements(tmp_path / "d.validation.csv", mech)
+        res = identify(mech, analysis, data, val, kinematics=kin)
+    assert 0.8 < res.sigma < 1.2 and res.fit_quality != "inputs wrong", (res.sigma, res.warnings)
+    assert not any("did not assemble" in w for w in res.warnings), res.warnings
+    held = [v for v in res.noise_ratios["validation"].values() if v is not None]
+    assert held and max(held) < 1.5, (res.validation, res.warnings)  # the held-out RMS within 1.5 x the noise
