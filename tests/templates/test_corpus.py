@@ -180,6 +180,20 @@ def test_a_controller_file_comes_out_of_the_bennett_linkage(corpus):
     assert corpus["runs"][("bennett", "check-controller")]["code"] == 0
 
 
+def test_the_revolute_delta_file_says_its_closing_geometry_moves_the_tool_frame(corpus):
+    """The revolute Delta's identified defects are moved onto loops that close: that geometry predicts the held-out
+    poses as well once the tracker is placed again, but it displaces the whole workspace against the identified base
+    frame by some hundredths of a millimetre: written, with a note in the file (``export-controller``,
+    ``_check_closing_geometry``)."""
+    import json
+
+    run = corpus["runs"][("delta_r", "export-controller")]
+    assert run["code"] == 0, run["stderr"]
+    doc = json.loads((run["dir"] / "m.json").read_text())
+    notes = [f for f in doc["calibration"]["findings"] if f["code"] == "closing-geometry-moved"]
+    assert len(notes) == 1 and not notes[0]["refuses"] and "tool frame" in notes[0]["message"], notes
+
+
 def test_the_corpus_duration_is_reported(corpus, record_property):
     """Not a timing assertion: the corpus's outcomes and durations, for the record (wall and CPU seconds), printed
     after the run (``tests/conftest.py``: also from an xdist worker)."""
