@@ -306,6 +306,8 @@ def _cmd_check_controller(args: argparse.Namespace) -> int:
                    f"model is extrapolated" if res["outside_region"] else "")
         sys.stdout.write(f"{args.file}: the calibration poses cover {_region_words(res['region'], res['ranges'])}"
                          f"{outside}\n")
+        for note in res["notes"]:  # what the export passed on without refusing: the integrator reads it here
+            sys.stdout.write(f"{args.file}: note of the calibration ({note['code']}): {note['message']}\n")
     return 0
 
 

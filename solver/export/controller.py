@@ -875,8 +875,9 @@ def check_controller(path: str | os.PathLike, reference: "Mechanism | None" = No
     dict
         ``mechanism``, ``sha256``, ``reference`` (whether the model was compared with one), the
         largest errors of :func:`check_test_vectors`, the calibration's ``fit_quality``, ``forced``
-        and ``reasons``, its ``region`` (the actuated values its poses covered), the joint
-        ``ranges`` and ``outside_region`` (test vectors beyond the region).
+        and ``reasons``, its ``notes`` (the findings that stopped nothing: ``code`` and ``message``, e.g.
+        ``closing-geometry-moved``, held-out residuals 1.5-3 times the noise), its ``region`` (the actuated
+        values its poses covered), the joint ``ranges`` and ``outside_region`` (test vectors beyond the region).
 
     Raises
     ------
@@ -907,6 +908,7 @@ def check_controller(path: str | os.PathLike, reference: "Mechanism | None" = No
     ranges = model.mechanism.ranges[model.mechanism.actuated].tolist()
     return {"mechanism": doc["mechanism"], "sha256": doc["sha256"], "reference": reference is not None, **result,
             "fit_quality": rec["fit_quality"], "forced": rec["forced"], "reasons": list(rec["reasons"]),
+            "notes": [{"code": f["code"], "message": f["message"]} for f in rec["findings"] if not f["refuses"]],
             "region": region, "ranges": ranges, "outside_region": outside}
 
 

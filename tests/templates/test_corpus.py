@@ -192,6 +192,8 @@ def test_the_revolute_delta_file_says_its_closing_geometry_moves_the_tool_frame(
     doc = json.loads((run["dir"] / "m.json").read_text())
     notes = [f for f in doc["calibration"]["findings"] if f["code"] == "closing-geometry-moved"]
     assert len(notes) == 1 and not notes[0]["refuses"] and "tool frame" in notes[0]["message"], notes
+    check = json.loads((run["dir"] / "check.json").read_text())  # check-controller passes the note on
+    assert [n["code"] for n in check["notes"]] == ["closing-geometry-moved"], check["notes"]
 
 
 def test_the_corpus_duration_is_reported(corpus, record_property):

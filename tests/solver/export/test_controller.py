@@ -138,6 +138,21 @@ def test_check_controller_accepts_the_untouched_file(exported, capsys):
     assert res["inverse_other_branch"] == 0  # every pose back to the file's own actuated values
 
 
+def test_check_controller_prints_the_notes_the_file_carries(exported, tmp_path, capsys):
+    """The findings that stopped nothing are passed on in the file; the integrator who checks it reads them too
+    (the untouched Tripteor file has none: no note line)."""
+    path, _, _ = exported
+    assert main(["check-controller", str(path)]) == 0
+    assert "note of the calibration" not in capsys.readouterr().out
+    message = "the moved geometry displaces the tool frame by up to 0.03 mm against the identified base frame"
+    noted = _rehashed(path, tmp_path, lambda doc: doc["calibration"]["findings"].append(
+        {"code": "closing-geometry-moved", "refuses": False, "message": message}))
+    assert main(["check-controller", str(noted)]) == 0
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if "note of the calibration" in ln]
+    assert lines == [f"{noted}: note of the calibration (closing-geometry-moved): {message}"]
+    assert check_controller(noted)["notes"] == [{"code": "closing-geometry-moved", "message": message}]
+
+
 @pytest.mark.parametrize("where", ['"defects"', '"test_vectors"', '"target"'])
 def test_check_controller_refuses_a_changed_digit(exported, tmp_path, capsys, where):
     path, _, _ = exported
