@@ -13,6 +13,7 @@ seeded and reproducible.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.kinematics.sampling import passive_conditioning
 from hyperstat.solver.analysis.stationarity import StationarityResult
 
-__all__ = ["VirtualMachine", "default_tracker", "workshop_metadata", "onto_closure"]
+__all__ = ["VirtualMachine", "default_tracker", "workshop_metadata", "onto_closure", "prediction_metric"]
 
 
 def workshop_metadata(mechanism: Mechanism, n: int, seed: int = 0, sessions: int = 2) -> dict:
@@ -56,7 +57,7 @@ def default_tracker(kin: Kinematics) -> np.ndarray:
 
 
 def onto_closure(kin: Kinematics, xi: np.ndarray, configurations: np.ndarray | None, count: int = 12,
-                 iterations: int = 12) -> np.ndarray:
+                 iterations: int = 12, metric: "np.ndarray | Callable[[], np.ndarray] | None" = None) -> np.ndarray:
     """``xi`` moved the least so that every loop closes exactly at ``count`` of ``configurations``.
 
     Admissible defects keep an over-constrained mechanism assembled to first order only (paper 1,
@@ -68,10 +69,20 @@ def onto_closure(kin: Kinematics, xi: np.ndarray, configurations: np.ndarray | N
     the passive joints are assembled by least squares, the part of the closure residual they cannot
     absorb is projected on the left null space of ``B_s`` (as in eq. (11)) and cancelled by the
     least-norm defect change in dimensionless units (rad, and mm over the length scale), which
-    lies in the constrained directions, not the admissible ones; repeated until the loops close.
+    lies in the constrained directions, not the admissible ones (with ``metric``, below, the least
+    change in that metric); repeated until the loops close.
     The correction is of the order of ``|xi|^2`` times the length scale.  Defects with which the
     loops already close to 1e-8 of the length scale (a tenth of what assembly accepts) are
     returned unchanged.
+
+    ``metric`` (n_xi, n_xi), symmetric positive definite, in the dimensionless columns (rad, and mm
+    over the length scale), or a function computing it when the loops do not close already, measures
+    the change instead of its norm: each step is the least
+    ``d^T metric d`` among the changes that cancel the residual (the same constraint rows, the same
+    rank decision).  An identification passes the information of its measurements
+    (:func:`prediction_metric`: how far each change moves the predicted target), so that the loops
+    are closed along what the measurements did not see; the least norm moves the identified
+    geometry along what they saw as readily.
 
     Raises
     ------
@@ -111,7 +122,11 @@ def onto_closure(kin: Kinematics, xi: np.ndarray, configurations: np.ndarray | N
             left = u[:, int(np.sum(sv > 1e-9 * max(sv[0], 1e-300))):]
             rows.append(left.T @ a[c])
             rhs.append(-left.T @ r[c])
-        step = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=1e-8)[0]
+        if metric is None:
+            step = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=1e-8)[0]
+        else:
+            metric = metric() if callable(metric) else metric
+            step = _least_in_metric(np.vstack(rows), np.concatenate(rhs), metric)
         xi += step * col_xi
     q = kin.assemble(q, xi).q
     st = kin.evaluate(q, xi, jacobians=False)
@@ -121,6 +136,71 @@ def onto_closure(kin: Kinematics, xi: np.ndarray, configurations: np.ndarray | N
                             f"they still miss by {miss:.3g} mm; draw smaller ones (--angle-tolerance, "
                             "--length-tolerance).")
     return xi
+
+
+#: the defect change (dimensionless: rad, or mm over the length scale) that costs as much as moving the predicted
+#: targets by one residual RMS (:func:`prediction_metric`): a tenth of a milliradian
+UNSEEN_CHANGE = 1e-4
+
+
+def prediction_metric(model: MeasurementModel, theta: np.ndarray, data: MeasurementSet,
+                      unseen: float = UNSEEN_CHANGE) -> np.ndarray:
+    """How much a change of the defects moves the predicted targets, as a metric for :func:`onto_closure`.
+
+    ``M = J^T J / s^2 + I / unseen^2`` in the dimensionless defect columns, ``J`` the predicted tracker-frame
+    target positions' derivative with respect to every defect (the passive joints following, paper 1,
+    eq. (3)) at the poses of ``data``, with the tracker frame and targets of ``theta`` held, and ``s`` the
+    fit's residual scale per axis (mm, from the median absolute residual).  A change that moves the
+    predictions by one residual scale in all
+    costs as much as a change of ``unseen`` (rad, or length scales) along what the poses do not see: the
+    loops are closed along what the measurements did not determine, the identified geometry kept where they
+    did.  Positions only (a 6-D target's rotation is not weighed).
+
+    Parameters
+    ----------
+    model : MeasurementModel
+    theta : ndarray
+        The fitted parameters.
+    data : MeasurementSet
+        The fitted poses (never held-out ones: they judge the result).
+    unseen : float
+        See above.
+
+    Returns
+    -------
+    ndarray, (n_xi, n_xi)
+    """
+    kin = model.kin
+    pred = model.predict(theta, data)
+    st = kin.evaluate(pred.q, model.defects(theta), jacobians=True)
+    k_xi, _ = model.twist_maps(st)
+    arm = pred.world - st.output_pose[:, :3, 3]
+    dworld = k_xi[:, 3:, :] + np.cross(k_xi[:, :3, :], arm[:, :, None], axis=1)  # (K, 3, n_xi)
+    rot, _ = model.tracker_pose(theta)
+    jac = np.einsum("ij,kia->kja", rot, dworld).reshape(-1, dworld.shape[2]) * kin.parameter_scale
+    resid = pred.position - data.position  # the residual scale per axis, robust to an outlier left in the data
+    scale = max(1.4826 * float(np.median(np.abs(resid))), 1e-9 * kin.length_scale)
+    return jac.T @ jac / scale ** 2 + np.eye(jac.shape[1]) / unseen ** 2
+
+
+def _least_in_metric(rows: np.ndarray, rhs: np.ndarray, metric: np.ndarray, rcond: float = 1e-8) -> np.ndarray:
+    """The ``d`` of least ``d^T metric d`` with ``rows d = rhs`` in the least-squares sense.
+
+    The rows are first reduced to their range (singular values above ``rcond`` of the largest, the rank
+    decision of the least-norm step), then ``d = M^-1 C^T (C M^-1 C^T)^-1 b`` on the reduced system.
+
+    >>> d = _least_in_metric(np.array([[1.0, 1.0]]), np.array([1.0]), np.diag([1.0, 4.0]))
+    >>> np.round(d, 6).tolist()
+    [0.8, 0.2]
+    """
+    u, sv, vt = np.linalg.svd(rows, full_matrices=False)
+    keep = sv > rcond * max(sv[0] if len(sv) else 0.0, 1e-300)
+    c = sv[keep, None] * vt[keep]  # (r, n): the rows' range
+    b = u[:, keep].T @ rhs
+    chol = np.linalg.cholesky(metric)
+    half = np.linalg.solve(chol, c.T)  # L^-1 C^T
+    inv_ct = np.linalg.solve(chol.T, half)  # M^-1 C^T
+    return inv_ct @ np.linalg.solve(half.T @ half, b)
 
 
 @dataclass

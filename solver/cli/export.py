@@ -56,7 +56,7 @@ def _cmd_export_controller(args: argparse.Namespace) -> int:
                 effects.append(make_effect(name, mech, result, data, **options))
             res = identify(mech, result, data, validation, effects=tuple(effects), kinematics=kin,
                            exclude_outliers=args.exclude_outliers)
-    defects = _closing_defects(mech, kin, result, res, args)
+    defects = _closing_defects(mech, kin, result, res, args, data)
     if defects is not None:
         held_out = validation is not None and len(validation) > 0
         _check_closing_geometry(res, mech, defects, validation if held_out else data,
@@ -103,25 +103,26 @@ def _region_words(region: dict, ranges) -> str:
     return ", ".join(parts)
 
 
-def _closing_defects(mech, kin, result, res, args):
+def _closing_defects(mech, kin, result, res, args, data):
     """The identified defects, moved onto a geometry whose loops close when they do not (else None).
 
     The identification is linear in the admissible defects (paper 1, section 3): where the conditions
     that keep an over-constrained mechanism mobile are not linear (a Bennett linkage's ratio, a
     spherical four-bar's common point), the identified geometry misses its loops at second order and
     a controller could not assemble it.  The machine that was measured moved, so its geometry is on the
-    nonlinear set: the defects are moved there by the least change
-    (:func:`hyperstat.solver.calibration.virtual.onto_closure`), of the order of their square, and the
-    change is said on stderr.
+    nonlinear set: the defects are moved there by the change that moves the predicted targets of the
+    fitted poses ``data`` the least (:func:`hyperstat.solver.calibration.virtual.onto_closure` in the metric
+    of :func:`~hyperstat.solver.calibration.virtual.prediction_metric`), of the order of their square, and
+    the change is said on stderr.
     """
     import numpy as np
 
-    from hyperstat.solver.calibration.virtual import onto_closure
+    from hyperstat.solver.calibration.virtual import onto_closure, prediction_metric
     from hyperstat.solver.errors import AnalysisError
 
     xi = res.model.defects(res.theta)
     try:
-        moved = onto_closure(kin, xi, result.configurations)
+        moved = onto_closure(kin, xi, result.configurations, metric=lambda: prediction_metric(res.model, res.theta, data))
     except AnalysisError:
         return None  # the export's own check says that the geometry does not assemble
     if moved is xi or not np.any(moved != xi):
@@ -132,8 +133,8 @@ def _closing_defects(mech, kin, result, res, args):
     if not args.quiet:
         p = mech.parameters[k]
         sys.stderr.write(f"hyperstat: note: {args.out}: the identified defects do not close the loops of '{mech.name}' "
-                         f"beyond first order; moved by the least change onto a geometry that does (largest "
-                         f"{p.name} by {abs(moved[k] - xi[k]):.3g} {p.unit}).\n")
+                         f"beyond first order; moved onto a geometry that does, by the change that moves its predictions "
+                         f"the least (largest {p.name} by {abs(moved[k] - xi[k]):.3g} {p.unit}).\n")
     return moved
 
 
@@ -161,10 +162,11 @@ def _check_closing_geometry(res, mech, defects, held, poses: str) -> None:
     identified model's held-out statistics, but a controller runs the moved geometry.  Its predictions at the
     held-out poses (the identification poses without a validation set), with the fitted targets and effects and
     the tracker frame registered on them, must be within :data:`CLOSING_WORSE` of the identified model's, or the
-    export is refused (the corpus' Bricard line: 0.013 mm identified, 0.46 mm moved; sarrus 0.011 and 0.070 mm).
-    A move that only displaces the whole workspace rigidly (the revolute Delta: 0.034 mm with the fitted tracker,
-    0.0156 mm registered, as the identified model) is a note: the tool frame moves against the identified base
-    frame by that much, which a workpiece referenced with the machine itself does not see.
+    export is refused (the corpus' Bricard line: 0.013 mm identified, 0.13 mm moved).  A move that only displaces
+    the whole workspace rigidly (the revolute Delta's least-norm move: 0.034 mm with the fitted tracker, 0.0156 mm
+    registered, as the identified model; its move weighed by the measurements displaces nothing) is a note: the
+    tool frame moves against the identified base frame by that much, which a workpiece referenced with the machine
+    itself does not see.
     """
     import copy
 

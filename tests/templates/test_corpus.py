@@ -180,20 +180,33 @@ def test_a_controller_file_comes_out_of_the_bennett_linkage(corpus):
     assert corpus["runs"][("bennett", "check-controller")]["code"] == 0
 
 
-def test_the_revolute_delta_file_says_its_closing_geometry_moves_the_tool_frame(corpus):
-    """The revolute Delta's identified defects are moved onto loops that close: that geometry predicts the held-out
-    poses as well once the tracker is placed again, but it displaces the whole workspace against the identified base
-    frame by some hundredths of a millimetre: written, with a note in the file (``export-controller``,
-    ``_check_closing_geometry``)."""
-    import json
+def test_the_revolute_delta_file_keeps_the_identified_tool_frame(corpus):
+    """The revolute Delta's identified defects do not close its loops beyond first order, so the file carries them
+    moved onto loops that close, by the change that moves the fitted poses' predictions the least
+    (``prediction_metric``).  The file's own model (:class:`ControllerModel`, which reads only the file), with the
+    tracker frame and target that ``identify`` fitted on the same data, predicts the held-out poses within 1.5 times
+    the RMS the file records, the tracker not placed again; the least-norm move displaced the tool frame by up to
+    0.032 mm against the identified base frame (2.1 times the held-out RMS, a note in the file).  No note now, and
+    ``check-controller`` prints none."""
+    import numpy as np
+
+    from hyperstat.solver.calibration.measurements import read_measurements
+    from hyperstat.solver.export.controller import ControllerModel
+    from hyperstat.solver.kinematics.frames import so3_exp
 
     run = corpus["runs"][("delta_r", "export-controller")]
     assert run["code"] == 0, run["stderr"]
     doc = json.loads((run["dir"] / "m.json").read_text())
-    notes = [f for f in doc["calibration"]["findings"] if f["code"] == "closing-geometry-moved"]
-    assert len(notes) == 1 and not notes[0]["refuses"] and "tool frame" in notes[0]["message"], notes
-    check = json.loads((run["dir"] / "check.json").read_text())  # check-controller passes the note on
-    assert [n["code"] for n in check["notes"]] == ["closing-geometry-moved"], check["notes"]
+    assert not [f for f in doc["calibration"]["findings"] if f["code"].startswith("closing-geometry")], doc["calibration"]
+    assert json.loads((run["dir"] / "check.json").read_text())["notes"] == []
+    fitted = {p["name"]: p["estimate"] for p in json.loads((run["dir"] / "id.json").read_text())["parameters"]}
+    rot = so3_exp(np.array([fitted[f"tracker_r{a}"] for a in "xyz"]))
+    origin = np.array([fitted[f"tracker_{a}"] for a in "xyz"])
+    held = read_measurements(run["dir"] / "d.validation.csv", build_template(CORPUS_DIR / "delta_r.py").mechanism())
+    point, _ = ControllerModel(doc).forward(held.q, held.metadata)
+    rms = float(np.sqrt(np.mean(np.sum(((point - origin) @ rot - held.position) ** 2, axis=1))))
+    recorded = doc["calibration"]["targets"]["target"]["validation"]["rms"]
+    assert rms <= 1.5 * recorded, (rms, recorded)
 
 
 def test_the_corpus_duration_is_reported(corpus, record_property):

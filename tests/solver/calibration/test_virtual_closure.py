@@ -93,3 +93,48 @@ def test_defects_that_close_already_are_kept(tripteor, tripteor_analysis):
     units = {p.name: p.unit for p in tripteor.parameters}
     drawn = matrix @ np.array([rng.uniform(-1, 1) * (0.05 if units[n] == "mm" else 2e-4) for n in names])
     assert np.array_equal(vm.defects, drawn)  # the Tripteor's conditions are linear: nothing to move
+
+
+def test_the_closing_move_weighed_by_the_measurements_keeps_the_held_out_predictions(tmp_path):
+    """Sarrus linkage, a campaign of ``hyperstat simulate`` (107 fitted poses, 30 held out): its identified defects
+    miss the loops at second order.  The least-norm move onto loops that close changes what the measurements saw:
+    its held-out predictions, the tracker frame registered on them (what no placement of the tracker explains), are
+    several times the identified model's.  Weighed by :func:`prediction_metric` of the fitted poses (the held-out
+    ones never enter it), the move closes the loops as exactly and predicts the held-out poses within 1.5 times the
+    identified model (the export's gate, ``CLOSING_WORSE``)."""
+    import copy
+
+    from hyperstat.solver.calibration.identify import identify, kabsch
+    from hyperstat.solver.calibration.measurements import read_measurements
+    from hyperstat.solver.calibration.virtual import prediction_metric
+
+    from tests.conftest import run_cli
+
+    src = CORPUS_DIR / "sarrus.py"
+    data_csv = tmp_path / "d.csv"
+    assert run_cli(["simulate", src, "--out", data_csv, "--quiet"])[0] == 0
+    mech = build_template(src).mechanism()
+    kin = Kinematics(mech)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = analyze(mech, kinematics=kin)
+        data = read_measurements(data_csv, mech)
+        held = read_measurements(tmp_path / "d.validation.csv", mech)
+        res = identify(mech, result, data, held, kinematics=kin)
+    xi = res.model.defects(res.theta)
+
+    def held_out_rms(defects: np.ndarray) -> float:
+        moved = copy.copy(res.model)
+        moved.defects = lambda theta: res.model.defects(theta) + (defects - xi)
+        world = moved.predict(res.theta, held).world
+        rot, shift = kabsch(held.position, world)
+        return float(np.sqrt(np.mean(np.sum((held.position @ rot.T + shift - world) ** 2, axis=1))))
+
+    least_norm = onto_closure(kin, xi, result.configurations)
+    weighed = onto_closure(kin, xi, result.configurations, metric=prediction_metric(res.model, res.theta, data))
+    for moved in (least_norm, weighed):  # both close the loops at configurations the move never saw
+        q = kin.solve(data.q[::10], moved).q
+        assert np.max(kin.residual_norm(kin.evaluate(q, moved, jacobians=False).residual)) < 1e-9 * kin.length_scale
+    identified = held_out_rms(xi)
+    assert held_out_rms(least_norm) > 3 * identified
+    assert held_out_rms(weighed) <= 1.5 * identified, (held_out_rms(weighed), identified)
