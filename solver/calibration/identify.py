@@ -25,6 +25,7 @@ weighted by the tracker noise model when the data state it.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -46,7 +47,8 @@ from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.threads import limited_blas
 
 __all__ = ["MeasurementModel", "Prediction", "IdentificationResult", "identify", "error_stats", "kabsch", "register_targets",
-           "observability_indices", "fit_quality", "FIT_QUALITY", "SIGMA_WARN", "SIGMA_INPUTS", "SIZE_INPUTS"]
+           "observability_indices", "fit_quality", "worse_than_nominal", "FIT_QUALITY", "SIGMA_WARN", "SIGMA_INPUTS",
+           "SIZE_INPUTS"]
 
 TRACKER_NAMES = ["tracker_rx", "tracker_ry", "tracker_rz", "tracker_x", "tracker_y", "tracker_z"]
 TARGET_NAMES = ["target_x", "target_y", "target_z"]
@@ -1313,10 +1315,11 @@ def identify(
         if vp is not None and validation.rotation is not None:
             orientation["validation"] = _angle_stats(np.linalg.norm(orientation_residual(vp.rotation, validation),
                                                                     axis=1))
-    nominal_doc = None
+    nominal_doc = nominal_sq = None
     if nominal:
         nominal_doc = _nominal_error(model, data, validation, theta_prior, w, scale, preferred, fitter.q, rank_tol,
                                      max_nfev)
+        nominal_sq = nominal_doc.pop("_validation_sq", None)
     id_targets = target_stats(data, resid, None if unweighted else sigma_axis)
     reference = None if not unweighted else float(np.sqrt(3.0) * sigma)
     ratios = {"identification": noise_ratios(id_targets, reference),
@@ -1331,6 +1334,7 @@ def identify(
     offsets, offset_cov = _target_offsets(model, theta, base_list, cov)
     context = {"data": data, "validation": validation, "sigma": sigma, "converged": converged, "table": table,
                "val_table": val_table, "val_stats": val_stats, "nominal": nominal_doc, "resid": resid,
+               "val_sq": None if val_res is None else np.sum(val_res ** 2, axis=1), "nominal_sq": nominal_sq,
                "quality": quality, "length_scale": model.kin.length_scale, "ratios": ratios, "counts": counts,
                "condition": float(sv_b[0] / sv_b[-1]), "groups": groups, "repeated_held_out": repeated_held_out,
                "coinciding": coinciding_targets(offsets, offset_cov) if len(offsets) > 1 else [],
@@ -1598,7 +1602,46 @@ def _nominal_error(model: MeasurementModel, data: MeasurementSet, validation: Me
     if validation is not None and len(validation):
         vp = model.predict(est, validation)
         out["validation"] = error_stats(vp.position - validation.position)
+        out["_validation_sq"] = np.sum((vp.position - validation.position) ** 2, axis=1)  # per observation (mm^2)
     return out
+
+
+def worse_than_nominal(calibrated_sq: np.ndarray, nominal_sq: np.ndarray, level: float = 0.975) -> tuple[float, float]:
+    """Whether the calibrated model predicts the held-out poses worse than the nominal one beyond chance.
+
+    A paired test of the squared held-out errors of the two models at the same observations (mm^2):
+    ``t = mean(d) / (std(d) / sqrt(n))``, ``d = |e_calibrated|^2 - |e_nominal|^2``, against Student's
+    quantile of ``level`` with ``n - 1`` degrees of freedom.  Where the geometric defects move the target by less
+    than the noise, the two models predict equally well and either wins by a few per cent by chance: that is
+    no sign of over-fitting.
+
+    Returns
+    -------
+    (t, critical) : float, float
+        The statistic and the value it must exceed (``t = inf`` when every difference is equal and positive).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> a, b = rng.normal(size=30) ** 2, rng.normal(size=30) ** 2
+    >>> t, critical = worse_than_nominal(a, b)  # two models alike: no significant difference
+    >>> bool(t > critical)
+    False
+    >>> t, critical = worse_than_nominal(4.0 * a + 1.0, b)
+    >>> bool(t > critical)
+    True
+    """
+    from scipy.stats import t as student
+
+    d = np.asarray(calibrated_sq, dtype=float) - np.asarray(nominal_sq, dtype=float)
+    d = d[np.isfinite(d)]
+    n = len(d)
+    if n < 2:
+        return (math.inf if n and d[0] > 0 else 0.0), math.inf
+    spread = float(np.std(d, ddof=1))
+    mean = float(np.mean(d))
+    t = mean / (spread / math.sqrt(n)) if spread > 0 else (math.inf if mean > 0 else 0.0)
+    return t, float(student.ppf(level, n - 1))
 
 
 def _finding(code: str, message: str, reason: str | None = None, **details) -> dict:
@@ -1792,11 +1835,23 @@ def _findings(ctx: dict) -> list:
                             f"{ctx['unassembled']} held-out pose(s) do not assemble with the identified model"))
     if nominal is not None and val_stats is not None and nominal.get("validation") is not None:
         before, after = nominal["validation"]["rms"], val_stats["rms"]
-        if after > before:
+        t, critical = (math.inf, 0.0) if ctx.get("nominal_sq") is None else \
+            worse_than_nominal(ctx["val_sq"], ctx["nominal_sq"])
+        if after > before and not t > critical:
+            out.append(_finding(
+                "no-gain-over-nominal",
+                f"the calibration does not measurably improve the held-out poses on the nominal model: validation RMS "
+                f"{after:.4g} mm calibrated against {before:.4g} mm with the nominal geometry (only the tracker frame "
+                f"and targets fitted), a difference the noise explains (paired t = {t:.2g} over "
+                f"{len(ctx['val_sq'])} observations, below {critical:.3g}): what the identified defects change is below "
+                f"what these poses resolve, and either geometry predicts them as well."))
+        elif after > before:
             out.append(_finding(
                 "worse-than-nominal",
                 f"CALIBRATION MAKES HELD-OUT POSES WORSE: validation RMS {after:.4g} mm calibrated against "
-                f"{before:.4g} mm with the nominal model (only the tracker frame and targets fitted). Too few poses for "
+                f"{before:.4g} mm with the nominal model (only the tracker frame and targets fitted"
+                + (f"; paired t = {t:.3g} over {len(ctx['val_sq'])} observations, above {critical:.3g}"
+                   if ctx.get("nominal_sq") is not None else "") + "). Too few poses for "
                 f"the parameters (over-fitting), or data the model does not describe: keep the nominal model, add "
                 f"poses, or identify fewer parameters (--select-size).",
                 f"it predicts the held-out poses worse than the nominal model (validation RMS {after:.4g} mm against "
