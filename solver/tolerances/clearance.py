@@ -591,19 +591,23 @@ def _violation_dual(model: ClearanceModel, cg: np.ndarray, av: np.ndarray) -> np
     b = _dual_pieces(model, np.einsum("krg,kr->kg", cg, n))
     scale = np.maximum(np.max(np.abs(a), axis=(1, 2)), np.max(np.abs(b), axis=(1, 2))) + 1e-300
 
-    eps = 1e-13 * scale[:, None, None]
+    eps = 1e-13 * scale[:, None]  # (K, 1)
+    # the linear pieces along the first axis, (N, K, T): the maxima over them are elementwise over (K, T) slices
+    # (a reduction over a short last axis runs row by row: 30 % of this function's time on the Tripteor; the same bits)
+    a_n = np.ascontiguousarray(np.moveaxis(a, -1, 0))
+    b_n = np.ascontiguousarray(np.moveaxis(b, -1, 0))
 
     def value_slopes_at(idx: np.ndarray | None, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """f, its left and its right derivative at ``s`` for the rows ``idx`` (None: every row)."""
-        aa, bb, ee = (a, b, eps) if idx is None else (a[idx], b[idx], eps[idx])
-        v = s[:, None, None] * bb
+        aa, bb, ee = (a_n, b_n, eps) if idx is None else (a_n[:, idx], b_n[:, idx], eps[idx])
+        v = s[None, :, None] * bb
         v += aa
         # the ufuncs' reductions called directly (numpy.max and numpy.sum call them, through Python wrappers)
-        top = np.maximum.reduce(v, axis=-1, keepdims=True)
+        top = np.maximum.reduce(v, axis=0)  # (K, T)
         act = v >= top - ee
-        right = np.add.reduce(np.maximum.reduce(bb, axis=-1, where=act, initial=-np.inf), axis=-1)
-        left = np.add.reduce(np.minimum.reduce(bb, axis=-1, where=act, initial=np.inf), axis=-1)
-        return np.add.reduce(top[..., 0], axis=-1), left, right
+        right = np.add.reduce(np.maximum.reduce(np.where(act, bb, -np.inf), axis=0), axis=-1)
+        left = np.add.reduce(np.minimum.reduce(np.where(act, bb, np.inf), axis=0), axis=-1)
+        return np.add.reduce(top, axis=-1), left, right
 
     # bracket the minimiser: the right derivative is negative at lo, the left one positive at hi
     width = np.full(k, 1.0) / np.sqrt(norm2)
