@@ -40,8 +40,8 @@ from hyperstat.solver.calibration.fit_checks import (FIT_QUALITY, MAX_CONDITION,
                                                      fit_quality, joint_region, noise_ratios, target_label,
                                                      target_stats)
 from hyperstat.solver.calibration.measurements import MeasurementSet
-from hyperstat.solver.calibration.outliers import (FAMILY_ALPHA, chi2_median, coincident_across, coincident_poses,
-                                                   deleted_residual_test, threshold)
+from hyperstat.solver.calibration.outliers import (COPY_FRACTION, FAMILY_ALPHA, chi2_median, coincident_across,
+                                                   coincident_poses, copied_reading, deleted_residual_test, threshold)
 from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.analysis.stationarity import StationarityResult
 from hyperstat.solver.threads import limited_blas
@@ -1337,6 +1337,7 @@ def identify(
                "val_sq": None if val_res is None else np.sum(val_res ** 2, axis=1), "nominal_sq": nominal_sq,
                "quality": quality, "length_scale": model.kin.length_scale, "ratios": ratios, "counts": counts,
                "condition": float(sv_b[0] / sv_b[-1]), "groups": groups, "repeated_held_out": repeated_held_out,
+               "sigma_axis": sigma_axis,
                "coinciding": coinciding_targets(offsets, offset_cov) if len(offsets) > 1 else [],
                "unassembled": 0 if vp is None else int((~vp.converged).sum()), "limit": limit,
                "excluded": list(_excluded or [])}
@@ -1794,26 +1795,53 @@ def _findings(ctx: dict) -> list:
             f"targets {a} and {b} coincide ({c['distance_mm']:.3g} mm apart): one's columns are likely a copy of the "
             f"other's", targets=[a, b]))
     groups = ctx["groups"]
+    sigma_min = float(np.min(ctx["sigma_axis"])) if len(ctx["sigma_axis"]) else 0.0
     if groups:
+        # a pose measured again at one place is two independent readings; a row copied is one reading counted twice
+        copied = [g for g in groups if any(copied_reading(data, a, data, b, sigma_min) for i, a in enumerate(g)
+                                           for b in g[i + 1:])]
         extra = sum(len(g) - 1 for g in groups)
-        shown = ", ".join(" = ".join(g) for g in groups[:4]) + (", ..." if len(groups) > 4 else "")
-        out.append(_finding(
-            "repeated-poses",
-            f"REPEATED POSES: {extra} of {data.n_poses} poses repeat others within the noise (same metadata, actuated "
-            f"values that move the target by less than one standard deviation): {shown}. They are counted once for "
-            f"sigma and the standard deviations ({data.n_poses - extra} distinct poses); a copied row is not an "
-            f"independent measurement.",
-            f"{extra} of its {data.n_poses} poses repeat others within the noise ({shown}): they are not independent "
-            f"measurements", groups=groups))
+        shown = ", ".join(" = ".join(g) for g in (copied or groups)[:4]) + (", ..." if len(copied or groups) > 4
+                                                                            else "")
+        if copied:
+            out.append(_finding(
+                "repeated-poses",
+                f"REPEATED POSES: {extra} of {data.n_poses} poses repeat others within the noise (same metadata, "
+                f"actuated values that move the target by less than one standard deviation), {len(copied)} group(s) "
+                f"with the same reading to {COPY_FRACTION:g} of the noise, a row copied: {shown}. They are counted "
+                f"once for sigma and the standard deviations ({data.n_poses - extra} distinct poses); a copied row is "
+                f"not an independent measurement.",
+                f"{extra} of its {data.n_poses} poses repeat others within the noise ({shown}), readings copied: they "
+                f"are not independent measurements", groups=groups))
+        else:
+            out.append(_finding(
+                "poses-measured-again",
+                f"{extra} of {data.n_poses} poses were measured again within the noise of others (same metadata, "
+                f"actuated values that move the target by less than one standard deviation, readings that differ as "
+                f"independent ones do): {shown}. They are counted once for sigma and the standard deviations "
+                f"({data.n_poses - extra} distinct poses), which understates what they add.", groups=groups))
     if ctx["repeated_held_out"]:
         pairs = ctx["repeated_held_out"]
-        shown = ", ".join(f"{v} = {i}" for v, i in pairs[:4]) + (", ..." if len(pairs) > 4 else "")
-        out.append(_finding(
-            "held-out-repeats-fitted",
-            f"HELD-OUT POSES REPEAT FITTED ONES: {len(pairs)} validation pose(s) coincide with identification poses "
-            f"within the noise ({shown}); they do not test the calibration on poses it was not fitted to.",
-            f"{len(pairs)} held-out pose(s) repeat identification poses ({shown}), so the validation is not held out",
-            pairs=[list(p) for p in pairs]))
+        copied = [(v, i) for v, i in pairs if copied_reading(ctx["validation"], v, data, i, sigma_min)]
+        n_held = ctx["validation"].n_poses
+        shown = ", ".join(f"{v} = {i}" for v, i in (copied or pairs)[:4]) + (", ..." if len(copied or pairs) > 4
+                                                                              else "")
+        if copied or 2 * len({v for v, _ in pairs}) > n_held:
+            why = (f"{len(copied)} with the fitted pose's reading copied" if copied else
+                   f"more than half of the {n_held} held-out poses")
+            out.append(_finding(
+                "held-out-repeats-fitted",
+                f"HELD-OUT POSES REPEAT FITTED ONES: {len(pairs)} validation pose(s) coincide with identification "
+                f"poses within the noise ({shown}; {why}); they do not test the calibration on poses it was not fitted "
+                f"to.",
+                f"{len(pairs)} held-out pose(s) repeat identification poses ({shown}; {why}), so the validation is not "
+                f"held out", pairs=[list(p) for p in pairs]))
+        else:
+            out.append(_finding(
+                "held-out-measured-again",
+                f"{len(pairs)} of the {n_held} held-out poses were measured within the noise of fitted ones ({shown}; "
+                f"readings that differ as independent ones do): there the held-out residual tests the noise, not the "
+                f"model between poses; the others test it.", pairs=[list(p) for p in pairs]))
     if flagged or flagged_v:
         worst = sorted(flagged, key=lambda r: -r["deleted_z"])[:5] + sorted(flagged_v, key=lambda r: -r["deleted_z"])[:3]
         shown = ", ".join(f"{'held-out ' if r in flagged_v else ''}{_observation_name(r)} (t = {r['deleted_z']:.3g}, "

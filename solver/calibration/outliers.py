@@ -48,7 +48,11 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["FAMILY_ALPHA", "deleted_residual_test", "threshold", "coincident_poses", "coincident_across", "chi2_isf",
-           "chi2_median"]
+           "chi2_median", "copied_reading", "COPY_FRACTION"]
+
+#: two readings of one pose that agree to this fraction of the noise on every axis are one row copied: independent
+#: readings differ by about the noise (the chance that two agree this closely on three axes is about 1e-9)
+COPY_FRACTION = 1e-3
 
 #: family-wise false-alarm probability of the outlier test over a whole campaign (Bonferroni)
 FAMILY_ALPHA = 1e-3
@@ -263,3 +267,33 @@ def coincident_across(data, held_out, twists: np.ndarray, sigma_axis: np.ndarray
         if np.array_equal(mb[a], ma[b]) and _moves_less_than(qa[b] - qb[a], twists[ia[b]], length, sigma_axis[ia[b]]):
             out.append((held_out.pose_id[ib[a]], data.pose_id[ia[b]]))
     return sorted(set(out), key=lambda p: held_out.pose_id.index(p[0]))
+
+
+def copied_reading(data, pose: str, other, other_pose: str, sigma: float) -> bool:
+    """Whether two poses that coincide within the noise carry the same reading: a row copied, not a pose measured again.
+
+    Two poses measured at one place are two readings: their measured positions differ by about the noise, and each
+    is an independent measurement.  A copied row (a campaign pasted twice, with a jitter of the joint values that an
+    exact-equality check lets through) repeats the reading itself: every target within :data:`COPY_FRACTION` of the
+    noise ``sigma`` (mm per axis) on every axis.
+
+    Parameters
+    ----------
+    data, other : MeasurementSet
+        The sets holding ``pose`` and ``other_pose`` (the same set, or the fitted and the held-out ones).
+    pose, other_pose : str
+        Pose ids.
+    sigma : float
+        One standard deviation of the noise per axis (mm).
+
+    Returns
+    -------
+    bool
+    """
+    rows_a = [i for i, p in enumerate(data.pose_id) if p == pose]
+    rows_b = [i for i, p in enumerate(other.pose_id) if p == other_pose]
+    if len(rows_a) != len(rows_b):
+        return False
+    pa = np.asarray(data.position, dtype=float)[rows_a]
+    pb = np.asarray(other.position, dtype=float)[rows_b]
+    return bool(np.max(np.abs(pa - pb)) <= COPY_FRACTION * sigma)

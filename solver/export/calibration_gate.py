@@ -70,7 +70,8 @@ def calibration_record(identification, forced: bool = False) -> dict:
     data state no noise); ``sigma``; ``targets``: per target the ``identification`` and ``validation``
     stats of the 3-D residual norms (``mean, max, rms, n``, mm) with the ``noise_rms`` their rows state;
     ``equations`` (poses, equations, machine equations, parameters, machine parameters); ``region``: the
-    actuated values the identification poses cover; ``repeated_poses``; ``excluded`` (outliers excluded on
+    actuated values the identification poses cover; ``repeated_poses`` (the groups whose readings were copied);
+    ``excluded`` (outliers excluded on
     request); ``findings`` (``code``, ``refuses``, ``message``); ``forced`` and ``reasons`` (the gate's
     reasons when written with ``--force``; both empty otherwise).
 
@@ -98,7 +99,9 @@ def calibration_record(identification, forced: bool = False) -> dict:
         "equations": {k: int(counts[k]) for k in ("poses", "equations", "machine_equations", "parameters",
                                                   "machine_parameters")},
         "region": dict(identification.region),
-        "repeated_poses": [list(g) for g in identification.repeated_poses],
+        # the groups whose readings were copied (they refuse); poses measured again are a note's, with its groups
+        "repeated_poses": [list(g) for f in identification.findings if f["code"] == "repeated-poses"
+                           for g in f.get("groups", [])],
         "excluded": [{"set": e["set"], "pose": str(e["pose"]), "target": str(e["target"])}
                      for e in identification.excluded],
         "findings": [{"code": f["code"], "refuses": bool(f["refuses"]), "message": f["message"]}

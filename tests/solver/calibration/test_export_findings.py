@@ -258,3 +258,62 @@ def test_an_outlier_on_the_tripteor_is_named(tripteor, tripteor_analysis):
     clean = res.without_outliers
     assert [e["pose"] for e in clean["excluded"]] == [data.pose_id[23]]
     assert clean["fit_quality"] == "ok" and clean["validation_rms"] < 1.3 * res.noise_rms
+
+
+def _again(text: str, prefix: str) -> list:
+    """The rows of ``text`` renamed with ``prefix`` and J1 moved by 1e-9 rad (an exact repeat is refused on reading)."""
+    rows = []
+    for line in _split(text)[1]:
+        cells = line.split(",")
+        cells[0] = prefix + cells[0]
+        cells[1] = repr(float(cells[1]) + math.degrees(1e-9))
+        rows.append(",".join(cells))
+    return rows
+
+
+def test_poses_measured_again_are_a_note_and_copied_readings_refuse(fanuc, tmp_path):
+    """Every pose measured a second time: the same joint values (1e-9 rad apart), a new reading with its own noise
+    (the generator's second draw). Two independent readings, not a copy: counted once as before, a note, and the
+    file is written and checked. The same poses with the readings copied refuse (the test above)."""
+    c = Campaign(23)
+    q = c.poses(50)
+    first = c.csv(q, "P")
+    head, body = _split(first)
+    (tmp_path / "again.csv").write_text(_join(head, body + _again(c.csv(q, "P"), "R")))
+    res = _identify(fanuc, tmp_path / "again.csv", tmp_path)
+    assert res["distinct_poses"] == 50 and len(res["repeated_poses"]) == 50
+    assert [f["code"] for f in res["findings"] if f["code"] in ("poses-measured-again", "repeated-poses")] == \
+        ["poses-measured-again"]
+    assert not [f for f in res["findings"] if f["refuses"]], res["findings"]
+    out = tmp_path / "m.json"
+    code, _, err = run_cli(["export-controller", fanuc, tmp_path / "again.csv", "--out", out, "--quiet"])
+    assert code == 0, err
+    assert json.loads(out.read_text())["calibration"]["repeated_poses"] == []
+    assert run_cli(["check-controller", out, "--quiet"])[0] == 0
+
+
+def test_held_out_poses_measured_again_are_a_note_unless_copied_or_most(fanuc, tmp_path):
+    """40 fitted poses; held out: 20 new poses and 3 fitted ones measured again (new readings): a note, written.
+    The 3 with the fitted readings copied instead: refused (the validation repeats the fit). 20 fitted poses measured
+    again and 3 new ones: more than half of the held-out poses repeat fitted ones: refused."""
+    c = Campaign(29)
+    q = c.poses(40)
+    (tmp_path / "d.csv").write_text(c.csv(q, "P"))
+    head, new = _split(c.csv(c.poses(20), "V"))
+    cases = {"again": new + _again(c.csv(q[:3], "P"), "V"),
+             "copied": new + _again((tmp_path / "d.csv").read_text(), "V")[:3],
+             "most": new[:3] + _again(c.csv(q[:20], "P"), "V")}
+    codes = {}
+    for name, rows in cases.items():
+        (tmp_path / f"{name}.csv").write_text(_join(head, rows))
+        out = tmp_path / f"{name}.json"
+        code, _, err = run_cli(["export-controller", fanuc, tmp_path / "d.csv", "--validation", tmp_path / f"{name}.csv",
+                                "--out", out, "--quiet"])
+        codes[name] = code
+        if name == "again":
+            assert code == 0, err
+            found = [f["code"] for f in json.loads(out.read_text())["calibration"]["findings"]]
+            assert "held-out-measured-again" in found and "held-out-repeats-fitted" not in found
+        else:
+            assert code == 2 and "so the validation is not held out" in err, err
+    assert codes == {"again": 0, "copied": 2, "most": 2}
