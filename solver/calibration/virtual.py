@@ -145,7 +145,7 @@ UNSEEN_CHANGE = 1e-4
 
 
 def prediction_metric(model: MeasurementModel, theta: np.ndarray, data: MeasurementSet,
-                      unseen: float = UNSEEN_CHANGE) -> np.ndarray:
+                      unseen: float = UNSEEN_CHANGE, q_start: np.ndarray | None = None) -> np.ndarray:
     """How much a change of the defects moves the predicted targets, as a metric for :func:`onto_closure`.
 
     ``M = J^T J / s^2 + I / unseen^2`` in the dimensionless defect columns, ``J`` the predicted tracker-frame
@@ -166,13 +166,16 @@ def prediction_metric(model: MeasurementModel, theta: np.ndarray, data: Measurem
         The fitted poses (never held-out ones: they judge the result).
     unseen : float
         See above.
+    q_start : ndarray, (K, n_q), optional
+        The fit's configurations at these poses (``IdentificationResult.configurations``): the assembly starts
+        there instead of following the nominal machine from home.
 
     Returns
     -------
     ndarray, (n_xi, n_xi)
     """
     kin = model.kin
-    pred = model.predict(theta, data)
+    pred = model.predict(theta, data, q_start=q_start)
     st = kin.evaluate(pred.q, model.defects(theta), jacobians=True)
     k_xi, _ = model.twist_maps(st)
     arm = pred.world - st.output_pose[:, :3, 3]

@@ -122,7 +122,9 @@ def _closing_defects(mech, kin, result, res, args, data):
 
     xi = res.model.defects(res.theta)
     try:
-        moved = onto_closure(kin, xi, result.configurations, metric=lambda: prediction_metric(res.model, res.theta, data))
+        moved = onto_closure(kin, xi, result.configurations, metric=lambda: prediction_metric(
+            res.model, res.theta, data, q_start=res.configurations if res.configurations is not None and
+            len(res.configurations) == len(data) else None))
     except AnalysisError:
         return None  # the export's own check says that the geometry does not assemble
     if moved is xi or not np.any(moved != xi):
