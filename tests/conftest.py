@@ -138,12 +138,14 @@ LINUXCNC_MODULES = ("tests/solver/export/test_genserkins.py", "tests/solver/expo
 SHARED_REPORTS = ("tripteor_report", "slider_crank_report")
 #: groups that take minutes, sent to the workers first so that none of them ends the run alone on one worker: the
 #: FreeCAD clicking scenario, the analyze/accuracy/report of every template, freecadcmd, the part drawings, ...
+#: The LinuxCNC modules come second: their 90 s are mostly waits on the simulated machine (17 s of CPU), which
+#: the clicking scenario and the corpus' background run fill at the start; later in the run they left a core idle.
 _EQUAL = "tests/solver/tolerances/test_equal_counts.py::test_counts_and_classes_are_equal_across_outputs"
-FIRST = ("tests/cad_plugin/freecad/test_gui_clicks.py",
+FIRST = ("tests/cad_plugin/freecad/test_gui_clicks.py", "@linuxcnc",
          f"{_EQUAL}[planar_3rrr]", f"{_EQUAL}[hexapod]",  # the two longest equal-values tests (129 s, 65 s of CPU)
          "tests/solver/tolerances/test_equal_counts.py",
          "tests/cad_plugin/freecad/test_workbench.py", "tests/solver/tolerances/test_part_drawings.py",
-         "@reports", "@linuxcnc", "tests/solver/tolerances/test_independent_worst_cases.py")
+         "@reports", "tests/solver/tolerances/test_independent_worst_cases.py")
 #: modules whose tests share no module-scoped fixture and each take a minute or more: one group per test, so that
 #: both workers share them
 SPLIT = ("tests/solver/tolerances/test_equal_counts.py",)
