@@ -25,6 +25,7 @@ weighted by the tracker noise model when the data state it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -325,9 +326,20 @@ class MeasurementModel:
         while from the nominal configurations every one closes and is predicted to the noise.
         """
         kin = self.kin
+        # both memos are kept on the kinematics: the models of one mechanism that share it (a diagnosis' pooled fits
+        # of every candidate effect, each starting from the nominal geometry) follow the same nominal machine to the
+        # same poses
         if not np.any(xi):
-            return kin.solve(qa, xi)
-        memo = self.__dict__.setdefault("_nominal_configurations", {})
+            nominal = kin.__dict__.setdefault("_nominal_assemblies", {})
+            k = (qa.shape, qa.tobytes())
+            if k not in nominal:
+                if len(nominal) >= 4:
+                    nominal.pop(next(iter(nominal)))
+                nominal[k] = kin.solve(qa, xi)
+            res = nominal[k]  # a copy: the caller marks the poses it keeps
+            return dataclasses.replace(res, q=res.q.copy(), residual=res.residual.copy(),
+                                       converged=res.converged.copy())
+        memo = kin.__dict__.setdefault("_nominal_configurations", {})
         k = (qa.shape, qa.tobytes())
         if k not in memo:
             if len(memo) >= 4:
