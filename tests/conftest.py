@@ -138,7 +138,7 @@ LINUXCNC_MODULES = ("tests/solver/export/test_genserkins.py", "tests/solver/expo
 SHARED_REPORTS = ("tripteor_report", "slider_crank_report")
 #: groups that take minutes, sent to the workers first so that none of them ends the run alone on one worker: the
 #: FreeCAD clicking scenario, the analyze/accuracy/report of every template, freecadcmd, the part drawings, ...
-#: The LinuxCNC modules come second: their 90 s are mostly waits on the simulated machine (17 s of CPU), which
+#: The LinuxCNC modules come second: their 90 s are mostly waits on the simulated machine (16 s of CPU), which
 #: the clicking scenario and the corpus' background run fill at the start; later in the run they left a core idle.
 _EQUAL = "tests/solver/tolerances/test_equal_counts.py::test_counts_and_classes_are_equal_across_outputs"
 FIRST = ("tests/cad_plugin/freecad/test_gui_clicks.py", "@linuxcnc",

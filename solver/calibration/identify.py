@@ -326,27 +326,11 @@ class MeasurementModel:
         while from the nominal configurations every one closes and is predicted to the noise.
         """
         kin = self.kin
-        # both memos are kept on the kinematics: the models of one mechanism that share it (a diagnosis' pooled fits
-        # of every candidate effect, each starting from the nominal geometry) follow the same nominal machine to the
-        # same poses
-        if not np.any(xi):
-            nominal = kin.__dict__.setdefault("_nominal_assemblies", {})
-            k = (qa.shape, qa.tobytes())
-            if k not in nominal:
-                if len(nominal) >= 4:
-                    nominal.pop(next(iter(nominal)))
-                nominal[k] = kin.solve(qa, xi)
-            res = nominal[k]  # a copy: the caller marks the poses it keeps
-            return dataclasses.replace(res, q=res.q.copy(), residual=res.residual.copy(),
-                                       converged=res.converged.copy())
-        memo = kin.__dict__.setdefault("_nominal_configurations", {})
-        k = (qa.shape, qa.tobytes())
-        if k not in memo:
-            if len(memo) >= 4:
-                memo.pop(next(iter(memo)))
-            nominal = kin.solve(qa, np.zeros_like(xi))
-            memo[k] = (nominal.q, nominal.residual <= 1e-2 * kin.length_scale)
-        start, closed = memo[k]
+        nominal = self._nominal_assembly(qa)
+        if not np.any(xi):  # a copy: the caller marks the poses it keeps
+            return dataclasses.replace(nominal, q=nominal.q.copy(), residual=nominal.residual.copy(),
+                                       converged=nominal.converged.copy())
+        start, closed = nominal.q, nominal.residual <= 1e-2 * kin.length_scale
         res = kin.assemble(start.copy(), xi)
         redo = ~closed | (res.residual > 1e-2 * kin.length_scale)
         if np.any(redo):
@@ -354,6 +338,20 @@ class MeasurementModel:
             res.q[redo] = again.q
             res.residual[redo] = again.residual
         return res
+
+    def _nominal_assembly(self, qa: np.ndarray):
+        """The nominal machine assembled at actuated values ``qa`` by continuation from home, kept for the last four
+        sets of poses on the kinematics: the models of one mechanism that share it (a diagnosis' pooled fits of
+        every candidate effect, each starting from the nominal geometry) follow the same machine to the same poses.
+        """
+        kin = self.kin
+        memo = kin.__dict__.setdefault("_nominal_assemblies", {})
+        k = (qa.shape, qa.tobytes())
+        if k not in memo:
+            if len(memo) >= 4:
+                memo.pop(next(iter(memo)))
+            memo[k] = kin.solve(qa, np.zeros(kin.n_xi))
+        return memo[k]
 
     def _target_index(self, data: MeasurementSet) -> np.ndarray:
         """Target of each row of ``data`` as an index into :attr:`targets`."""

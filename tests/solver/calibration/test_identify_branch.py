@@ -157,3 +157,35 @@ def test_held_out_poses_of_a_bricard_line_are_predicted_on_the_nominal_branch(tm
     assert not any("did not assemble" in w for w in res.warnings), res.warnings
     held = [v for v in res.noise_ratios["validation"].values() if v is not None]
     assert held and max(held) < 1.5, (res.validation, res.warnings)  # the held-out RMS within 1.5 x the noise
+
+
+def test_models_sharing_a_kinematics_assemble_the_nominal_machine_once(slider_crank, slider_crank_analysis,
+                                                                         monkeypatch):
+    """The models of one mechanism that share a :class:`Kinematics` (a diagnosis' pooled fits of every candidate
+    effect) assemble the nominal machine at a set of poses once (``MeasurementModel._nominal_assembly``), and each gets
+    its own copy: what one caller marks (its lost poses) is not what the next one reads.  The expected assembly is
+    ``Kinematics.solve`` itself, called before any model."""
+    from hyperstat.solver.calibration.identify import MeasurementModel
+    from hyperstat.solver.kinematics.closure import Kinematics
+
+    mech, result = slider_crank, slider_crank_analysis
+    kin = Kinematics(mech)
+    qa = result.configurations[:6][:, mech.actuated]
+    zero = np.zeros(len(mech.parameters))
+    expected = kin.solve(qa, zero)
+    calls = []
+    solve = kin.solve
+    monkeypatch.setattr(kin, "solve", lambda *a, **k: calls.append(1) or solve(*a, **k))
+    first = MeasurementModel(mech, result, kin)._on_nominal_branch(qa, zero)
+    first.q[:] = np.nan  # what predict does to a result it keeps: marks its poses
+    first.converged[:] = False
+    second = MeasurementModel(mech, result, kin)._on_nominal_branch(qa, zero)
+    assert len(calls) == 1
+    assert np.allclose(second.q, expected.q, rtol=0, atol=1e-12) and np.array_equal(second.converged, expected.converged)
+    # a geometry with a free defect (its loop closes exactly) starts from the same nominal assembly: no second
+    # continuation from home, and it closes
+    free = next(p.name for p in result.parameters if p.verdict == "free")
+    xi = zero.copy()
+    xi[[p.name for p in mech.parameters].index(free)] = 1e-3
+    moved = MeasurementModel(mech, result, kin)._on_nominal_branch(qa, xi)
+    assert len(calls) == 1 and np.all(moved.residual < 1e-9), moved.residual
