@@ -35,7 +35,9 @@ time for the hexapod's ``accuracy``, memory goals for the 100,000 and 1,000,000 
 "independent of the count" is read as a peak within 10 % of the 100,000 row's, measured in the same
 run).  Every timed run starts with an **empty cache of results** (:mod:`hyperstat.solver.cache`, a folder of the run):
 "cold" is a first run of the model.  The ``report-cached`` row times the same report after one
-untimed run filled the cache (what the user waits for the second time).  The ``freecad`` row
+untimed run filled the cache (what the user waits for the second time); the ``report-changed`` row, the report
+with one dimension changed (``-p depth=810``) after an untimed run of the template as it is (the design loop:
+change a parameter, wait for the answer, with the cache the previous value left).  The ``freecad`` row
 installs the workbench into a temporary ``HOME`` with the real installer and runs
 ``benchmarks/freecad_insert_analyse.py`` in ``freecadcmd``: *Insert template* (Tripteor X7) and
 *Analyse*, as the workbench's functions run them (FreeCAD's own start is not counted; the CPU and
@@ -85,6 +87,8 @@ ACCURACY_SIZES = {"accuracy-10k": 10_000, "accuracy": 100_000, "accuracy-1m": 1_
 GOALS = {
     "report": (4.0, None, "hyperstat report, Tripteor X7 with data, cold (empty cache)"),
     "report-cached": (None, None, "hyperstat report, Tripteor X7 with data, the cache filled by one run before"),
+    "report-changed": (None, None, "hyperstat report, Tripteor X7 with data, depth 800 -> 810 mm after one run at 800 "
+                                   "(the design loop: the cache filled by the previous value)"),
     "demo": (8.0, None, "make demo after set-up (simulate + report + export-controller), empty cache"),
     "accuracy": (5.0, 300.0, "hyperstat accuracy, Triflex-II, 100,000 configurations (refined worst cases)"),
     "accuracy-1m": (40.0, (300.0, "accuracy"), "hyperstat accuracy, Triflex-II, 1,000,000 configurations (memory: "
@@ -103,7 +107,7 @@ GOALS = {
 }
 
 #: the environment of the timed commands: bytecode written and read, as in an installed package; the cache of
-#: results (hyperstat.solver.cache) in a folder of the run, emptied before every timed run but the "-cached" rows'
+#: results (hyperstat.solver.cache) in a folder of the run, emptied before every timed run but the PRIMED rows'
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
@@ -152,6 +156,10 @@ def _arguments(work: Path) -> dict:
 def _commands(work: Path) -> dict:
     cmds = {name: [CLI + args] for name, args in _arguments(work).items()}
     cmds["report-cached"] = cmds["report"]
+    changed = list(cmds["report"][0])
+    at = changed.index("report") + 2  # after the template
+    changed[at:at] = ["-p", "depth=810"]
+    cmds["report-changed"] = [changed]
     cmds["demo"] = _demo_commands(work / "demo")
     return cmds
 
@@ -370,7 +378,10 @@ def _verdicts(goal, mem_goal, med: float, cpu: float, peak: float, peaks: dict |
 
 
 #: rows without a kernel row (the kernels of issue 32 exist for the rows before issue 39)
-NO_KERNEL = {"demo", "report-cached", "accuracy-hexapod", "freecad", "report-delta_r", "report-planar_3rrr"}
+NO_KERNEL = {"demo", "report-cached", "report-changed", "accuracy-hexapod", "freecad", "report-delta_r",
+             "report-planar_3rrr"}
+#: rows timed after an untimed run of another row's command in the same cache (the cache it leaves is the row's start)
+PRIMED = {"report-cached": "report", "report-changed": "report"}
 
 
 def _freecad_setup(work: Path) -> dict | None:
@@ -433,7 +444,7 @@ def main(argv: list[str] | None = None) -> int:
         cmds = _commands(work)
         (work / "demo").mkdir()  # the recipe's 'mkdir -p out/demo'
         _run([CLI + ["--version"]])  # writes the bytecode, as an installation has it (not timed)
-        if {"report", "report-cached", "diagnose", "demo"} & set(names):  # the data, once, not timed
+        if {"report", "report-cached", "report-changed", "diagnose", "demo"} & set(names):  # the data, once, not timed
             (work / "data").mkdir()
             _run([CLI + ["simulate", str(ROOT / "templates" / "tripteor_x7.py"), "--effect", "backlash",
                          "--out", str(work / "data" / "measurements.csv"), "--truth", str(work / "data" / "truth.json"),
@@ -449,8 +460,8 @@ def main(argv: list[str] | None = None) -> int:
             runs = []
             for _ in range(repeat):
                 _empty(cache)
-                if name.endswith("-cached"):
-                    _run(cmds[name])  # fills the cache (not timed)
+                if name in PRIMED:
+                    _run(cmds[PRIMED[name]])  # fills the cache (not timed)
                 runs.append(_run_freecad(fc, work) if name == "freecad" else _run(cmds[name]))
             walls, cpus, peaks = ([r[i] for r in runs] for i in range(3))
             kernel = None if name in NO_KERNEL or args.no_kernels else _kernel(name, repeat, work)
@@ -471,7 +482,8 @@ def main(argv: list[str] | None = None) -> int:
     lines = [f"Whole commands, new process each, median of {args.repeat} (the 1,000,000 row: one run); {cores} cores; "
              f"load = 1-minute load average before the row (the run: {min(loads):.1f}-{max(loads):.1f}); CPU = user + "
              "system of the command and its children (median); peak = largest resident memory of the command's "
-             "process; every run starts with an empty cache of results except the '-cached' rows; kernel = the "
+             "process; every run starts with an empty cache of results except the '-cached' and '-changed' rows "
+             "(one untimed run before); kernel = the "
              "batched kernels the command is built on, warm, in a new process right after the command (median; see "
              f"the script), and the ratios command / kernel. Generated by `python benchmarks/commands.py` in "
              f"{total:.0f} s.", "",
