@@ -45,8 +45,8 @@ regular octagon is the sum of four segments, so ``y = G lam`` with ``lam`` in ``
 onto the play set exactly, and the programme has only the closure's equality rows and bounded
 variables; ``t`` is scaled by its bound from duality (``u = e / |e|^2``), so that HiGHS' absolute
 tolerance is a relative one on ``t``.  How close that is, measured on the revolute Delta (12 closure rows left to
-168 segments): at the analysis' first four configurations (188 programmes) ``t`` is never below the optimum of an
-interior-point solve and at most 6.7e-8 above a bound of weak duality (16 of them more than 1e-9 above), and on 959
+168 segments): at the analysis' first four configurations (188 programmes) ``t`` is at most 3e-15 below the optimum
+of an interior-point solve and up to 6.7e-8 above a bound of weak duality (16 of them more than 1e-9 above), and on 959
 programmes recorded from its report's search at most 6.3e-8 above it (2.8 % more than 1e-8).  These are the dual
 simplex' answers within its tolerances (1e-10 on the orthonormal rows), not exact vertices; a bound from HiGHS' own
 row duals cuts the largest excess to 1.5e-8 only.  A single value can therefore be that much high (about 1e-9 rad
