@@ -280,12 +280,7 @@ def test_the_revolute_deltas_programmes_are_within_1e_7_of_an_interior_point_opt
 
     from hyperstat.solver.tolerances.clearance import AssemblyConditions, _constraint_blocks, _lift
 
-    mech = build_template(TEMPLATES / "corpus" / "delta_r.py").mechanism()
-    kin = Kinematics(mech)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = analyze(mech, kinematics=kin)
-    cl = classify(mech, result, kin)
+    mech, _, result, cl = classified("corpus/delta_r")
     items = cl.by_class("assembly")
     model = clearance_model(mech, cl.declaration)
     q = result.configurations[:4]
