@@ -13,8 +13,9 @@ sampled maximum is low, a sampled minimum high), so the workspace is *searched*:
    along its edges; and every configuration where a joint velocity changes sign along an edge
    or along a coordinate line of a full-turn actuator (a *dead centre*: the slider-crank at
    ``theta1 = 0, pi``), found by bracketing the sign change on a grid and solving for it
-   (regula falsi, :func:`workspace_candidates`).  All are assembled on the branch of the
-   workspace by certified continuation from the nearest sample.
+   (regula falsi, :func:`workspace_candidates`; a joint the line does not move has none).  All are
+   assembled on the branch of the workspace by certified continuation from the nearest of the
+   workspace's fixed checkpoints, the same for every sample and command.
 2. **Local search** from the best separate candidates, batched over all functions and starts:
    a projected-gradient method *on the configuration manifold* (all joints the function depends
    on are the variables, the closure holds them on the manifold): the gradient is taken by
@@ -79,6 +80,9 @@ SINGULAR = 1e-2
 CONDITIONING_FLOOR = 1e-2
 #: the task-restricted coefficients the allocation divides by (paper 2, eq. 18, task rows only)
 TASK_COEFFICIENTS = ("delta_gP", "delta_gR", "epsilon_gP", "epsilon_gR")
+#: a passive joint whose largest velocity along a line of the actuated box is below this share of the line's largest
+#: (scaled: rad, or mm per length scale, per unit of the actuator) does not move along it: no dead centre there
+NOT_MOVING = 1e-9
 #: margins (rad, or times the length scale) at which a supremum at a singular edge is evaluated, in one batch
 EDGE_MARGINS = (1e-3, 1e-4, 1e-5, 1e-6)
 
@@ -440,12 +444,19 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
       actuators (3^6 points at most);
     * dead centres: along every edge, and along the whole turn of a full-turn actuator, the
       configurations where the velocity of a passive joint per unit of the moving actuator changes
-      sign, bracketed on a grid of ``grid`` points and solved by regula falsi.
+      sign, bracketed on a grid of ``grid`` points and solved by regula falsi, and the grid points where
+      it is zero (below :data:`NOT_MOVING` of the line's largest: round-off, whatever its sign).  A
+      joint the line does not move at all has none there.
 
-    Everything is assembled on the workspace's branch by certified continuation from the nearest
-    configuration of ``sample`` (at most :data:`POOL` of them, evenly taken) (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`);
-    what does not assemble inside the workspace is left out.  ``varied`` (bool per actuated joint)
-    restricts the box to the actuators a function depends on (the others stay at home).
+    Everything is assembled on the workspace's branch by certified continuation
+    (:func:`hyperstat.solver.kinematics.continuation.continue_nearest`) from the nearest of the workspace's
+    fixed checkpoints (:func:`hyperstat.solver.tolerances.classification.workspace_checkpoints`: a sample of
+    seed 0 and the corners of the actuated box), whatever ``sample`` the caller gives: the same candidates for
+    every stage and command of one model, computed once per process (issue 39: the report computed them four
+    times from four samples, the same configurations to the continuation's tolerance).  ``sample`` (at most
+    :data:`POOL` of its configurations, evenly taken) is the start only where no checkpoint assembles.  What
+    does not assemble inside the workspace is left out.  ``varied`` (bool per actuated joint) restricts the
+    box to the actuators a function depends on (the others stay at home).
 
     Returns
     -------
@@ -454,7 +465,9 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
         ``corner``, ``edge``, ``face``, ``dead centre of joint 4 along joint 1`` ...
     """
     varied = np.ones(len(kin.mechanism.actuated), dtype=bool) if varied is None else np.asarray(varied, dtype=bool)
-    key = _candidates_key(kin, workspace, sample, (points_per_edge, grid, max_edges, tuple(varied)))
+    pool = _start_pool(kin, workspace)
+    key = _candidates_key(kin, workspace, sample if pool is None else None,
+                          (points_per_edge, grid, max_edges, tuple(varied)))
     if key in _CANDIDATES:
         return _CANDIDATES[key][1]
     from hyperstat.solver.kinematics.continuation import continue_nearest
@@ -504,7 +517,8 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
         out = (np.zeros((0, kin.n_q)), [])
         _remember(key, kin, out)
         return out
-    pool = _spread(sample, POOL) if len(sample) else None
+    if pool is None:
+        pool = _spread(sample, POOL) if len(sample) else None
     q, cert = continue_nearest(kin, np.array(all_targets), None, m.home, pool=pool, inside=workspace.inside)
     ok = cert.certified
     n_t = len(targets)
@@ -513,6 +527,7 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
     # dead centres: sign changes of each passive joint's velocity along the lines
     pos = n_t
     brackets = []  # (q_left, q_right, s_left, s_right, v_left, v_right, axis, joint, label)
+    resting = []  # (q, axis, joint): grid points where a moving passive joint's velocity is round-off zero
     pas = np.asarray(m.passive)
     for li, s, pts in grid_rows:
         qq, good = q[pos:pos + len(s)], ok[pos:pos + len(s)]
@@ -521,7 +536,15 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
             continue
         a = lines[li][1]
         vel = _passive_velocity(kin, qq[good], a)
+        # a passive joint the line does not move (its velocity round-off zero at every grid point: 1e-20 on the
+        # Tripteor's symmetric lines) has no dead centre there: the signs of its round-off are not sign changes
+        # and a joint that moves but stands still at a grid point (a dead centre at a bound of the box, the corpus'
+        # PRS-3: 4e-19) has its dead centre there, whatever the sign of that round-off
+        scaled = np.abs(vel) * (kin.joint_scale[m.actuated[a]] / kin.joint_scale[pas])[None, :]
+        at_rest = scaled <= NOT_MOVING * max(float(scaled.max()), 1e-300)
+        moves = ~at_rest.all(axis=0)
         ss, qg = s[good], qq[good]
+        resting += [(qg[i], a, p) for i, p in zip(*np.nonzero(at_rest & moves[None, :]))]
         periodic = lines[li][4]
         pairs = [(i, i + 1) for i in range(len(ss) - 1)] + ([(len(ss) - 1, 0)] if periodic and good[0] and good[-1]
                                                             else [])
@@ -532,11 +555,11 @@ def workspace_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarr
                 s_j = ss[j]
             if s_j - ss[i] > 2.5 * (s[1] - s[0]):  # not neighbours on the grid (a gap of unassembled points)
                 continue
-            for p in np.nonzero(vel[i] * vel[j] < 0)[0]:
+            for p in np.nonzero((vel[i] * vel[j] < 0) & ~at_rest[i] & ~at_rest[j])[0]:
                 brackets.append((qg[i], qg[j], ss[i], s_j, vel[i, p], vel[j, p], a, p))
-    if brackets:
-        found = _dead_centres(kin, workspace, brackets)
-        for (qd, a, p) in found:
+    found = _dead_centres(kin, workspace, brackets) if brackets else []
+    if found or resting:
+        for (qd, a, p) in found + resting:
             out_q.append(qd)
             out_l.append(f"dead centre of joint {m.joints[pas[p]].name} along joint {m.joints[m.actuated[a]].name}")
     out = (np.array(out_q) if out_q else np.zeros((0, kin.n_q)), out_l)
@@ -568,23 +591,46 @@ def remember_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarra
     """Keep ``found``, what :func:`workspace_candidates` returned for these arguments in another process (a forked
     child, its arrays handed back bit for bit), as this process' answer to them: the next call reads it."""
     varied = np.ones(len(kin.mechanism.actuated), dtype=bool) if varied is None else np.asarray(varied, dtype=bool)
-    key = _candidates_key(kin, workspace, sample, (points_per_edge, grid, max_edges, tuple(varied)))
+    key = _candidates_key(kin, workspace, sample if _start_pool(kin, workspace) is None else None,
+                          (points_per_edge, grid, max_edges, tuple(varied)))
     _remember(key, kin, (np.asarray(found[0], dtype=float).reshape(-1, kin.n_q), list(found[1])))
 
 
-def _candidates_key(kin: Kinematics, workspace: Workspace, sample: np.ndarray, options: tuple) -> tuple:
+#: (kinematics id, workspace digest) -> (kinematics, the candidates' start configurations or None); see _start_pool
+_POOLS: dict = {}
+
+
+def _start_pool(kin: Kinematics, workspace: Workspace) -> np.ndarray | None:
+    """The configurations the candidates of ``workspace`` are continued from: its fixed checkpoints (a sample of
+    seed 0 and the certified corners of the actuated box, :func:`hyperstat.solver.tolerances.classification.
+    workspace_checkpoints`; the classification's own when ``workspace`` is the declared one), or None when none
+    assembles (the caller's sample is then the start).  Kept per kinematics and workspace (by value)."""
+    from hyperstat.solver.tolerances.classification import workspace_checkpoints
+
+    m = kin.mechanism
+    key = _candidates_key(kin, workspace, None, ())
+    if key in _POOLS:
+        return _POOLS[key][1]
+    declared = key == _candidates_key(kin, workspace_of(m), None, ())
+    sample, corners = workspace_checkpoints(m, kin, None if declared else workspace)
+    pool = np.vstack([sample, corners]) if len(sample) + len(corners) else None
+    _remember(key, kin, pool, _POOLS)
+    return pool
+
+
+def _candidates_key(kin: Kinematics, workspace: Workspace, sample: np.ndarray | None, options: tuple) -> tuple:
     """What the candidates depend on: the kinematics (the object: it is kept alive with its entry, so its ``id`` is
     not reused), the workspace's bounds by value (every stage builds its own :class:`Workspace` of the same
-    declaration) and the sample's bytes."""
+    declaration) and, when the candidates start from it (:func:`_start_pool`), the sample's bytes."""
     import hashlib
 
-    if not isinstance(sample, SpilledArray):
+    if sample is not None and not isinstance(sample, SpilledArray):
         sample = np.ascontiguousarray(sample, dtype=float)
     bounds = [np.ascontiguousarray(a, dtype=float) for a in (workspace.lower, workspace.upper)]
     flags = [np.ascontiguousarray(a, dtype=bool) for a in (workspace.passive_declared, workspace.revolute)
              if a is not None]
     digest = hashlib.sha256()
-    for a in [sample] + bounds + flags:
+    for a in ([] if sample is None else [sample]) + bounds + flags:
         digest.update(str(a.shape).encode())
         if isinstance(a, SpilledArray):  # read a block at a time: the same bytes
             for _, block in row_blocks(a):
