@@ -596,7 +596,8 @@ def remember_candidates(kin: Kinematics, workspace: Workspace, sample: np.ndarra
     _remember(key, kin, (np.asarray(found[0], dtype=float).reshape(-1, kin.n_q), list(found[1])))
 
 
-#: (kinematics id, workspace digest) -> (kinematics, the candidates' start configurations or None); see _start_pool
+#: _candidates_key without a sample or options -> (kinematics, the candidates' start configurations or None); see
+#: _start_pool
 _POOLS: dict = {}
 
 
