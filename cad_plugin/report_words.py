@@ -329,12 +329,41 @@ def bounds_lines(items: list) -> list[str]:
             for (a, tri, u), group in _grouped([t for t in items if t.get("bounds")], key)]
 
 
+#: how a limit of the values together (solver/tolerances/calibrated_together.py) quotes each value's single limit
+_ALONE = " (alone: "
+
+
+def _together_parts(text: str) -> tuple[str, str | None]:
+    """``(what the values together cost, the value's single limit)`` of a "workspace loss together" limit; ``(text,
+    None)`` for any other."""
+    if text.startswith("workspace loss together:") and _ALONE in text and text.endswith(")"):
+        head, alone = text.split(_ALONE, 1)
+        return head, alone[:-1]
+    return text, None
+
+
 def limit_lines(items: list) -> list[str]:
     """What limits each value with calibration, in full, one line per distinct text with its tolerances' ids.
+
+    The values scaled together share what the budget cost (one line), followed by each value's single limit (one
+    line per distinct text): the shared words are not repeated for every tolerance.
 
     >>> limit_lines([{"id": "T3", "value_with_calibration": 0.3, "value_with_calibration_limit": "noise: a"},
     ...              {"id": "T4", "value_with_calibration": 0.2, "value_with_calibration_limit": "noise: a"}])
     ['T3-T4: noise: a']
+    >>> together = "workspace loss together: scaled by 0.5 (alone: {}, workspace loss: stroke)"
+    >>> limit_lines([{"id": "T7", "value_with_calibration": 0.04, "value_with_calibration_limit": together.format("0.08 mm")},
+    ...              {"id": "T9", "value_with_calibration": 0.04, "value_with_calibration_limit": together.format("0.08 mm")},
+    ...              {"id": "T8", "value_with_calibration": 0.36, "value_with_calibration_limit": together.format("0.72 mm")}])
+    ['T7-T9: workspace loss together: scaled by 0.5; alone, each:', 'T7, T9: 0.08 mm, workspace loss: stroke', 'T8: 0.72 mm, workspace loss: stroke']
     """
     use = [t for t in items if t.get("value_with_calibration") is not None and t.get("value_with_calibration_limit")]
-    return [f"{_ids(group)}: {text}" for text, group in _grouped(use, lambda t: t["value_with_calibration_limit"])]
+    lines = []
+    for head, group in _grouped(use, lambda t: _together_parts(t["value_with_calibration_limit"])[0]):
+        if _together_parts(group[0]["value_with_calibration_limit"])[1] is None:
+            lines.append(f"{_ids(group)}: {head}")
+            continue
+        lines.append(f"{_ids(group)}: {head}; alone, each:")
+        lines += [f"{_ids(same)}: {alone}" for alone, same in
+                  _grouped(group, lambda t: _together_parts(t["value_with_calibration_limit"])[1])]
+    return lines

@@ -17,7 +17,10 @@ combination that absorbs it) and the controller cancels its effect on the task. 
   coefficient ``kappa_i = residual / probe^2`` shapes the values (``v_i`` proportional to
   ``1 / sqrt(kappa_i)``), and all compensable defects *together* at those values, with random and
   all-equal signs (nine machines), scale them so that the largest residual is the share of the spec
-  left for it (a residual of second order scales with the square of the values);
+  left for it (a residual of second order scales with the square of the values).  A defect stops
+  growing with the scale at the value its other limits (below) or the validity cap give it: the
+  combination is simulated with every defect at most at the value a machine built to the drawing can
+  have, and the search ends when every defect is there;
 * **the identification noise**: the calibration's 3-sigma task error from the declared measurement
   noise (:attr:`Classification.calibration`) comes off the spec first; the second-order residual
   shares what is left equally with the accuracy-critical classes (paper 2, eq. 30: equal shares), so
@@ -44,7 +47,8 @@ from hyperstat.solver.kinematics.model import Mechanism
 from hyperstat.solver.tolerances.accuracy import output_twist_maps
 from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
 
-__all__ = ["calibrated_values", "simulate_calibration", "regular_task", "WORKSPACE_LOSS", "PROBE", "VALIDITY"]
+__all__ = ["calibrated_values", "simulate_calibration", "regular_task", "actuator_room", "WORKSPACE_LOSS", "PROBE",
+           "VALIDITY"]
 
 #: the share of each actuator's range the compensation may cost at the workspace's bounds (assumed)
 WORKSPACE_LOSS = 1e-3
@@ -70,6 +74,9 @@ PREDICTED = 0.3
 #: passive map (hexapod: 1e-3 to 1e-2 per step at the probe, 0.05 to 0.2 at the validity cap, where Gauss-Newton's
 #: fewer, dearer iterations cost less)
 CHORD_DEFECTS = 2 * PROBE
+#: an uncancelled task effect at the dead centres below this (dimensionless: per length scale) is round-off: no
+#: workspace loss
+ROUND_OFF = 1e-9
 #: the largest share of the task configurations a compensated machine may miss (its reachable set moved: the
 #: workspace's edge); more, and the defects are refused
 MISSED = 0.05
@@ -461,12 +468,13 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     units = {t.id: t.unit for t in items}
     probe = {t.id: PROBE * (ls if t.unit == "mm" else 1.0) for t in items}
     dirs = np.stack([t.direction for t in items])  # (n, n_xi) per unit of each tolerance
-    # the task's dead centres (4. below) do not depend on the simulations: a forked child searches them meanwhile
+    # the task's dead centres (3. below) do not depend on the simulations: a forked child searches them meanwhile
     # (the same arithmetic: the same bits), and hands back the workspace's candidates too, which loss_together
     # reads next (issue 39: 0.4 s of the Triflex-II's values with calibration, on the command's critical path)
     from hyperstat.solver.forked import Forked
 
-    dead_centres = Forked(_task_space_loss_and_candidates, kin, decl, q_all, dirs, cl)
+    is_mm = np.array([units[t.id] == "mm" for t in items])
+    dead_centres = Forked(_task_space_loss_and_candidates, kin, decl, q_all, dirs, is_mm)
     # 1. every direction alone at its probe: kappa (residual per probe^2), position and orientation
     sizes = np.array([probe[t.id] for t in items])
     setup = calibration_setup(kin, cl.analysis, decl, q_cal, q_task)  # shared by every simulation below
@@ -481,14 +489,43 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
         if b and b > 0:
             weight = np.maximum(weight, kappa[key] / b)
     shape = 1.0 / np.sqrt(np.maximum(weight, 1e-300))
-    # 3. all together, nine machines (all-equal signs and eight random patterns), scaled to the budget: a second-order
-    # residual scales with the square of the values, and the scaling is checked by simulating again at the values
+    # 3. actuator stroke, or the workspace lost where the compensation cannot follow (before the combined simulation:
+    # a defect these limit sits at that value on the machine, and the combination is simulated with it there)
+    margin, width, rev, has_margin, room = actuator_room(m, workspace or workspace_of(m), loss)
+    st = kin.evaluate(q_task, None, jacobians=True)
+    k_xi, k_a = output_twist_maps(kin, st)
+    sel = task_rows(decl.task, st.output_pose)
+    corr = np.abs(np.linalg.pinv(sel @ k_a, rcond=1e-8) @ (sel @ k_xi @ dirs.T))  # (K, n_a, n)
+    per_actuator = corr.max(axis=0)  # (n_a, n) actuator motion per unit of each tolerance
+    # round-off is no motion (the Tripteor's dK of a wrist axis: 7e-15 rad per rad, which read as a limit of 4e10 rad)
+    moves = per_actuator / kin.joint_scale[m.actuated][:, None] * np.where(is_mm, ls, 1.0)[None, :] > ROUND_OFF
+    per_actuator = np.where(moves, per_actuator, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        per_unit = np.where(per_actuator > 0, room[:, None] / per_actuator, np.inf)
+    stroke, which = per_unit.min(axis=0), per_unit.argmin(axis=0)
+    # the task's dead centres (where the actuators lose a task direction: the slider-crank's stroke ends): there the
+    # defect moves the reachable task space itself, by its uncancelled task effect; the loss is held to
+    # WORKSPACE_LOSS of the task's extent over the sample
+    (loss_task, loss_where), searched = dead_centres.result()
+    remember_candidates(kin, workspace_of(m), q_all, searched)
+    extent = _task_extent(kin, decl, q_all)
+    with np.errstate(divide="ignore"):
+        task_limit = np.where(loss_task > 0, loss * extent / loss_task, np.inf)
+    # 4. all together, nine machines (all-equal signs and eight random patterns), scaled to the budget: a second-order
+    # residual scales with the square of the values, and the scaling is checked by simulating again at the values.
+    # Each defect grows with the scale up to the value it can have: the validity cap, or its actuator-stroke and
+    # workspace-loss limits (never below its value without calibration).  A machine built to the values has every
+    # defect at its own, so the combination is simulated with them there: a defect bound by another limit does not
+    # grow on to the cap and spend the others' share of the residual (48 of the hexapod's defects, held to 0.12 mm by the
+    # workspace loss, were simulated at 4.98 mm, and the search ended at its step limit before the others reached
+    # their own values)
     rng = np.random.default_rng(seed)
     signs = np.vstack([np.ones(len(items)), rng.choice([-1.0, 1.0], size=(8, len(items)))])
-    is_mm = np.array([units[t.id] == "mm" for t in items])
     dimensionless = shape / np.where(is_mm, ls, 1.0)
     unit = shape * (PROBE / max(float(np.max(dimensionless)), 1e-300))  # scale 1: the largest defect at the probe
     cap = VALIDITY * np.where(is_mm, ls, 1.0)  # the simulation is trusted up to this (rad, mm)
+    floor_value = np.array([float(t.value) for t in items])  # mm or rad: the value without calibration
+    top = np.minimum(cap, np.maximum(np.minimum(stroke, task_limit), floor_value))  # where each defect stops growing
     noise_bound = any(b <= 0 for b in budget.values())
     worst, unreached, limiting_kind = {}, 0, None
     # from the probe (scale 1) up, each step by what the residual left so far allows (a residual of second order
@@ -497,7 +534,7 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
     for _ in range(6):
         if noise_bound:
             break
-        values = np.minimum(scale * unit, cap)
+        values = np.minimum(scale * unit, top)
         pos_c, rot_c, ok_c = simulate_calibration(m, kin, cl.analysis, decl, (signs * values[None, :]) @ dirs, q_cal,
                                                   q_task, setup=setup)
         found = {"position_mm": float(np.where(ok_c, pos_c, 0.0).max()),
@@ -510,7 +547,8 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
             missed = False
         if ratio >= 1.0:  # within the budget: verified
             good, worst, unreached, limiting_kind = scale, found, int(np.sum(~ok_c)), kind
-            if ratio <= 1.15 or np.all(values >= cap):  # within 15 % of the budget: close enough, on the safe side
+            if ratio <= 1.15 or np.all(values >= top):  # within 15 % of the budget (close enough, on the safe side),
+                # or every defect at the value it can have
                 break
             scale = min(scale * min(0.99 * ratio, 10.0), math.sqrt(scale * bad) if math.isfinite(bad) else np.inf)
         else:  # beyond it: back between the verified scale and this one
@@ -518,35 +556,12 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
             scale = math.sqrt(good * scale) if good else scale * 0.25
         if not math.isfinite(scale):
             break
-    values = np.zeros(len(items)) if noise_bound else np.minimum(good * unit, cap)
+    values = np.zeros(len(items)) if noise_bound else np.minimum(good * unit, top)
     capped = values >= cap * (1 - 1e-12)
+    # stopped by another limit (or its value without calibration) before the cap: the combination kept the spec with
+    # the defect there, so the second-order residual does not limit it below that value
+    elsewhere = (values >= top * (1 - 1e-12)) & ~capped
     second = values
-    # 4. actuator stroke, or the workspace lost where the compensation cannot follow
-    ws = workspace or workspace_of(m)
-    lo_ws, hi_ws = ws.actuated_box(m)
-    lo_j, hi_j = m.ranges[m.actuated].T
-    margin = np.minimum(lo_ws - lo_j, hi_j - hi_ws)
-    width = hi_ws - lo_ws
-    rev = np.array([m.joints[i].type == "R" for i in m.actuated])
-    turn = rev & (width >= 2 * math.pi - 1e-9)
-    st = kin.evaluate(q_task, None, jacobians=True)
-    k_xi, k_a = output_twist_maps(kin, st)
-    sel = task_rows(decl.task, st.output_pose)
-    corr = np.abs(np.linalg.pinv(sel @ k_a, rcond=1e-8) @ (sel @ k_xi @ dirs.T))  # (K, n_a, n)
-    per_actuator = corr.max(axis=0)  # (n_a, n) actuator motion per unit of each tolerance
-    has_margin = margin > 1e-12 * np.maximum(width, 1e-300)
-    room = np.where(turn, np.inf, np.where(has_margin, margin, loss * width))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        per_unit = np.where(per_actuator > 0, room[:, None] / per_actuator, np.inf)
-    stroke, which = per_unit.min(axis=0), per_unit.argmin(axis=0)
-    # the task's dead centres (where the actuators lose a task direction: the slider-crank's stroke ends): there the
-    # defect moves the reachable task space itself, by its uncancelled task effect; the loss is held to
-    # WORKSPACE_LOSS of the task's extent over the sample
-    (loss_task, loss_where), found = dead_centres.result()
-    remember_candidates(kin, workspace_of(m), q_all, found)
-    extent = _task_extent(kin, decl, q_all)
-    with np.errstate(divide="ignore"):
-        task_limit = np.where(loss_task > 0, loss * extent / loss_task, np.inf)
     evidence = {"budget": budget, "probe": {"rad": PROBE, "mm": PROBE * ls}, "validity": {"rad": VALIDITY,
                                                                                          "mm": VALIDITY * ls},
                 "machines_combined": int(len(signs)), "combined_worst_at_the_values": worst,
@@ -564,10 +579,11 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
         a = int(which[i])
         actuator = m.joints[m.actuated[a]].name
         limits: dict = {}
-        for key, v in ((("workspace loss" if missed and not capped[i] else "second-order residual"), second[i]),
-                       (("actuator stroke" if has_margin[a] else "workspace loss"), stroke[i]),
-                       ("workspace loss", task_limit[i])):
-            if math.isfinite(v):
+        for n, (key, v) in enumerate(((("workspace loss" if missed and not capped[i] else "second-order residual"),
+                                        second[i]),
+                                       (("actuator stroke" if has_margin[a] else "workspace loss"), stroke[i]),
+                                       ("workspace loss", task_limit[i]))):
+            if math.isfinite(v) and not (n == 0 and elsewhere[i]):  # the second-order residual limits it, or not
                 limits[key] = min(limits.get(key, np.inf), float(v))
         if noise_bound:
             value, limit = 0.0, "identification noise"
@@ -613,20 +629,48 @@ def calibrated_values(cl, mechanism: Mechanism, kin: Kinematics, configurations:
         t.value_with_calibration_limit = words
         evidence["items"][t.id] = {"kappa_position": float(kappa["position_mm"][i]),
                                    "kappa_orientation": float(kappa["orientation_rad"][i]), "limits": limits,
-                                   "binding": limit}
+                                   "binding": limit, "in_the_combined_machines": float(values[i])}
     return evidence
 
 
-def _task_space_loss_and_candidates(kin: Kinematics, decl, q: np.ndarray, dirs: np.ndarray, cl) -> tuple:
+def actuator_room(mechanism: Mechanism, workspace, loss: float) -> tuple:
+    """What each actuator's range leaves for the compensation around the declared workspace (mm or rad).
+
+    Returns
+    -------
+    margin, width : ndarray, (n_a,)
+        The range beyond the workspace's actuated box on its tighter side, and the box's width.
+    revolute, has_margin : ndarray of bool, (n_a,)
+    room : ndarray, (n_a,)
+        The margin where there is one, else ``loss`` of the width (the workspace-loss budget); infinite for a
+        revolute actuator turning a full turn.
+    """
+    m = mechanism
+    lo_ws, hi_ws = workspace.actuated_box(m)
+    lo_j, hi_j = m.ranges[m.actuated].T
+    margin = np.minimum(lo_ws - lo_j, hi_j - hi_ws)
+    width = hi_ws - lo_ws
+    rev = np.array([m.joints[i].type == "R" for i in m.actuated])
+    turn = rev & (width >= 2 * math.pi - 1e-9)
+    has_margin = margin > 1e-12 * np.maximum(width, 1e-300)
+    return margin, width, rev, has_margin, np.where(turn, np.inf, np.where(has_margin, margin, loss * width))
+
+
+def _task_space_loss_and_candidates(kin: Kinematics, decl, q: np.ndarray, dirs: np.ndarray,
+                                    lengths: np.ndarray) -> tuple:
     """:func:`_task_space_loss` and the workspace's candidates it searched (what a forked child hands back)."""
     from hyperstat.solver.tolerances.workspace import workspace_of
     from hyperstat.solver.tolerances.worst_case import workspace_candidates
 
-    return _task_space_loss(kin, decl, q, dirs, cl), workspace_candidates(kin, workspace_of(kin.mechanism), q)
+    return _task_space_loss(kin, decl, q, dirs, lengths), workspace_candidates(kin, workspace_of(kin.mechanism), q)
 
 
-def _task_space_loss(kin: Kinematics, decl, q: np.ndarray, dirs: np.ndarray, cl) -> tuple[np.ndarray, int]:
+def _task_space_loss(kin: Kinematics, decl, q: np.ndarray, dirs: np.ndarray,
+                     lengths: np.ndarray) -> tuple[np.ndarray, int]:
     """Largest uncancellable task effect per unit of each direction at the task's dead centres (n,), and how many.
+
+    ``lengths``: which directions are lengths (mm; the others rad).  An uncancelled effect below :data:`ROUND_OFF`
+    in dimensionless units (task positions and length defects per length scale) is round-off: no loss.
 
     The dead centres: the workspace's candidates solved where a passive joint's velocity changes sign
     (:func:`hyperstat.solver.tolerances.worst_case.workspace_candidates`) and the sample's configurations,
@@ -652,7 +696,11 @@ def _task_space_loss(kin: Kinematics, decl, q: np.ndarray, dirs: np.ndarray, cl)
     for k in range(len(left)):
         span = u[k][:, :int(seen[k].sum())]
         left[k] = effect[k] - (span * (1 / scale[0])) @ (span.T @ (effect[k] * scale[0])) if span.size else effect[k]
-    return np.linalg.norm(left, axis=1).max(axis=0), int(singular.sum())
+    # round-off is no loss (the slider-crank's dK4 moves nothing at its stroke ends: 1e-14 mm per rad, which read as
+    # a limit of 8e12 mm)
+    largest = np.linalg.norm(left, axis=1).max(axis=0)
+    dimensionless = np.linalg.norm(left * scale, axis=1).max(axis=0) * np.where(lengths, kin.length_scale, 1.0)
+    return np.where(dimensionless > ROUND_OFF, largest, 0.0), int(singular.sum())
 
 
 def _task_extent(kin: Kinematics, decl, q: np.ndarray) -> float:

@@ -40,7 +40,8 @@ def loss_together(cl, mechanism, kin, configurations: np.ndarray, workspace=None
     """
     from hyperstat.solver.tolerances.accuracy import output_twist_maps
     from hyperstat.solver.tolerances.bounds import attainable
-    from hyperstat.solver.tolerances.calibrated import TASK_POSES, _actuation, _task_extent, _task_scale, regular_task
+    from hyperstat.solver.tolerances.calibrated import (TASK_POSES, _actuation, _task_extent, _task_scale,
+                                                        actuator_room, regular_task)
     from hyperstat.solver.tolerances.declaration import n_rotation_rows, task_rows
     from hyperstat.solver.tolerances.workspace import workspace_of
     from hyperstat.solver.tolerances.worst_case import workspace_candidates
@@ -58,15 +59,7 @@ def loss_together(cl, mechanism, kin, configurations: np.ndarray, workspace=None
     q_all = q_all[np.unique(np.linspace(0, len(q_all) - 1, min(len(q_all), TASK_POSES)).round().astype(int))]
     regular = regular_task(kin, decl, q_all)
     q_task = q_all[regular]
-    ws = workspace or workspace_of(m)
-    lo_ws, hi_ws = ws.actuated_box(m)
-    lo_j, hi_j = m.ranges[m.actuated].T
-    margin = np.minimum(lo_ws - lo_j, hi_j - hi_ws)
-    width = hi_ws - lo_ws
-    rev = np.array([m.joints[i].type == "R" for i in m.actuated])
-    turn = rev & (width >= 2 * math.pi - 1e-9)
-    has_margin = margin > 1e-12 * np.maximum(width, 1e-300)
-    room = np.where(turn, np.inf, np.where(has_margin, margin, loss * width))
+    _, _, rev, has_margin, room = actuator_room(m, workspace or workspace_of(m), loss)
     budgets = []  # (name, coefficients function of the values -> loss, budget, unit, members)
     if len(q_task):
         st = kin.evaluate(q_task, None, jacobians=True)

@@ -64,6 +64,7 @@ def test_counts_and_classes_are_equal_across_outputs(template, tmp_path):
                 assert acc[tid] == v, (template.stem, tid, key, acc[tid], v)
             else:  # the searched worst cases behind it converge to the same optimum within the search's tolerance
                 assert acc[tid] == pytest.approx(v, rel=1e-4), (template.stem, tid, key, acc[tid], v)
+    _search_with_calibration_converged(accuracy, template.stem)
     if template.stem in ("slider_crank", "tripteor_x7"):
         c = tmp_path / "mc.json"
         assert main(["montecarlo", str(template), "--workspace-configurations", "60", "--samples", "100",
@@ -73,3 +74,23 @@ def test_counts_and_classes_are_equal_across_outputs(template, tmp_path):
         assert mc["drawn_values"] and all(v == drawing[tid] for tid, v in mc["drawn_values"].items()), mc["drawn_values"]
         assert set(mc["drawn_values"]) == {t["id"] for t in report["tolerances"]["items"]
                                            if t["class"] in ("accuracy-critical", "compensable") and t["drawing_value"]}
+
+
+def _search_with_calibration_converged(tolerances: dict, name: str) -> None:
+    """A value with calibration bound by the second-order residual (below the validity cap) is where the combined
+    simulation reached its share of the spec: the largest combined residual within 15 % of it (the search's stated
+    precision, on the safe side), not wherever the search's six scale steps ended.  The hexapod's six ``da2k`` (the
+    base universal joints' second axes) stopped at 0.21-0.25 mm with the residual at 65 % of its share; converged,
+    their workspace-loss limit (0.32 mm) binds."""
+    evidence = tolerances["allocation"].get("with_calibration") or {}
+    second = [tid for tid, e in evidence.get("items", {}).items() if e["binding"] == "second-order residual"
+              and e["limits"]["second-order residual"] < evidence["validity"]["mm" if _unit(tolerances, tid) == "mm"
+                                                                              else "rad"] * (1 - 1e-12)]
+    if second:
+        worst = evidence["combined_worst_at_the_values"]
+        reached = max(worst[k] / b for k, b in evidence["budget"].items())
+        assert reached >= 1 / 1.15**2, (name, second, worst, evidence["budget"])
+
+
+def _unit(tolerances: dict, tid: str) -> str:
+    return next(t["unit"] for t in tolerances["items"] if t["id"] == tid)
