@@ -21,8 +21,8 @@ import re
 from hyperstat.cad_plugin.gdt import symbol_of, symbol_svg, zone_text
 from hyperstat.cad_plugin.palette import CLASS_COLORS, CLASS_LABELS, tolerance_counts
 from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, contributor_groups, frames_of, glossary,
-                                               limit_lines, micro, number, significance, spec_text, title_rows,
-                                               tolerance_value, um, values_note, where_words)
+                                               limit_lines, micro, number, other_warnings, significance, spec_text,
+                                               title_rows, tolerance_value, um, values_note, where_words)
 
 __all__ = ["render_html", "SECTIONS", "CSS"]
 
@@ -486,7 +486,7 @@ def _appendix(doc: dict) -> str:
             + ", ".join(f"{_e(a['name'])} (joint {_e(a['element'])})" for a in normal) + ".</p>") if normal else \
         "<p>None.</p>"
     out = [_head("appendix", "Appendix: normalisation components (not tolerances)", text)]
-    for w in tol.get("warnings", []):
+    for w in other_warnings(tol.get("warnings", [])):  # the calibration campaign's is in the title block, page 1
         out.append(f"<p><b>warning</b>: {_e(w)}</p>")
     out.append("</section>")
     return "".join(out)

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from hyperstat.cad_plugin.palette import tolerance_counts
 from hyperstat.cad_plugin.report_words import (bounds_lines, calibrated_value, contributor_groups, frames_of, glossary,
-                                               micro, number, significance, title_rows, tolerance_value, um, values_note,
-                                               where_words)
+                                               micro, number, other_warnings, significance, title_rows, tolerance_value,
+                                               um, values_note, where_words)
 
 __all__ = ["render_markdown", "checked_text"]
 
@@ -62,8 +62,8 @@ def render_markdown(doc: dict) -> str:
         pct = "-" if t.get("contribution_percent") is None else f"{t['contribution_percent']:.1f}"
         lines.append(_row(t["id"], t["feature"], t["words"], f"`{t['statement']}`", tolerance_value(t),
                           calibrated_value(t), _frames(t), t["class"], pct))
-    if tol.get("warnings"):
-        lines += ["", "Warnings:", ""] + [f"* {w}" for w in tol["warnings"]]
+    if other_warnings(tol.get("warnings") or []):  # the calibration campaign's is in the title block
+        lines += ["", "Warnings:", ""] + [f"* {w}" for w in other_warnings(tol["warnings"])]
     lines += ["", "## Assembly conditions", ""]
     items = {t["id"]: t for t in tol["items"]}
     lines += [f"* {a['id']}: {a['statement']} ({tolerance_value(a)})"

@@ -15,7 +15,8 @@ import re
 
 __all__ = ["number", "micro", "safe_round", "tolerance_value", "calibrated_value", "um", "significance", "SIGNIFICANCE",
            "coefficient_words", "glossary", "title_rows", "where_words", "contributor_groups", "spec_text",
-           "values_note", "frames_of", "display_path", "bounds_lines", "limit_lines"]
+           "values_note", "frames_of", "display_path", "bounds_lines", "limit_lines", "calibration_words",
+           "other_warnings", "CAMPAIGN_WARNING"]
 
 #: significance marks of an estimate (|estimate| / its standard deviation), strongest first
 SIGNIFICANCE = (("**", 3.0, "significant: the estimate is at least 3 standard deviations from zero"),
@@ -166,8 +167,38 @@ def title_rows(doc: dict) -> list[tuple[str, str]]:
             ("revision", str(title.get("revision") or "-")),
             ("task", ", ".join(title.get("task") or [])),
             ("spec", spec_text(title.get("spec") or {})),
-            ("calibration", f"{meas.get('kind', '-')} of {targets} target(s), noise {um(meas.get('noise_mm'))}"),
+            ("calibration", calibration_words(meas, (doc.get("tolerances") or {}).get("warnings") or [])),
             ("units", "lengths mm, angles rad, residuals µm; ± values are symmetric tolerances, rounded down")]
+
+
+#: the classification's warning that the declared calibration campaign is not the one hyperstat's calibration runs
+CAMPAIGN_WARNING = "CALIBRATION CAMPAIGN: "
+
+
+def calibration_words(meas: dict, warnings: list) -> str:
+    """The declared calibration campaign in a line, followed by the classification's warning when hyperstat's own
+    calibration (identify, export-controller) fits what the declaration holds and that matters: the title block
+    carries it whole, on page 1, and the warnings' lists leave it out (:func:`other_warnings`).
+
+    >>> meas = {"kind": "positions", "targets_mm": [[0, 0, 0]], "noise_mm": 0.002, "frame": "registered",
+    ...         "offsets": "known"}
+    >>> calibration_words(meas, [])
+    'positions of 1 target(s), noise 2.0 µm, tracker frame registered, target offsets known (declared)'
+    >>> calibration_words(meas, ["CALIBRATION CAMPAIGN: identify fits them."])[-46:]
+    'known (declared). WARNING: identify fits them.'
+    """
+    targets = len(meas.get("targets_mm") or [])
+    text = f"{meas.get('kind', '-')} of {targets} target(s), noise {um(meas.get('noise_mm'))}"
+    if meas.get("frame"):
+        text += (f", tracker frame {meas['frame']}, target offsets "
+                 f"{'known' if meas.get('offsets') == 'known' else 'identified'} (declared)")
+    return text + "".join(f". WARNING: {w[len(CAMPAIGN_WARNING):]}" for w in warnings
+                          if w.startswith(CAMPAIGN_WARNING))
+
+
+def other_warnings(warnings: list) -> list:
+    """The classification's warnings but the calibration campaign's (the title block carries it)."""
+    return [w for w in warnings if not w.startswith(CAMPAIGN_WARNING)]
 
 
 def frames_of(item: dict) -> list[dict]:
@@ -352,10 +383,13 @@ def limit_lines(items: list) -> list[str]:
     ...              {"id": "T4", "value_with_calibration": 0.2, "value_with_calibration_limit": "noise: a"}])
     ['T3-T4: noise: a']
     >>> together = "workspace loss together: scaled by 0.5 (alone: {}, workspace loss: stroke)"
-    >>> limit_lines([{"id": "T7", "value_with_calibration": 0.04, "value_with_calibration_limit": together.format("0.08 mm")},
-    ...              {"id": "T9", "value_with_calibration": 0.04, "value_with_calibration_limit": together.format("0.08 mm")},
-    ...              {"id": "T8", "value_with_calibration": 0.36, "value_with_calibration_limit": together.format("0.72 mm")}])
-    ['T7-T9: workspace loss together: scaled by 0.5; alone, each:', 'T7, T9: 0.08 mm, workspace loss: stroke', 'T8: 0.72 mm, workspace loss: stroke']
+    >>> item = lambda tid, v, alone: {"id": tid, "value_with_calibration": v,
+    ...                               "value_with_calibration_limit": together.format(alone)}
+    >>> for line in limit_lines([item("T7", 0.04, "0.08 mm"), item("T9", 0.04, "0.08 mm"), item("T8", 0.36, "0.72 mm")]):
+    ...     print(line)
+    T7-T9: workspace loss together: scaled by 0.5; alone, each:
+    T7, T9: 0.08 mm, workspace loss: stroke
+    T8: 0.72 mm, workspace loss: stroke
     """
     use = [t for t in items if t.get("value_with_calibration") is not None and t.get("value_with_calibration_limit")]
     lines = []
@@ -364,6 +398,28 @@ def limit_lines(items: list) -> list[str]:
             lines.append(f"{_ids(group)}: {head}")
             continue
         lines.append(f"{_ids(group)}: {head}; alone, each:")
-        lines += [f"{_ids(same)}: {alone}" for alone, same in
-                  _grouped(group, lambda t: _together_parts(t["value_with_calibration_limit"])[1])]
+        seen: set = set()
+        for alone, same in _grouped(group, lambda t: _together_parts(t["value_with_calibration_limit"])[1]):
+            lines.append(f"{_ids(same)}: {_once(alone, seen)}")
     return lines
+
+
+#: where a limit's words say which workspace-loss budget it is and how to change it (solver/tolerances/calibrated.py)
+_BUDGET_SOURCE = re.compile(r" \((declared|the default, assumed); TOLERANCING workspace_loss or --workspace-loss\)")
+
+
+def _once(text: str, seen: set) -> str:
+    """``text`` without the budget's source words when an earlier line gave the same ones (``seen`` holds them).
+
+    >>> seen = set()
+    >>> w = "held to 0.3 mm, the workspace-loss budget, 0.1 % (declared; TOLERANCING workspace_loss or --workspace-loss) of"
+    >>> _once(w, seen) == w, _once(w, seen)
+    (True, 'held to 0.3 mm, the workspace-loss budget, 0.1 % of')
+    """
+    found = _BUDGET_SOURCE.search(text)
+    if not found:
+        return text
+    if found.group(0) in seen:
+        return _BUDGET_SOURCE.sub("", text)
+    seen.add(found.group(0))
+    return text

@@ -35,7 +35,7 @@ controller file) uses :func:`classify`, so their vocabularies and counts are equ
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 import warnings
 
@@ -529,7 +529,25 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
     def task_of(d: np.ndarray) -> np.ndarray:
         return task_xi @ d  # (K, r)
 
+    def residual_shares(d: np.ndarray, meas: np.ndarray, pinv: np.ndarray) -> tuple[float, float, float]:
+        # the task residual of a calibration (measurement rows ``meas``, its pseudo-inverse ``pinv``) and the
+        # compensation per unit of the direction ``d``, as shares of its task effect: unseen, uncancelled, total
+        u_d = basis.T @ d
+        y = np.einsum("kij,j->ki", meas, d).reshape(-1)
+        est = pinv @ y
+        u_hat = est[:n_s]
+        predicted = task_of(basis @ u_hat)  # what the calibrated model predicts on the task
+        unseen = task_of(basis @ (u_d - u_hat))
+        delta_a = np.einsum("kar,kr->ka", ka_pinv, predicted)
+        uncancelled = predicted - np.einsum("kra,ka->kr", task_a, delta_a)
+        total = unseen + uncancelled
+        ref = float(np.max(np.linalg.norm(task_of(d), axis=1)))
+        return (float(np.max(np.linalg.norm(unseen[regular], axis=1))) / ref,
+                float(np.max(np.linalg.norm(uncancelled[regular], axis=1))) / ref,
+                float(np.max(np.linalg.norm(total[regular], axis=1))) / ref)
+
     directions = []
+    compensable_directions = []  # (item index, dimensionless direction) of the compensable ones
     for p in analysis.parameters:
         if p.verdict not in ("free", "coupled"):
             continue
@@ -558,18 +576,8 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
                    f"motion {infl:.1e} per unit defect over {len(q)} configurations")
         else:
             u_d = basis.T @ d
-            y = np.einsum("kij,j->ki", meas_xi, d).reshape(-1)
-            est = j_pinv @ y
-            u_hat = est[:n_s]
-            predicted = task_of(basis @ u_hat)  # what the calibrated model predicts on the task
-            unseen = task_of(basis @ (u_d - u_hat))
-            delta_a = np.einsum("kar,kr->ka", ka_pinv, predicted)
-            uncancelled = predicted - np.einsum("kra,ka->kr", task_a, delta_a)
-            total = unseen + uncancelled
+            r_unseen, r_unc, r_total = residual_shares(d, meas_xi, j_pinv)
             ref = float(np.max(np.linalg.norm(task_of(d), axis=1)))
-            r_unseen = float(np.max(np.linalg.norm(unseen[regular], axis=1))) / ref
-            r_unc = float(np.max(np.linalg.norm(uncancelled[regular], axis=1))) / ref
-            r_total = float(np.max(np.linalg.norm(total[regular], axis=1))) / ref
             ev.update({"not_identified_share": r_unseen, "not_cancelled_share": r_unc, "residual_share": r_total})
             # confounded: the part of (u_d, no nuisance) the measurements cannot see moves the task; the pseudo-inverse
             # would split it between the defect and what it is confounded with by the smallest norm (an artefact),
@@ -588,6 +596,7 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
                 confounded += others
             ev.update({"identifiable": hidden_task < _REL, "confounded_with": confounded})
             if r_total < _REL:
+                compensable_directions.append((len(items), d))
                 cls = "compensable"
                 why = (f"a calibration from {decl.measurement_kind} identifies it (or the combination that absorbs "
                        f"it) and the actuators cancel it on {', '.join(decl.task)}: task residual "
@@ -695,6 +704,50 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
                 "unknowns": int(j_m.shape[1]),
                 "non_identifiable_share_max": max((t.evidence["residual_share"] for t in items
                                                    if t.cls == "compensable"), default=0.0)})
+    # the campaign hyperstat's own calibration runs: identify and export-controller fit the tracker frame and every
+    # target offset; a declaration that holds them (a registered frame, known offsets) promises a calibration those
+    # commands do not make
+    if decl.frame == "registered" or (decl.offsets == "known" and decl.targets_mm):
+        fitted = replace(decl, frame="unknown", offsets="unknown")
+        meas_f, nuis_f, _ = _measurement_maps(fitted, st, k_xi, ls, pscale)
+        j_f = np.concatenate([(meas_f @ basis).reshape(rows_m, n_s), nuis_f.reshape(rows_m, nuis_f.shape[2])], axis=1)
+        pinv_f = np.linalg.pinv(j_f, rcond=1e-10)
+        lost = []
+        if compensable_directions:  # every compensable direction at once (the same shares as residual_shares)
+            dirs = np.stack([d for _, d in compensable_directions], axis=1)  # (n, m) dimensionless
+            est = pinv_f @ np.einsum("kij,jm->kim", meas_f, dirs).reshape(-1, dirs.shape[1])
+            predicted = task_xi @ (basis @ est[:n_s])  # (K, r, m)
+            unseen = task_xi @ (basis @ (basis.T @ dirs - est[:n_s]))
+            uncancelled = predicted - task_a @ (ka_pinv @ predicted)
+            ref = np.max(np.linalg.norm(task_xi @ dirs, axis=1), axis=0)
+            share = np.max(np.linalg.norm((unseen + uncancelled)[regular], axis=1), axis=0) / ref
+            lost = [items[i].id for (i, _), s_ in zip(compensable_directions, share) if s_ >= _REL]
+        as_fitted = _calibration_residual(fitted, j_f, task_xi @ basis, n_s, n_rot, ls, len(q), decl.poses)
+        held = [w for w, on in (("the tracker frame registered on references of the base", decl.frame == "registered"),
+                                ("the target offsets known", decl.offsets == "known")) if on]
+        cal["as_identify_fits"] = {
+            "fits": "the tracker frame and every target offset (hyperstat identify and export-controller)",
+            "declared_holds": held, "position_mm": as_fitted["position_mm"],
+            "orientation_rad": as_fitted["orientation_rad"], "unknowns": int(j_f.shape[1]),
+            "compensable_not_identified": lost}
+        over = [f"{as_fitted[k]:.3g} {u} against the spec's {s:g} {u}" for k, u, s in
+                (("position_mm", "mm", decl.position_mm), ("orientation_rad", "rad", decl.orientation_rad))
+                if s is not None and as_fitted[k] >= s]
+        worse = lost or over or any(as_fitted[k] > 1.25 * max(cal[k], 1e-300) and as_fitted[k] > 1e-9
+                                    for k in ("position_mm", "orientation_rad"))
+        cal["as_identify_fits"]["worse"] = bool(worse)
+        if worse:
+            n_comp = len(compensable_directions)
+            warns.append(
+                "CALIBRATION CAMPAIGN: the values with calibration assume " + " and ".join(held) + ", as declared; "
+                f"hyperstat identify and export-controller fit the tracker frame and every target offset: then "
+                f"{len(lost)} of {n_comp} compensable tolerances are not identified"
+                + (f" ({_id_list(lost)})" if lost else "")
+                + f" and the calibration's 3-sigma task error is {as_fitted['position_mm']:.3g} mm, "
+                f"{as_fitted['orientation_rad']:.3g} rad (declared: {cal['position_mm']:.3g} mm, "
+                f"{cal['orientation_rad']:.3g} rad)" + (f", {' and '.join(over)}" if over else "")
+                + ". With that calibration the values with calibration are not assured; the values without calibration "
+                "hold.")
     shares = {c: [t.evidence.get("residual_share") for t in items if t.cls == c and t.kind == "direction"]
               for c in ("compensable", "accuracy-critical")}
     infl = [t.evidence["task_influence"] / top for t in items if t.cls == "non-influent" and top > 0]
@@ -781,6 +834,22 @@ def _calibration_residual(decl: Declaration, j_m: np.ndarray, task_u: np.ndarray
     out["position_mm"] = float(3 * np.sqrt(max(float(np.max(np.linalg.eigvalsh(pos))), 0.0))) if r > n_rot else 0.0
     out["orientation_rad"] = float(3 * np.sqrt(max(float(np.max(np.linalg.eigvalsh(rot))), 0.0))) if n_rot else 0.0
     return out
+
+
+def _id_list(ids: list) -> str:
+    """Tolerance ids, consecutive ones as ranges: ``"T3-T5, T9"``.
+
+    >>> _id_list(["T3", "T4", "T5", "T9"])
+    'T3-T5, T9'
+    """
+    nums = sorted(int(i[1:]) for i in ids)
+    runs: list = []
+    for n in nums:
+        if runs and n == runs[-1][1] + 1:
+            runs[-1][1] = n
+        else:
+            runs.append([n, n])
+    return ", ".join(f"T{a}" if a == b else f"T{a}-T{b}" for a, b in runs)
 
 
 def _skew(p: np.ndarray) -> np.ndarray:

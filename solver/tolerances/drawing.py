@@ -43,7 +43,8 @@ import numpy as np
 
 from hyperstat.solver.kinematics.model import Mechanism
 
-__all__ = ["safe_round", "SYMBOLS", "part_drawings", "add_drawing", "statement_functional", "provisional_drawings"]
+__all__ = ["safe_round", "SYMBOLS", "part_drawings", "add_drawing", "statement_functional", "provisional_drawings",
+           "campaign_words"]
 
 #: ISO 1101 symbols
 SYMBOLS = {"parallelism": "\u2225", "perpendicularity": "\u27c2", "angularity": "\u2220", "position": "\u2316",
@@ -70,6 +71,30 @@ def safe_round(value: float | None, digits: int = 3) -> float | None:
     if out > abs(value):
         out -= step
     return float(f"{math.copysign(out, value):.{digits}g}")
+
+
+def campaign_words(cl) -> str:
+    """The declared calibration campaign, as a drawing's note states the condition of a value with calibration: the
+    measurements, the tracker frame and the target offsets; and, where hyperstat's own calibration (identify,
+    export-controller) fits what the declaration holds and that matters (the classification's warning), so.
+
+    >>> from types import SimpleNamespace as NS
+    >>> decl = NS(measurement_kind="positions", targets_mm=((0, 0, 0),), noise_mm=0.002, frame="registered",
+    ...           offsets="known")
+    >>> campaign_words(NS(declaration=decl, calibration={}))
+    'positions, 1 target(s), noise 0.002 mm, the tracker frame registered on references of the base, the target \
+offsets known'
+    """
+    decl = cl.declaration
+    text = (f"{decl.measurement_kind}, {len(decl.targets_mm)} target(s), noise {decl.noise_mm:g} mm, the tracker frame "
+            + ("registered on references of the base" if decl.frame == "registered" else "identified")
+            + ", the target offsets " + ("known" if decl.offsets == "known" else "identified"))
+    if ((cl.calibration or {}).get("as_identify_fits") or {}).get("worse"):
+        held = [w for w, on in (("the tracker frame", decl.frame == "registered"),
+                                ("the target offsets", decl.offsets == "known")) if on]
+        text += (f"; 'hyperstat identify' and 'export-controller' identify {' and '.join(held)} too, which this value "
+                 "does not allow: see the report's warnings")
+    return text
 
 
 def statement_functional(mechanism: Mechanism, terms: dict, gauges: dict | None = None) -> np.ndarray:
@@ -400,8 +425,7 @@ def _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, ite
             note = ""
             if with_cal:
                 note = (f"value with calibration: holds only on a machine calibrated from the declared measurements "
-                        f"({cl.declaration.measurement_kind}, {len(cl.declaration.targets_mm)} target(s), noise "
-                        f"{cl.declaration.noise_mm:g} mm) and compensated by the controller file that "
+                        f"({campaign_words(cl)}) and compensated by the controller file that "
                         "'hyperstat export-controller' writes from that calibration; without calibration the value is "
                         f"{safe_round(binding.value):g} {binding.unit}")
             cross = [tid for tid in tids if len({k.split(".")[0] for k in expr.get(tid, {})}) > 1]

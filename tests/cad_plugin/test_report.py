@@ -143,14 +143,15 @@ def test_page_one_has_the_title_block_and_the_tolerance_table(which, request):
     for cls, n in doc["summary"]["tolerance_classes"].items():
         assert re.search(rf"{n}\s+{cls}", page1), cls
     assert re.search(r"± \d\S* (mm|rad)", page1)
+    rows = set(re.findall(r"^\s*(T\d+)\s", page1, flags=re.M))  # the tolerances whose table row is on page 1
     if which == "full_report":  # both values of a compensable tolerance, and the frames of the others
         comp = next(t for t in doc["tolerances"]["items"] if t["class"] == "compensable"
-                    and t["value_with_calibration"] is not None and t["id"] in page1)
+                    and t["value_with_calibration"] is not None and t["id"] in rows)
         from hyperstat.cad_plugin.report_words import tolerance_value
 
         row = next(ln for ln in page1.splitlines() if re.match(rf"\s*{comp['id']}\s", ln))
         assert tolerance_value(comp) in row and tolerance_value(comp, "value_with_calibration") in row
-        frames = [c for t in doc["tolerances"]["items"] if t["id"] in page1 for c in t["drawing"]]
+        frames = [c for t in doc["tolerances"]["items"] if t["id"] in rows for c in t["drawing"]]
         assert frames and all(f"{c['zone']:.3g}" in flat for c in frames)
 
 
@@ -415,3 +416,19 @@ def test_a_second_report_of_the_same_model_draws_the_skeleton_views_from_the_cac
     monkeypatch.setenv("HYPERSTAT_CACHE", str(cache))
     run("other", "-p", "L1=41")
     assert len(list((cache / "skeleton-views").rglob("*.json"))) == 2
+
+
+def test_the_title_block_flags_a_calibration_hyperstat_cannot_run(plain_report):
+    """The Tripteor declares a registered tracker frame; hyperstat identify fits it: the classification's warning is
+    printed whole in the title block's calibration line on page 1, once (tests/solver/tolerances/
+    test_calibration_campaign.py measures it through the real commands)."""
+    out, pdf = plain_report
+    doc = json.loads((out / "report.json").read_text())
+    fitted = doc["tolerances"]["calibration"]["as_identify_fits"]
+    assert fitted["worse"] and "the tracker frame registered on references of the base" in fitted["declared_holds"]
+    warning = next(w for w in doc["tolerances"]["warnings"] if w.startswith("CALIBRATION CAMPAIGN: "))
+    first = " ".join(page_text(pdf, 1, layout=False).split())
+    tail = warning[len("CALIBRATION CAMPAIGN: "):]
+    assert "WARNING: " + tail[:60] in first and f"{fitted['position_mm']:.3g} mm" in first
+    whole = " ".join(page_text(pdf, p, layout=False) for p in range(1, pages_of(pdf) + 1))
+    assert " ".join(whole.split()).count(tail[:60]) == 1
