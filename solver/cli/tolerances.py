@@ -389,6 +389,9 @@ def _montecarlo_document(args: argparse.Namespace) -> dict:
     doc = {"mechanism": mech.name, "source": provenance, "units": {"length": "mm", "angle": "rad"},
            "workspace": _workspace_doc(mech, args.workspace_used),
            "drawn": drawn, "tolerance_counts": cl.counts(), **summary}
+    campaign = [w for w in cl.warnings if w.startswith("CALIBRATION CAMPAIGN: ")]
+    if campaign and doc.get("calibrated"):  # its calibrated machines are calibrated as declared
+        doc["warnings"] = campaign
     if uniform:
         doc["worst_samples"] = _worst_samples(mech, kin, q, res)
     return doc
@@ -437,6 +440,7 @@ def format_montecarlo(doc: dict) -> str:
         if parts:
             lines.append("  after calibration (compensable tolerances cancelled, calibration noise added): out of spec "
                          + ", ".join(parts))
+    lines += [f"  warning: {w}" for w in doc.get("warnings", [])]
     w = doc["worst_over_bound"]
     lines.append(f"  worst sample / its linear bound (paper 2, eq. 18): position {w['position']:.3f}, orientation "
                  f"{w['orientation']:.3f}")

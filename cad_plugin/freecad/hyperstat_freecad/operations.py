@@ -277,6 +277,11 @@ def _apply_analysis(obj, texts: tuple[str, str]) -> dict:
     geometry.color_markers(obj, analysis)
     geometry.label_frames(obj, drawings(obj)["drawings"])
     obj.Status = "analysed"
+    for w in tolerances.get("warnings") or []:  # a calibration hyperstat's own commands do not run (the report's page 1)
+        if w.startswith("CALIBRATION CAMPAIGN: "):
+            import FreeCAD
+
+            FreeCAD.Console.PrintWarning(f"Hyperstat - {obj.Label}: {w}\n")
     return analysis
 
 

@@ -43,3 +43,7 @@ def test_montecarlo_prints_out_of_spec_and_both_rankings(tmp_path, capsys):
         assert np.isclose(sum(c[share] for c in doc["contributors"]), 1.0)
     # the linear worst case bounds every sample (first order; the samples are small)
     assert doc["position_mm"]["max"] <= doc["linear_worst_case"]["position_mm"] * 1.01
+    # its calibrated machines are calibrated as the template declares (the tracker frame registered), which hyperstat
+    # identify does not do: the classification's warning goes with their result, in the JSON and on the screen
+    assert doc["calibrated"] and [w[:22] for w in doc["warnings"]] == ["CALIBRATION CAMPAIGN: "]
+    assert f"  warning: {doc['warnings'][0]}" in text
