@@ -93,7 +93,7 @@ offsets known'
         held = [w for w, on in (("the tracker frame", decl.frame == "registered"),
                                 ("the target offsets", decl.offsets == "known")) if on]
         text += (f"; 'hyperstat identify' and 'export-controller' identify {' and '.join(held)} too, which this value "
-                 "does not allow: see the report's warnings")
+                 "does not allow: see the CALIBRATION CAMPAIGN warning (the report's page 1)")
     return text
 
 
