@@ -712,16 +712,7 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
         meas_f, nuis_f, _ = _measurement_maps(fitted, st, k_xi, ls, pscale)
         j_f = np.concatenate([(meas_f @ basis).reshape(rows_m, n_s), nuis_f.reshape(rows_m, nuis_f.shape[2])], axis=1)
         pinv_f = np.linalg.pinv(j_f, rcond=1e-10)
-        lost = []
-        if compensable_directions:  # every compensable direction at once (the same shares as residual_shares)
-            dirs = np.stack([d for _, d in compensable_directions], axis=1)  # (n, m) dimensionless
-            est = pinv_f @ np.einsum("kij,jm->kim", meas_f, dirs).reshape(-1, dirs.shape[1])
-            predicted = task_xi @ (basis @ est[:n_s])  # (K, r, m)
-            unseen = task_xi @ (basis @ (basis.T @ dirs - est[:n_s]))
-            uncancelled = predicted - task_a @ (ka_pinv @ predicted)
-            ref = np.max(np.linalg.norm(task_xi @ dirs, axis=1), axis=0)
-            share = np.max(np.linalg.norm((unseen + uncancelled)[regular], axis=1), axis=0) / ref
-            lost = [items[i].id for (i, _), s_ in zip(compensable_directions, share) if s_ >= _REL]
+        lost = [items[i].id for i, d in compensable_directions if residual_shares(d, meas_f, pinv_f)[2] >= _REL]
         as_fitted = _calibration_residual(fitted, j_f, task_xi @ basis, n_s, n_rot, ls, len(q), decl.poses)
         held = [w for w, on in (("the tracker frame registered on references of the base", decl.frame == "registered"),
                                 ("the target offsets known", decl.offsets == "known")) if on]
@@ -738,16 +729,17 @@ def _classify(mechanism: Mechanism, analysis: StationarityResult, kinematics: Ki
         cal["as_identify_fits"]["worse"] = bool(worse)
         if worse:
             n_comp = len(compensable_directions)
+            opens = " and the compensable ones open with it" if n_comp else ""
             warns.append(
-                "CALIBRATION CAMPAIGN: the values with calibration assume " + " and ".join(held) + ", as declared; "
-                f"hyperstat identify and export-controller fit the tracker frame and every target offset: then "
-                f"{len(lost)} of {n_comp} compensable tolerances are not identified"
-                + (f" ({_id_list(lost)})" if lost else "")
-                + f" and the calibration's 3-sigma task error is {as_fitted['position_mm']:.3g} mm, "
+                "CALIBRATION CAMPAIGN: the values assume a calibration with " + " and ".join(held) + ", as declared "
+                f"(the accuracy-critical ones are allocated against the spec less its 3-sigma task error{opens}); "
+                "hyperstat identify and export-controller fit the tracker frame and every target offset: then "
+                + (f"{len(lost)} of {n_comp} compensable tolerances are not identified"
+                   + (f" ({_id_list(lost)})" if lost else "") + " and " if n_comp else "")
+                + f"the calibration's 3-sigma task error is {as_fitted['position_mm']:.3g} mm, "
                 f"{as_fitted['orientation_rad']:.3g} rad (declared: {cal['position_mm']:.3g} mm, "
                 f"{cal['orientation_rad']:.3g} rad)" + (f", {' and '.join(over)}" if over else "")
-                + ". With that calibration the values with calibration are not assured; the values without calibration "
-                "hold.")
+                + ". A machine calibrated by them is not assured these values.")
     shares = {c: [t.evidence.get("residual_share") for t in items if t.cls == c and t.kind == "direction"]
               for c in ("compensable", "accuracy-critical")}
     infl = [t.evidence["task_influence"] / top for t in items if t.cls == "non-influent" and top > 0]

@@ -84,6 +84,9 @@ def campaign_words(cl) -> str:
     >>> campaign_words(NS(declaration=decl, calibration={}))
     'positions, 1 target(s), noise 0.002 mm, the tracker frame registered on references of the base, the target \
 offsets known'
+    >>> words = campaign_words(NS(declaration=decl, calibration={"as_identify_fits": {"worse": True}}))
+    >>> "; " in words, words.endswith("report's page 1")  # one note: the part pages number a note's clauses at "; "
+    (False, True)
     """
     decl = cl.declaration
     text = (f"{decl.measurement_kind}, {len(decl.targets_mm)} target(s), noise {decl.noise_mm:g} mm, the tracker frame "
@@ -92,8 +95,8 @@ offsets known'
     if ((cl.calibration or {}).get("as_identify_fits") or {}).get("worse"):
         held = [w for w, on in (("the tracker frame", decl.frame == "registered"),
                                 ("the target offsets", decl.offsets == "known")) if on]
-        text += (f"; 'hyperstat identify' and 'export-controller' identify {' and '.join(held)} too, which this value "
-                 "does not allow: see the CALIBRATION CAMPAIGN warning (the report's page 1)")
+        text += (f", which 'hyperstat identify' and 'export-controller' do not hold ({' and '.join(held)} identified): "
+                 "see the CALIBRATION CAMPAIGN warning on the report's page 1")
     return text
 
 
