@@ -4,8 +4,9 @@ Units: a symbol lives in the unit square (x right, y up); the renderers scale it
 
 Several ISO 1101 symbols (position, symmetry, profile, total run-out) have no glyph in the
 fonts the report is printed with (DejaVu, which the machine's Chromium uses), so every
-symbol is drawn from these strokes: :func:`symbol_svg` for the report's feature control frames
-and :func:`draw_symbol` for the matplotlib pictures.
+symbol is drawn from these strokes: :func:`symbol_svg` for the report's feature control frames,
+:func:`sheet_symbol` for the part drawings (:class:`hyperstat.cad_plugin.svg_sheet.SvgSheet`) and
+:func:`draw_symbol` for the matplotlib pictures.
 
 >>> sorted(SYMBOLS)[:3]
 ['angularity', 'circular run-out', 'circularity']
@@ -17,7 +18,7 @@ True
 
 from __future__ import annotations
 
-__all__ = ["SYMBOLS", "symbol_of", "symbol_svg", "draw_symbol", "frame_cells", "zone_text"]
+__all__ = ["SYMBOLS", "symbol_of", "symbol_svg", "draw_symbol", "sheet_symbol", "frame_cells", "zone_text"]
 
 #: characteristic -> strokes: ("line", x0, y0, x1, y1), ("circle", cx, cy, r), ("arc", cx, cy, r, theta0, theta1) (deg)
 SYMBOLS: dict[str, list[tuple]] = {
@@ -109,4 +110,27 @@ def draw_symbol(ax, characteristic: str, x: float, y: float, size: float, **line
             _, cx, cy, r, a0, a1 = s  # y points down in the view axes: mirror the angles
             ax.add_patch(Arc((x + size * cx, y - size * cy), 2 * size * r, 2 * size * r, theta1=-a1, theta2=-a0,
                              ec=line["color"], lw=line["lw"]))
+    return True
+
+
+def sheet_symbol(sheet, characteristic: str, x: float, y: float, size: float, color: str = "black",
+                 lw: float = 0.7) -> bool:
+    """Draw the symbol in the box ``[x, x + size] x [y - size, y]`` of a
+    :class:`hyperstat.cad_plugin.svg_sheet.SvgSheet` (mm, y downwards), as :func:`draw_symbol` draws it.
+
+    Returns False when the characteristic has no symbol (the caller then writes its name).
+    """
+    strokes = SYMBOLS.get(characteristic)
+    if strokes is None:
+        return False
+    for s in strokes:
+        if s[0] == "line":
+            _, x0, y0, x1, y1 = s
+            sheet.line([x + size * x0, x + size * x1], [y - size * y0, y - size * y1], color=color, lw=lw, cap="round")
+        elif s[0] == "circle":
+            _, cx, cy, r = s
+            sheet.circle(x + size * cx, y - size * cy, size * r, color=color, lw=lw)
+        else:
+            _, cx, cy, r, a0, a1 = s
+            sheet.arc(x + size * cx, y - size * cy, size * r, a0, a1, color=color, lw=lw)
     return True

@@ -23,8 +23,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from hyperstat.cad_plugin.drawing import FONT_PT, WIDTH_MM, figure_svg
-from hyperstat.cad_plugin.gdt import draw_symbol
+from hyperstat.cad_plugin.drawing import FONT_PT, WIDTH_MM
+from hyperstat.cad_plugin.gdt import sheet_symbol
+from hyperstat.cad_plugin.svg_sheet import SvgSheet
 
 __all__ = ["part_pages", "page_key", "drawing_code_version", "parts_html", "parts_markdown", "frame_cells", "zone_words", "ISO_SCALES", "view_axes",
            "PARTS_CSS", "prebuild", "geometry_key"]
@@ -349,11 +350,9 @@ def _block_width(fr: dict) -> float:
     return max(row, text_width_pt(_frame_label(fr)) * _PT)
 
 
-def _draw_block(ax, x: float, y: float, fr: dict, text: dict, words: dict) -> float:
+def _draw_block(ax: SvgSheet, x: float, y: float, fr: dict, text: dict, words: dict) -> float:
     """A frame's block at (x, y) (top left, mm): its label, then its cells and indicator; returns the row's
     vertical middle."""
-    from matplotlib.patches import Rectangle
-
     label = _frame_label(fr)
     ax.text(x, y + 0.5 * _LINE * _PT, label, va="center", **text)
     words["callouts"].append(label)
@@ -362,9 +361,9 @@ def _draw_block(ax, x: float, y: float, fr: dict, text: dict, words: dict) -> fl
     drawn = []
     for i, cell in enumerate(frame_cells(fr)):
         w = h if i == 0 else (text_width_pt(cell) + 5.0) * _PT
-        ax.add_artist(Rectangle((x, row_y), w, h, fc="white", ec="black", lw=0.6))  # add_patch less the limits
+        ax.rect(x, row_y, w, h, fill="white", color="black", lw=0.6)
         if i == 0:
-            if not draw_symbol(ax, cell, x + 0.15 * h, row_y + 0.85 * h, 0.7 * h):
+            if not sheet_symbol(ax, cell, x + 0.15 * h, row_y + 0.85 * h, 0.7 * h):
                 ax.text(x + 0.5 * w, row_y + 0.5 * h, cell[:4], ha="center", va="center", **text)
         else:
             ax.text(x + 0.5 * w, row_y + 0.5 * h, cell, ha="center", va="center", **text)
@@ -378,9 +377,8 @@ def _draw_block(ax, x: float, y: float, fr: dict, text: dict, words: dict) -> fl
     return row_y + 0.5 * h
 
 
-def _leader(ax, start, target) -> None:
-    ax.annotate("", xy=target, xytext=start, arrowprops={"arrowstyle": "-|>", "lw": 0.45, "color": "black",
-                                                         "shrinkA": 0, "shrinkB": 0, "mutation_scale": 7})
+def _leader(ax: SvgSheet, start, target) -> None:
+    ax.leader(start, target, lw=0.45, head_pt=7.0)
 
 
 def _band_rows(frames: list, width: float) -> list[list]:
@@ -405,8 +403,10 @@ def _views_of(features: list, solid) -> list[dict]:
     return views
 
 
-def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list | None = None):
-    """The figure of one part drawing (views, datum symbols, frames with leaders); returns ``(figure, words)``.
+def part_sheet(drawing: dict, solid, max_height_mm: float = 175.0, views: list | None = None):
+    """The sheet of one part drawing (views, datum symbols, frames with leaders); returns ``(sheet, words)``
+    (:class:`hyperstat.cad_plugin.svg_sheet.SvgSheet`: its :meth:`~hyperstat.cad_plugin.svg_sheet.SvgSheet.svg`
+    is the page's picture).
 
     ``views``: the part's views with their edges (:func:`_views_of` of the same features and solid) when already
     computed (:func:`prebuild`).
@@ -415,10 +415,6 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
     in rows under views that take the page's width: whichever draws the part at the larger ISO 5455 scale
     within ``max_height_mm`` (what the page leaves beside the part's tables).
     """
-    from matplotlib.collections import LineCollection
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Polygon, Rectangle
-
     features = drawing.get("features") or []
     frames = drawing.get("frames") or []
     views = [dict(v) for v in views] if views is not None else _views_of(features, solid)
@@ -447,12 +443,7 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
         height = band_top + len(band_rows) * (block_h + 4.0) + 4.0
     else:
         height = max(lay.height, head_mm + 2.0 + len(frames) * block_h) + 4.0
-    fig = Figure(figsize=(WIDTH_MM / 25.4, height / 25.4))
-    ax = fig.add_axes([0, 0, 1, 1])
-    ax.set_xlim(0, WIDTH_MM)
-    ax.set_ylim(height, 0)
-    ax.set_axis_off()  # the limits set, no autoscaling: patches are added by add_artist (add_patch also computes
-    # the data limits, a fifth of this function's time) and collections without autolim, to the same picture
+    ax = SvgSheet(WIDTH_MM, height)
     part = drawing.get("part", "")
     words = {"format": "hyperstat-picture-words", "version": 1, "title": f"Part drawing: {part}", "views": [],
              "datums": [], "frames": [], "callouts": []}
@@ -467,12 +458,11 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
         label = f"view {k + 1}: looking along {_direction_words(-v['toward'])}, right {_direction_words(v['right'])}"
         ax.text(0, y0 - _BAND_MM + 3.0, label, va="center", style="italic", color="#333333", **text)
         words["views"].append(label)
-        for key, style in (("hidden", {"lw": 0.35, "linestyle": (0, (3, 2)), "color": "#555555"}),
-                           ("visible", {"lw": 0.7, "color": "black", "capstyle": "round", "joinstyle": "round"})):
+        for key, style in (("hidden", {"lw": 0.35, "dashes": (3, 2), "color": "#555555"}),
+                           ("visible", {"lw": 0.7, "color": "black", "cap": "round", "join": "round"})):
             if v[key]:  # every line's points on the page at once (element by element: the same numbers)
                 points = lay.page(k, np.concatenate(v[key]))
-                lines = np.split(points, np.cumsum([len(line) for line in v[key]])[:-1])
-                ax.add_collection(LineCollection(lines, **style), autolim=False)  # the limits are set
+                ax.lines(np.split(points, np.cumsum([len(line) for line in v[key]])[:-1]), **style)
     centre = np.mean([np.asarray(f["point_mm"], float) for f in features], axis=0) if features else np.zeros(3)
     anchors = {fid: _anchor(f, views, centre) for fid, f in solid.parsed.items()}
 
@@ -491,14 +481,14 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
             direction = np.array([0.0, 1.0])
         direction = direction / np.linalg.norm(direction) * np.array([1.0, -1.0])  # page y points down
         normal = np.array([-direction[1], direction[0]])
-        ax.add_artist(Polygon([base + 1.2 * normal, base - 1.2 * normal, base + 2.0 * direction], closed=True,
-                             fc="black", ec="black", lw=0.4))
+        ax.polygon(np.array([base + 1.2 * normal, base - 1.2 * normal, base + 2.0 * direction]), fill="black",
+                   color="black", lw=0.4)
         stem_end = base + 6.0 * direction
-        ax.plot([base[0] + 2.0 * direction[0], stem_end[0]], [base[1] + 2.0 * direction[1], stem_end[1]],
+        ax.line([base[0] + 2.0 * direction[0], stem_end[0]], [base[1] + 2.0 * direction[1], stem_end[1]],
                 color="black", lw=0.5)
         box = 4.6
         middle = stem_end + 0.5 * box * direction
-        ax.add_artist(Rectangle(middle - 0.5 * box, box, box, fc="white", ec="black", lw=0.6))
+        ax.rect(middle[0] - 0.5 * box, middle[1] - 0.5 * box, box, box, fill="white", color="black", lw=0.6)
         ax.text(middle[0], middle[1], d["letter"], ha="center", va="center", **text)
         words["datums"].append(str(d["letter"]))
     # feature control frames, each with a leader to its feature
@@ -517,10 +507,10 @@ def part_figure(drawing: dict, solid, max_height_mm: float = 175.0, views: list 
             middle = _draw_block(ax, column_x, head_mm + 2.0 + i * block_h, fr, text, words)
             if fr.get("feature") in anchors:
                 _leader(ax, np.array([column_x - 1.0, middle]), on_page(fr["feature"]))
-    return fig, words
+    return ax, words
 
 
-def _draw_indicator(ax, x: float, y: float, h: float, ind: dict, text: dict) -> float:
+def _draw_indicator(ax: SvgSheet, x: float, y: float, h: float, ind: dict, text: dict) -> float:
     """An intersection or orientation plane indicator (ISO 1101:2017) right of a frame: its relation symbol and
     datum letter; the intersection plane's frame has doubled ends, the orientation plane's pointed ends."""
     symbol = _RELATION_SYMBOL.get(str(ind.get("relation", "")).lower(), "parallelism")
@@ -535,12 +525,12 @@ def _draw_indicator(ax, x: float, y: float, h: float, ind: dict, text: dict) -> 
     else:
         outline = [(x0, y), (x1, y), (x1, y + h), (x0, y + h), (x0, y)]
     xs, ys = zip(*outline)
-    ax.plot(xs, ys, color="black", lw=0.6)
+    ax.line(xs, ys, color="black", lw=0.6)
     if "intersection" in kind:
         for xe in (x0 + 0.6, x1 - 0.6):
-            ax.plot([xe, xe], [y, y + h], color="black", lw=0.6)
-    ax.plot([x0 + w_sym, x0 + w_sym], [y, y + h], color="black", lw=0.6)
-    draw_symbol(ax, symbol, x0 + 0.15 * h, y + 0.85 * h, 0.7 * h)
+            ax.line([xe, xe], [y, y + h], color="black", lw=0.6)
+    ax.line([x0 + w_sym, x0 + w_sym], [y, y + h], color="black", lw=0.6)
+    sheet_symbol(ax, symbol, x0 + 0.15 * h, y + 0.85 * h, 0.7 * h)
     ax.text(x0 + w_sym + 0.5 * w_let, y + 0.5 * h, letter, ha="center", va="center", **text)
     return x1 + tip
 
@@ -636,8 +626,8 @@ def _part_page(drawing: dict, types: dict) -> dict:
     # its page (their height is measured to within about 7 mm: 10 mm are kept); when they cannot, the picture
     # keeps 200 mm and the table of a part with many frames continues on the next page
     room = _PAGE_MM - 10.0 - _tables_height_mm(drawing, solid.assumed)
-    fig, words = part_figure(drawing, solid, room if room >= 80.0 else 200.0, views=views)
-    return {"part": drawing["part"], "svg": figure_svg(fig), "words": words, "assumed": list(solid.assumed),
+    sheet, words = part_sheet(drawing, solid, room if room >= 80.0 else 200.0, views=views)
+    return {"part": drawing["part"], "svg": sheet.svg(), "words": words, "assumed": list(solid.assumed),
             "solid": solid, "error": None}
 
 
