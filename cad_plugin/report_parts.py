@@ -34,7 +34,10 @@ __all__ = ["part_pages", "page_key", "drawing_code_version", "parts_html", "part
 ISO_SCALES = (5.0, 2.0, 1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
 _FAMILY = "DejaVu Sans"
 _VIEWS_MM = 108.0  # width of the views' column
-_GAP_MM = 6.0
+_GAP_MM = 6.0  # between a view and the band of the next (more where the view's datum symbols reach lower)
+#: a datum feature symbol (ISO 5459), mm on the page: the triangle's length and half base, the stem's end, the square
+_DATUM_TRIANGLE, _DATUM_HALF_BASE, _DATUM_STEM, _DATUM_BOX = 2.0, 1.2, 6.0, 4.6
+_LABEL_TOP_MM = 1.3  # a view's label reaches this far below its band's top (8 pt centred 3 mm down)
 _BAND_MM = 16.0  # above a view: its label and room for the datum symbols that stand out of it
 _LINE = 1.28 * FONT_PT  # pt
 _ROW = 1.55 * FONT_PT  # height of a frame's row, pt
@@ -218,6 +221,31 @@ def _project(view: dict, p) -> np.ndarray:
     return np.array([float(p @ view["right"]), float(p @ view["up"])])
 
 
+def _datum_direction(view: dict, out) -> np.ndarray:
+    """The unit direction (page, y down) a datum feature symbol stands out along from its feature."""
+    direction = _project(view, out)
+    if np.linalg.norm(direction) < 1e-9:
+        direction = np.array([0.0, 1.0])
+    return direction / np.linalg.norm(direction) * np.array([1.0, -1.0])  # page y points down
+
+
+def _symbol_gaps(views: list[dict], datums: list, anchors: dict, scale: float) -> list[float]:
+    """The space under each view (mm): :data:`_GAP_MM`, or more where a datum feature symbol standing out below the
+    view would reach the next view's label (or the frames under the last view)."""
+    gaps = [_GAP_MM] * len(views)
+    for d in datums:
+        if d.get("feature") not in anchors:
+            continue
+        k, point, out = anchors[d["feature"]]
+        dx, dy = _datum_direction(views[k], out)
+        below = -(_project(views[k], point)[1] - views[k]["bounds"][0][1]) * scale  # the feature under the box's
+        # bottom edge (mm, negative: above it), then the symbol's lowest point: a triangle corner, its tip, the square
+        reach = below + max(_DATUM_HALF_BASE * abs(dx), _DATUM_TRIANGLE * dy,
+                            (_DATUM_STEM + 0.5 * _DATUM_BOX) * dy + 0.5 * _DATUM_BOX)
+        gaps[k] = max(gaps[k], reach + 1.0 - _LABEL_TOP_MM)
+    return gaps
+
+
 def zone_words(frame: dict) -> str:
     """The zone of a frame in words: its shape, width (mm) and direction.
 
@@ -272,15 +300,16 @@ def _indicator_text(ind: dict | None) -> str:
 class _Layout:
     """Page geometry of one part drawing (mm, y downwards from the figure's top)."""
 
-    def __init__(self, views: list[dict], scale: float, head_mm: float, width_mm: float):
+    def __init__(self, views: list[dict], scale: float, head_mm: float, width_mm: float,
+                 gaps: list[float] | None = None):
         self.views, self.scale, self.head, self.width = views, scale, head_mm, width_mm
         self.boxes = []  # per view: (x0, y0, w, h) on the page and the view's 2-D bounds
         y = head_mm
-        for v in views:
+        for k, v in enumerate(views):
             lo, hi = v["bounds"]
             w, h = (hi - lo) * scale
             self.boxes.append((0.0, y + _BAND_MM, w, h, lo))  # a band above each view: its label, datum symbols
-            y += _BAND_MM + h + _GAP_MM
+            y += _BAND_MM + h + (gaps[k] if gaps else _GAP_MM)
         self.height = y
 
     def page(self, k: int, xy: np.ndarray) -> np.ndarray:
@@ -430,14 +459,22 @@ def part_sheet(drawing: dict, solid, max_height_mm: float = 175.0, views: list |
         fit = min(min(width / s[0] for s in spans), height / tall)
         return next((s for s in ISO_SCALES if s <= fit), ISO_SCALES[-1])
 
-    room = max(max_height_mm, 80.0) - head_mm - 8.0 - len(views) * _BAND_MM - (len(views) - 1) * _GAP_MM
+    centre = np.mean([np.asarray(f["point_mm"], float) for f in features], axis=0) if features else np.zeros(3)
+    anchors = {fid: _anchor(f, views, centre) for fid, f in solid.parsed.items()}
+    datums = drawing.get("datums") or []
+    # the most a symbol standing out downwards can add under its view (its feature on the view's edge): kept free
+    worst = _DATUM_STEM + _DATUM_BOX + 1.0 - _LABEL_TOP_MM - _GAP_MM
+    down = {anchors[d["feature"]][0] for d in datums if d.get("feature") in anchors
+            and _datum_direction(views[anchors[d["feature"]][0]], anchors[d["feature"]][2])[1] > 0}
+    extra = worst * len(down)
+    room = max(max_height_mm, 80.0) - head_mm - 8.0 - len(views) * _BAND_MM - (len(views) - 1) * _GAP_MM - extra
     side = scale_for(_VIEWS_MM, room)
     band_rows = _band_rows(frames, WIDTH_MM)
     wide = scale_for(WIDTH_MM, room - 4.0 - len(band_rows) * (block_h + 4.0))
     use_band = wide > side
     scale = wide if use_band else side
     views_width = WIDTH_MM if use_band else _VIEWS_MM
-    lay = _Layout(views, scale, head_mm, views_width)
+    lay = _Layout(views, scale, head_mm, views_width, _symbol_gaps(views, datums, anchors, scale))
     if use_band:
         band_top = lay.height + 4.0
         height = band_top + len(band_rows) * (block_h + 4.0) + 4.0
@@ -463,30 +500,24 @@ def part_sheet(drawing: dict, solid, max_height_mm: float = 175.0, views: list |
             if v[key]:  # every line's points on the page at once (element by element: the same numbers)
                 points = lay.page(k, np.concatenate(v[key]))
                 ax.lines(np.split(points, np.cumsum([len(line) for line in v[key]])[:-1]), **style)
-    centre = np.mean([np.asarray(f["point_mm"], float) for f in features], axis=0) if features else np.zeros(3)
-    anchors = {fid: _anchor(f, views, centre) for fid, f in solid.parsed.items()}
-
     def on_page(fid: str) -> np.ndarray:
         k, point, _ = anchors[fid]
         return lay.page(k, _project(views[k], point))
 
     # datum feature symbols (ISO 5459): filled triangle on the feature, a stem, the letter in a square
-    for d in drawing.get("datums") or []:
+    for d in datums:
         if d["feature"] not in anchors:
             continue
         k, point, out = anchors[d["feature"]]
         base = on_page(d["feature"])
-        direction = _project(views[k], out)
-        if np.linalg.norm(direction) < 1e-9:
-            direction = np.array([0.0, 1.0])
-        direction = direction / np.linalg.norm(direction) * np.array([1.0, -1.0])  # page y points down
+        direction = _datum_direction(views[k], out)
         normal = np.array([-direction[1], direction[0]])
-        ax.polygon(np.array([base + 1.2 * normal, base - 1.2 * normal, base + 2.0 * direction]), fill="black",
-                   color="black", lw=0.4)
-        stem_end = base + 6.0 * direction
-        ax.line([base[0] + 2.0 * direction[0], stem_end[0]], [base[1] + 2.0 * direction[1], stem_end[1]],
-                color="black", lw=0.5)
-        box = 4.6
+        ax.polygon(np.array([base + _DATUM_HALF_BASE * normal, base - _DATUM_HALF_BASE * normal,
+                             base + _DATUM_TRIANGLE * direction]), fill="black", color="black", lw=0.4)
+        stem_end = base + _DATUM_STEM * direction
+        ax.line([base[0] + _DATUM_TRIANGLE * direction[0], stem_end[0]],
+                [base[1] + _DATUM_TRIANGLE * direction[1], stem_end[1]], color="black", lw=0.5)
+        box = _DATUM_BOX
         middle = stem_end + 0.5 * box * direction
         ax.rect(middle[0] - 0.5 * box, middle[1] - 0.5 * box, box, box, fill="white", color="black", lw=0.6)
         ax.text(middle[0], middle[1], d["letter"], ha="center", va="center", **text)

@@ -13,6 +13,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from hyperstat.cad_plugin import report_parts
 from hyperstat.cad_plugin.report_parts import geometry_key, page_key, part_pages, parts_html
 from hyperstat.solver.cache import Cache
@@ -118,3 +120,57 @@ def test_a_changed_drawing_is_drawn_again(slider_crank_report, tmp_path):
     page = part_pages({**doc, "drawings": [drawing]}, cache=cache)[0]
     assert page["part"] == drawing["part"] and page["svg"] != "<svg/>"
 
+
+
+def _ink_boxes(svg: str) -> tuple[list, list]:
+    """The labels ``(text, (x0, y0, x1, y1))`` and the datum letters' squares ``(x0, y0, x1, y1)`` of a part page's
+    SVG (pt, y down): a label's box from its anchor, its width (the font's advances) and its ascent and descent."""
+    import xml.etree.ElementTree as ET
+
+    from hyperstat.cad_plugin.report_parts import _DATUM_BOX, text_width_pt
+    from hyperstat.cad_plugin.svg_sheet import text_box_pt
+
+    ns, pt = "{http://www.w3.org/2000/svg}", 72.0 / 25.4
+    root = ET.fromstring(svg)
+    labels, squares = [], []
+    for node in root.iter(f"{ns}text"):
+        x, y, text = float(node.get("x")), float(node.get("y")), node.text or ""
+        w = text_width_pt(text)
+        a, d = text_box_pt(text, 8.0)
+        x0 = x - {"middle": 0.5 * w, "end": w}.get(node.get("text-anchor"), 0.0)
+        labels.append((text, (x0, y - a, x0 + w, y + d)))
+    for node in root.iter(f"{ns}rect"):
+        w, h = float(node.get("width")), float(node.get("height"))
+        if abs(w - _DATUM_BOX * pt) < 0.01 and abs(h - _DATUM_BOX * pt) < 0.01:
+            x, y = float(node.get("x")), float(node.get("y"))
+            squares.append((x, y, x + w, y + h))
+    return labels, squares
+
+
+def _overlap(a, b, pad: float = 0.0) -> bool:
+    return a[0] < b[2] - pad and b[0] < a[2] - pad and a[1] < b[3] - pad and b[1] < a[3] - pad
+
+
+@pytest.mark.parametrize("which", ["slider_crank_report", "tripteor_report"])
+def test_no_datum_symbol_or_label_covers_another_label(which, request):
+    """Read as a checker reads a drawing: every label clear of the others and of the datum letters' squares (the
+    Tripteor's base drew its datum C's square over the second view's title)."""
+    import re
+
+    out, _doc = request.getfixturevalue(which)
+    html = (out / "report.html").read_text(encoding="utf-8")
+    pages = re.findall(r'<section class="part-page".*?</section>', html, flags=re.S)
+    assert pages
+    clashes, squares_seen = [], 0
+    for page in pages:
+        part = re.search(r"<h3[^>]*>(.*?)</h3>", page).group(1)
+        for svg in re.findall(r"<svg xmlns=.*?</svg>", page, flags=re.S):
+            labels, squares = _ink_boxes(svg)
+            squares_seen += len(squares)
+            for sq in squares:
+                clashes += [(part, "square", text) for text, box in labels if _overlap(sq, box)
+                            and not (box[0] >= sq[0] - 0.5 and box[2] <= sq[2] + 0.5)]  # but its own letter
+            clashes += [(part, text, other) for i, (text, box) in enumerate(labels) for other, box2 in labels[i + 1:]
+                        if _overlap(box, box2, 0.3)]
+    assert squares_seen >= len(pages)  # every part has a datum at least: the squares were found
+    assert not clashes, clashes
