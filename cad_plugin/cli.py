@@ -171,6 +171,11 @@ def _cmd_report(args) -> int:
     with solver_cli.stages(args, stages) as progress:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = solver_cli.analysis_of(args)
+        # the accuracy coefficients depend on the analysis only: by a child on the core the start leaves idle (the
+        # same numbers; computed here at once when no core is idle), not alone at the end
+        from hyperstat.solver.forked import when_idle
+
+        accuracy_job = when_idle(report_section, mech, result, kin)
         # the tolerance classes colour the skeleton views: classified now, the views are drawn by a forked
         # child (pyvista import and rendering) while this process verifies, diagnoses and allocates; the child
         # also lays out the skeleton drawing without frames (a report with part drawings has its frames on the
@@ -256,7 +261,7 @@ def _cmd_report(args) -> int:
                 sent = solver_cli.jsonable({"drawings": (getattr(tolerances, "drawings", None) or {}).get("drawings")
                                             or [], "joints": [{"element": e, "type": t} for e, t in types.items()]})
                 pages.send(sent)
-            accuracy = report_section(mech, result, kin)
+            accuracy = accuracy_job.result()
             if diagnosing is not None:
                 stored = decode_entry(diagnosing.result(timeout=600.0))
                 identification, diagnosis = stored["identification"], stored["diagnosis"]
