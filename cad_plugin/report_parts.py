@@ -182,8 +182,22 @@ def _hlr(shape, view: dict) -> dict:
 
 
 def _chain(segments: list) -> list:
-    """Segments joined end to end into polylines (fewer, smoother strokes in the SVG)."""
+    """Segments joined end to end into polylines (fewer, smoother strokes in the SVG); a segment met twice (OCCT's
+    outlines and smooth-edge lines repeat edges of its visible set: up to two in five on a Tripteor part) is drawn
+    once, so that its neighbours chain through it.
+
+    >>> sq = [np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[1.0, 0.0], [1.0, 1.0]]), np.array([[1.0, 0.0], [0.0, 0.0]])]
+    >>> [line.tolist() for line in _chain(sq)]
+    [[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]]
+    """
     key = lambda q: (round(float(q[0]), 6), round(float(q[1]), 6))  # noqa: E731
+    seen, unique = set(), []
+    for seg in segments:
+        k = tuple(sorted((key(seg[0]), key(seg[-1]))))
+        if k not in seen:
+            seen.add(k)
+            unique.append(seg)
+    segments = unique
     first = [key(seg[0]) for seg in segments]  # each end's key once
     last = [key(seg[-1]) for seg in segments]
     ends: dict = {}
