@@ -148,7 +148,7 @@ def _cmd_report(args) -> int:
     from hyperstat.solver.tolerances.workspace import workspace_of
     from hyperstat.solver.cli.cached import cached_sample, cached_values, command_cache, store_selection
 
-    from hyperstat.cad_plugin.background import Background
+    from hyperstat.cad_plugin.background import PAGES_NICE, PICTURES_NICE, Background
     from hyperstat.cad_plugin.palette import element_classes
     from hyperstat.cad_plugin.report import (cached_diagnosis, cached_views, decode_entry, diagnosis_entry,
                                              part_pages_worker, preload_pictures, skeleton_views_drawn,
@@ -171,10 +171,12 @@ def _cmd_report(args) -> int:
     with solver_cli.stages(args, stages) as progress:
         progress.next("stationarity analysis")
         mech, provenance, kin, result = solver_cli.analysis_of(args)
+        from hyperstat.solver.forked import idle_core, when_idle
+
+        # the pictures' children yield the cores to this process' values when nothing else runs now (PICTURES_NICE)
+        quiet = idle_core()
         # the accuracy coefficients depend on the analysis only: by a child on the core the start leaves idle (the
         # same numbers; computed here at once when no core is idle), not alone at the end
-        from hyperstat.solver.forked import when_idle
-
         accuracy_job = when_idle(report_section, mech, result, kin)
         # the tolerance classes colour the skeleton views: classified now, the views are drawn by a forked
         # child (pyvista import and rendering) while this process verifies, diagnoses and allocates; the child
@@ -198,14 +200,14 @@ def _cmd_report(args) -> int:
         views = None
         if not (args.json_only or drawn_before is not None):
             before_a_fork()
-            views = Background(skeleton_views_drawn, mech, early)
+            views = Background(skeleton_views_drawn, mech, early, nice=PICTURES_NICE if quiet else 0)
         pages = None
 
         def start_pages() -> None:  # values to compute: a child imports OCCT meanwhile, then draws the part pages
             nonlocal pages
             if not (args.json_only or args.step_drawings or all(t.cls == "non-influent" for t in tolerances.items)):
                 before_a_fork()
-                pages = part_pages_worker(command_cache(args), provisional)
+                pages = part_pages_worker(command_cache(args), provisional, nice=PAGES_NICE if quiet else 0)
 
         kinds = {el.name: getattr(el, "type", "F") for ch in mech.chains for el in ch.elements}
         types = {p.element: kinds.get(p.element, "F") for p in result.parameters}  # as report.json's "joints"
@@ -241,7 +243,8 @@ def _cmd_report(args) -> int:
                         selected=stored["selected"], violated_defect=stored["violated_defect"]))
                 elif data.noise is not None:  # diagnosed and plotted by a forked child while this computes the values
                     before_a_fork()
-                    diagnosing = Background(diagnosis_entry, mech, result, data, validation, kin, not args.json_only)
+                    diagnosing = Background(diagnosis_entry, mech, result, data, validation, kin, not args.json_only,
+                                            nice=PICTURES_NICE if quiet else 0)
                 else:
                     from hyperstat.solver.calibration.identify import identify
 
@@ -262,6 +265,11 @@ def _cmd_report(args) -> int:
                                             or [], "joints": [{"element": e, "type": t} for e, t in types.items()]})
                 pages.send(sent)
             accuracy = accuracy_job.result()
+            # the Monte Carlo before the diagnosis' result: it needs the values only, and the diagnosis' child may
+            # still be drawing its plots
+            montecarlo = monte_carlo_at_values(tolerances, mech, kin, workspace, samples=1000, seed=0,
+                                               position_accuracy=args.position_accuracy,
+                                               orientation_accuracy=args.orientation_accuracy) or None
             if diagnosing is not None:
                 stored = decode_entry(diagnosing.result(timeout=600.0))
                 identification, diagnosis = stored["identification"], stored["diagnosis"]
@@ -269,9 +277,6 @@ def _cmd_report(args) -> int:
                 store_selection(args, mech, result, data_files, SimpleNamespace(  # export-controller's
                     selected=stored["selected"], violated_defect=stored["violated_defect"]))
                 store_diagnosis(args, mech, result, data_files, stored)
-            montecarlo = monte_carlo_at_values(tolerances, mech, kin, workspace, samples=1000, seed=0,
-                                               position_accuracy=args.position_accuracy,
-                                               orientation_accuracy=args.orientation_accuracy) or None
         doc = report_document(mech, provenance, result, checks, hypotheses, identification, diagnosis, tolerances,
                               accuracy, montecarlo)
         _title_block(doc, args.revision, date)

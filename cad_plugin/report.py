@@ -178,13 +178,14 @@ def _pages_of(cache, doc: dict) -> list:
     return part_pages(doc, cache=cache)
 
 
-def part_pages_worker(cache=None, provisional=None):
+def part_pages_worker(cache=None, provisional=None, nice: int = 0):
     """The part pages drawn by a forked child started now (:class:`hyperstat.cad_plugin.background.Deferred`): it
     imports OCCT (OCP) while the report computes the values, then draws the pages of the ``{"drawings", "joints"}``
     given to its ``result`` (:func:`hyperstat.cad_plugin.report_parts.part_pages`, without the solids; read from
     and stored in ``cache``).  The same pages as drawing them in-process; drawn here if the child fails, and
     without a child once OCCT is loaded in this process.  ``provisional`` (a function returning ``(drawings, joint
-    types)`` predicted before the values) lets the child build the parts' solids and views meanwhile."""
+    types)`` predicted before the values) lets the child build the parts' solids and views meanwhile; ``nice`` is
+    added to the child's niceness (:data:`hyperstat.cad_plugin.background.PAGES_NICE`)."""
     import sys
     from functools import partial
 
@@ -194,7 +195,8 @@ def part_pages_worker(cache=None, provisional=None):
     # first mesh): once OCCT is loaded in this process (a template built with CadQuery, an earlier report in the
     # same process; FreeCAD's own OCCT), the pages are drawn here
     fork = not {"OCP", "FreeCAD"} & set(sys.modules)
-    return Deferred(partial(_pages_of, cache), partial(_prepare_pages, provisional if fork else None), fork=fork)
+    return Deferred(partial(_pages_of, cache), partial(_prepare_pages, provisional if fork else None), fork=fork,
+                    nice=nice)
 
 
 def _diagnosis_key(args, mechanism, result, data_paths: list) -> str | None:

@@ -81,3 +81,41 @@ def test_the_child_skips_the_inherited_heap_and_the_caller_keeps_collecting_its_
     assert gc.get_freeze_count() == 0
     pid, frozen = job.result()
     assert pid != os.getpid() and frozen > 1000
+
+
+def _pid_and_niceness() -> tuple[int, int]:
+    return os.getpid(), os.nice(0)
+
+
+def test_a_niced_child_runs_below_its_caller_and_the_caller_keeps_its_priority():
+    base = os.nice(0)
+    pid, niceness = Background(_pid_and_niceness, nice=4).result()
+    assert pid != os.getpid() and niceness == min(base + 4, 19)
+    assert os.nice(0) == base  # only the child's
+    assert Background(_pid_and_niceness).result()[1] == base  # none unless asked
+
+
+def test_a_large_input_is_sent_while_the_child_is_still_preparing():
+    """The input (over a pipe's 64 kB) travels through a file: ``send`` returns while the child prepares (the report's
+    process was held there until the part pages' child had imported OCCT).  The child's preparation waits for a word
+    sent after ``send`` returns: a ``send`` that waited for the child would never return (a thread, joined with a
+    timeout, tells)."""
+    import threading
+
+    from hyperstat.cad_plugin.background import Deferred
+
+    go_read, go_write = os.pipe()
+
+    def prepare():
+        os.read(go_read, 1)  # until the caller has sent the input
+
+    job = Deferred(lambda value: sum(value["x"]), prepare)
+    big = {"x": [float(i) for i in range(200_000)]}  # about 2 MB of JSON
+    sender = threading.Thread(target=job.send, args=(big,), daemon=True)
+    sender.start()
+    sender.join(timeout=120.0)
+    returned = not sender.is_alive()
+    os.write(go_write, b"1")  # the child may go on either way (never a hung test)
+    assert returned, "send waited for the child"
+    assert job.result() == sum(big["x"])
+    assert job._background._proc is None and not os.path.exists(job._dir)  # noqa: SLF001 - its input file removed
