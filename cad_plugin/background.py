@@ -30,9 +30,9 @@ __all__ = ["Background", "Deferred", "PICTURES_NICE", "PAGES_NICE"]
 #: niceness of a report's picture children (skeleton views, diagnosis) when the machine is idle as the report starts:
 #: the report's own line of work (the values, then the Monte Carlo and the document) is its critical path, and the
 #: pictures are wanted at its end only; with equal shares the children took the cores from it, and its last second
-#: ran on one core (Tripteor report with data: 6.0-6.2 s, 5.5-5.7 s with these values).  On a machine busy with other
-#: work the children keep the caller's priority: niced, they lost to the other processes (the same report beside two
-#: busy loops: 9.5 s at equal priority, 12.0-12.4 s niced)
+#: ran on one core (Tripteor report with data, alternated: 6.28-6.46 s, 5.65-5.80 s with these values).  On a machine
+#: busy with other work the children keep the caller's priority: niced, they lost to the other processes (the same
+#: report beside two busy loops: 9.5 s at equal priority, 12.0-12.4 s niced)
 PICTURES_NICE = 6
 #: niceness of the part pages' child (the longest of them, whose last drawing follows the values)
 PAGES_NICE = 3
