@@ -6,7 +6,8 @@ writes a figure, so that a page inlines either the same way.
 
 The part drawings are made of a few hundred strokes and labels.  Drawn through matplotlib's figure, every stroke
 and label was an artist with its transforms and properties, and saving them took most of a report's drawing time
-(1.6 s of CPU for the Tripteor's 14 parts); this sheet writes each primitive as one SVG element (0.1 s).  Text
+(1.6 s of CPU under cProfile for the Tripteor's 14 parts); this sheet writes each primitive as one SVG element
+(0.16 s under cProfile).  Text
 is placed as matplotlib places it: its anchor (``ha``) and its vertical alignment (``va``) from the font's own
 metrics (FreeType, through matplotlib's ``ft2font``, the same font file), so a label lands where the layout,
 which measures the same font, expects it.
