@@ -156,6 +156,15 @@ class Background:
                 shutil.rmtree(self._dir, ignore_errors=True)
         return self._fn(*self._args)
 
+    def cancel(self) -> None:
+        """Stop the child, if any, and remove its directory (its result will not be asked for)."""
+        if self._proc is not None:
+            self._proc.kill()
+            self._proc.join()
+            self._proc = None
+        if self._dir is not None:
+            shutil.rmtree(self._dir, ignore_errors=True)
+
 
 def _deferred_child(fn: Callable, prepare: Callable | None, fd: int, path: str) -> Any:
     """Body of a :class:`Deferred` child: ``prepare()``, then ``fn`` of the input the parent wrote to ``path`` (one
@@ -229,11 +238,15 @@ class Deferred:
 
     def result(self, *value: Any, timeout: float = 180.0) -> Any:
         """``fn(value)``: the child's result, or computed here; ``value`` is sent first when given."""
-        if value:
-            self.send(*value)
-        if not self._sent:
-            raise ValueError("Deferred.result: no input was sent")
         try:
+            if value:
+                self.send(*value)
+            if not self._sent:
+                if self._write is not None:
+                    os.close(self._write)
+                    self._write = None
+                self._background.cancel()  # the child waits for an input that will not come
+                raise ValueError("Deferred.result: no input was sent")
             return self._background.result(timeout)
         finally:
             shutil.rmtree(self._dir, ignore_errors=True)

@@ -58,8 +58,12 @@ def test_a_deferred_child_that_fails_or_cannot_fork_leaves_the_work_to_this_proc
     job = Deferred(_fails)
     with pytest.raises(ValueError, match="no picture for 4"):
         job.result(4)
+    waiting = Deferred(_pid_and_square)
     with pytest.raises(ValueError, match="no input was sent"):
-        Deferred(_pid_and_square).result()
+        waiting.result()
+    # the child that waited for the input is stopped, and neither its directory nor the input's is left behind
+    assert waiting._background._proc is None  # noqa: SLF001
+    assert not os.path.exists(waiting._dir) and not os.path.exists(waiting._background._dir)  # noqa: SLF001
     monkeypatch.setenv("HYPERSTAT_NO_FORK", "1")
     pid, value = Deferred(_pid_and_square).result(6)
     assert value == 36 and pid == os.getpid()
