@@ -18,7 +18,7 @@ True
 
 from __future__ import annotations
 
-__all__ = ["SYMBOLS", "symbol_of", "symbol_svg", "draw_symbol", "sheet_symbol", "frame_cells", "zone_text"]
+__all__ = ["SYMBOLS", "symbol_of", "symbol_svg", "draw_symbol", "sheet_symbol", "placed_strokes", "frame_cells", "zone_text"]
 
 #: characteristic -> strokes: ("line", x0, y0, x1, y1), ("circle", cx, cy, r), ("arc", cx, cy, r, theta0, theta1) (deg)
 SYMBOLS: dict[str, list[tuple]] = {
@@ -88,6 +88,31 @@ def symbol_svg(characteristic: str, size: float, stroke: float = 1.0) -> str:
             + "".join(parts) + "</g></svg>")
 
 
+def placed_strokes(characteristic: str, x: float, y: float, size: float) -> list[tuple] | None:
+    """The symbol's strokes placed in the box ``[x, x + size] x [y - size, y]`` (y downwards, as on a page):
+    ``("line", xs, ys)``, ``("circle", cx, cy, r)``, ``("arc", cx, cy, r, theta0, theta1)`` (degrees, counter-clockwise
+    as seen, from +x towards the page's up); None when the characteristic has no symbol.
+
+    >>> placed_strokes("perpendicularity", 0.0, 10.0, 10.0)[0]
+    ('line', [5.0, 5.0], [8.0, 1.5])
+    """
+    strokes = SYMBOLS.get(characteristic)
+    if strokes is None:
+        return None
+    out = []
+    for s in strokes:
+        if s[0] == "line":
+            _, x0, y0, x1, y1 = s
+            out.append(("line", [x + size * x0, x + size * x1], [y - size * y0, y - size * y1]))
+        elif s[0] == "circle":
+            _, cx, cy, r = s
+            out.append(("circle", x + size * cx, y - size * cy, size * r))
+        else:
+            _, cx, cy, r, a0, a1 = s
+            out.append(("arc", x + size * cx, y - size * cy, size * r, a0, a1))
+    return out
+
+
 def draw_symbol(ax, characteristic: str, x: float, y: float, size: float, **line) -> bool:
     """Draw the symbol in the box ``[x, x + size] x [y - size, y]`` of ``ax`` (data units, y downwards).
 
@@ -95,21 +120,18 @@ def draw_symbol(ax, characteristic: str, x: float, y: float, size: float, **line
     """
     from matplotlib.patches import Arc, Circle
 
-    strokes = SYMBOLS.get(characteristic)
+    strokes = placed_strokes(characteristic, x, y, size)
     if strokes is None:
         return False
     line = {"color": "black", "lw": 0.7, **line}
     for s in strokes:
         if s[0] == "line":
-            _, x0, y0, x1, y1 = s
-            ax.plot([x + size * x0, x + size * x1], [y - size * y0, y - size * y1], solid_capstyle="round", **line)
+            ax.plot(s[1], s[2], solid_capstyle="round", **line)
         elif s[0] == "circle":
-            _, cx, cy, r = s
-            ax.add_patch(Circle((x + size * cx, y - size * cy), size * r, fill=False, ec=line["color"], lw=line["lw"]))
+            ax.add_patch(Circle(s[1:3], s[3], fill=False, ec=line["color"], lw=line["lw"]))
         else:
             _, cx, cy, r, a0, a1 = s  # y points down in the view axes: mirror the angles
-            ax.add_patch(Arc((x + size * cx, y - size * cy), 2 * size * r, 2 * size * r, theta1=-a1, theta2=-a0,
-                             ec=line["color"], lw=line["lw"]))
+            ax.add_patch(Arc((cx, cy), 2 * r, 2 * r, theta1=-a1, theta2=-a0, ec=line["color"], lw=line["lw"]))
     return True
 
 
@@ -120,17 +142,14 @@ def sheet_symbol(sheet, characteristic: str, x: float, y: float, size: float, co
 
     Returns False when the characteristic has no symbol (the caller then writes its name).
     """
-    strokes = SYMBOLS.get(characteristic)
+    strokes = placed_strokes(characteristic, x, y, size)
     if strokes is None:
         return False
     for s in strokes:
         if s[0] == "line":
-            _, x0, y0, x1, y1 = s
-            sheet.line([x + size * x0, x + size * x1], [y - size * y0, y - size * y1], color=color, lw=lw, cap="round")
+            sheet.line(s[1], s[2], color=color, lw=lw, cap="round")
         elif s[0] == "circle":
-            _, cx, cy, r = s
-            sheet.circle(x + size * cx, y - size * cy, size * r, color=color, lw=lw)
+            sheet.circle(*s[1:], color=color, lw=lw)
         else:
-            _, cx, cy, r, a0, a1 = s
-            sheet.arc(x + size * cx, y - size * cy, size * r, a0, a1, color=color, lw=lw)
+            sheet.arc(*s[1:], color=color, lw=lw)
     return True

@@ -243,6 +243,17 @@ def _datum_direction(view: dict, out) -> np.ndarray:
     return direction / np.linalg.norm(direction) * np.array([1.0, -1.0])  # page y points down
 
 
+def _symbol_reach(dx: float, dy: float) -> float:
+    """How far below its feature (mm on the page) a datum feature symbol standing out along ``(dx, dy)`` (page, y
+    down) reaches: the lowest of its triangle's corners, its tip and its square."""
+    return max(_DATUM_HALF_BASE * abs(dx), _DATUM_TRIANGLE * dy, (_DATUM_STEM + 0.5 * _DATUM_BOX) * dy + 0.5 * _DATUM_BOX)
+
+
+def _gap_for(reach: float) -> float:
+    """The space under a view whose datum symbols reach ``reach`` mm below it: 1 mm clear of the next view's label."""
+    return max(_GAP_MM, reach + 1.0 - _LABEL_TOP_MM)
+
+
 def _symbol_gaps(views: list[dict], datums: list, anchors: dict, scale: float) -> list[float]:
     """The space under each view (mm): :data:`_GAP_MM`, or more where a datum feature symbol standing out below the
     view would reach the next view's label (or the frames under the last view)."""
@@ -253,10 +264,8 @@ def _symbol_gaps(views: list[dict], datums: list, anchors: dict, scale: float) -
         k, point, out = anchors[d["feature"]]
         dx, dy = _datum_direction(views[k], out)
         below = -(_project(views[k], point)[1] - views[k]["bounds"][0][1]) * scale  # the feature under the box's
-        # bottom edge (mm, negative: above it), then the symbol's lowest point: a triangle corner, its tip, the square
-        reach = below + max(_DATUM_HALF_BASE * abs(dx), _DATUM_TRIANGLE * dy,
-                            (_DATUM_STEM + 0.5 * _DATUM_BOX) * dy + 0.5 * _DATUM_BOX)
-        gaps[k] = max(gaps[k], reach + 1.0 - _LABEL_TOP_MM)
+        # bottom edge (mm, negative: above it; the bounds keep a margin, so never positive)
+        gaps[k] = max(gaps[k], _gap_for(below + _symbol_reach(dx, dy)))
     return gaps
 
 
@@ -477,7 +486,7 @@ def part_sheet(drawing: dict, solid, max_height_mm: float = 175.0, views: list |
     anchors = {fid: _anchor(f, views, centre) for fid, f in solid.parsed.items()}
     datums = drawing.get("datums") or []
     # the most a symbol standing out downwards can add under its view (its feature on the view's edge): kept free
-    worst = _DATUM_STEM + _DATUM_BOX + 1.0 - _LABEL_TOP_MM - _GAP_MM
+    worst = _gap_for(_symbol_reach(0.0, 1.0)) - _GAP_MM
     down = {anchors[d["feature"]][0] for d in datums if d.get("feature") in anchors
             and _datum_direction(views[anchors[d["feature"]][0]], anchors[d["feature"]][2])[1] > 0}
     extra = worst * len(down)

@@ -87,20 +87,41 @@ def test_many_lines_are_one_path_with_the_dash_scaled_by_the_width():
     assert [float(v) for v in path.get("stroke-dasharray").split(",")] == pytest.approx([3 * 0.35, 2 * 0.35])
 
 
-def test_an_arc_ends_on_its_circle_and_bulges_up_the_sheet():
+def _svg_arc_midpoint(x1, y1, r, large, sweep, x2, y2) -> tuple[float, float]:
+    """The midpoint of an SVG circular arc from its endpoint form (SVG 1.1, appendix F.6.5, no rotation): its centre,
+    start angle and signed sweep as the renderer computes them (y down)."""
+    xp, yp = (x1 - x2) / 2, (y1 - y2) / 2
+    sq = max(0.0, (r * r * r * r - r * r * yp * yp - r * r * xp * xp) / (r * r * yp * yp + r * r * xp * xp))
+    coef = math.sqrt(sq) * (1.0 if large != sweep else -1.0)
+    cxp, cyp = coef * yp, -coef * xp
+    cx, cy = cxp + (x1 + x2) / 2, cyp + (y1 + y2) / 2
+    u = ((xp - cxp) / r, (yp - cyp) / r)
+    v = ((-xp - cxp) / r, (-yp - cyp) / r)
+    theta = math.degrees(math.atan2(u[1], u[0]))
+    delta = math.degrees(math.atan2(u[0] * v[1] - u[1] * v[0], u[0] * v[0] + u[1] * v[1])) % 360.0
+    if not sweep and delta > 0:
+        delta -= 360.0
+    mid = math.radians(theta + delta / 2)
+    return cx + r * math.cos(mid), cy + r * math.sin(mid)
+
+
+@pytest.mark.parametrize("start, end, top", [(0.0, 180.0, (25.0, 15.0)), (180.0, 360.0, (25.0, 35.0)),
+                                             (90.0, 180.0, (25 - 10 * math.cos(math.pi / 4), 25 - 10 * math.sin(math.pi / 4))),
+                                             (0.0, 270.0, (25 - 10 * math.cos(math.pi / 4), 25 - 10 * math.sin(math.pi / 4)))])
+def test_an_arc_ends_on_its_circle_and_turns_counter_clockwise_as_seen(start, end, top):
+    """The "profile of a line" symbol is a half circle over its chord (0 to 180 degrees): drawn on a page (y down) it
+    must bulge up.  The arc's midpoint is found as a renderer finds it, from the SVG's endpoint form."""
     sheet = SvgSheet(50.0, 50.0)
-    sheet.arc(25.0, 25.0, 10.0, 0.0, 180.0)  # the "profile of a line" symbol: a half circle over its chord
+    sheet.arc(25.0, 25.0, 10.0, start, end)
     d = _tree(sheet.svg()).find(f"{NS}path").get("d")
     m = re.fullmatch(r"M([-\d.]+) ([-\d.]+) A([-\d.]+) ([-\d.]+) 0 (\d) (\d) ([-\d.]+) ([-\d.]+)", d)
     x0, y0, rx, ry, large, sweep, x1, y1 = (float(v) for v in m.groups())
-    assert (x0, y0) == pytest.approx((35 * PT, 25 * PT), abs=1e-3) and (x1, y1) == pytest.approx((15 * PT, 25 * PT),
-                                                                                                   abs=1e-3)
+    for (x, y), angle in (((x0, y0), start), ((x1, y1), end)):  # the ends on the circle, angles counted upwards
+        assert (x / PT, y / PT) == pytest.approx((25 + 10 * math.cos(math.radians(angle)),
+                                                  25 - 10 * math.sin(math.radians(angle))), abs=1e-3)
     assert rx == ry == pytest.approx(10 * PT, abs=1e-3)
-    # from (35, 25) to (15, 25) counter-clockwise on the page (sweep 0 in SVG's y-down frame) passes over the top,
-    # y = 15 mm: the arc's midpoint at 90 degrees
-    assert sweep == 0
-    mid = (25 + 10 * math.cos(math.pi / 2), 25 - 10 * math.sin(math.pi / 2))
-    assert mid[1] < 25
+    mx, my = _svg_arc_midpoint(x0, y0, rx, int(large), int(sweep), x1, y1)
+    assert (mx / PT, my / PT) == pytest.approx(top, abs=1e-2)
 
 
 def test_a_leader_ends_at_its_target_with_its_head():
