@@ -177,7 +177,7 @@ def _cmd_report(args) -> int:
         quiet = idle_core()
         # the accuracy coefficients depend on the analysis only: by a child on the core the start leaves idle (the
         # same numbers; computed here at once when no core is idle), not alone at the end
-        accuracy_job = when_idle(report_section, mech, result, kin)
+        accuracy_job = when_idle(_quietly, report_section, mech, result, kin)
         # the tolerance classes colour the skeleton views: classified now, the views are drawn by a forked
         # child (pyvista import and rendering) while this process verifies, diagnoses and allocates; the child
         # also lays out the skeleton drawing without frames (a report with part drawings has its frames on the
@@ -311,6 +311,15 @@ def _cmd_report(args) -> int:
         if not args.json_only:
             print(f"open {Path(args.out) / 'report.html'} in a browser (self-contained, prints on A4)")
     return 0
+
+
+def _quietly(fn, *args):
+    """``fn(*args)`` with its warnings silenced, as the report computes its stages (a child's would reach the terminal)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fn(*args)
 
 
 def _report_date(text: str | None) -> str:

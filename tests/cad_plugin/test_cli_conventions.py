@@ -135,3 +135,13 @@ def test_a_terminal_gets_a_progress_bar_and_quiet_silences_it(tmp_path):
     assert code == 0 and "view: " in err and "rendering" in err, err
     code, err = stderr_on_a_terminal("view", SC, "--png", "w.png", "--quiet")
     assert code == 0 and err == "", err
+
+
+def test_quiet_report_of_a_mechanism_whose_sampling_warns_prints_nothing(tmp_path):
+    """The corpus' PRS-3 leaves a few workspace draws out of its accuracy sample (a warning the report's stages
+    silence): the accuracy coefficients computed by a forked child silence it too."""
+    run = _run("report", str(TEMPLATES / "corpus" / "prs_3.py"), "--json-only", "--out", "rep", "--quiet",
+               cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout == "" and run.stderr == "", (run.stdout, run.stderr)
+    assert (tmp_path / "rep" / "report.json").is_file()
