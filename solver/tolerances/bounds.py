@@ -45,9 +45,10 @@ VALUES_BLOCK = 16384
 PATTERN_BLOCK = 1 << 20
 
 
-#: entries (matrices x circles x crossings) of one block of the circle walk: its dozen temporaries stay in a core's
-#: L2 cache (2 MiB here); 16 matrices of 72 tolerances (the hexapod's) spilled and took twice as long (issue 39)
-WALK_BLOCK = 24576
+#: entries (matrices x circles x crossings) of one block of the circle walk: its temporaries stay in a core's L2 cache
+#: (2 MiB here).  Measured on the half-circle walk (issue 39): 5-12 matrices of 48-72 tolerances per block took 0.22 s
+#: and 0.50 s per 2,000 matrices, 16 and 10 (37,000-52,000 entries) 0.32 s and 0.72 s
+WALK_BLOCK = 27648
 
 
 def attainable(a: np.ndarray, chunk: int | None = None) -> np.ndarray:
@@ -76,30 +77,37 @@ def attainable(a: np.ndarray, chunk: int | None = None) -> np.ndarray:
         a = np.concatenate([a, np.zeros((k, 1, n))], axis=1)
     out = np.zeros(k)
     if chunk is None:  # the same values whatever the block (each matrix is walked alone)
-        chunk = int(min(64, max(1, WALK_BLOCK // (2 * n * n))))
+        chunk = int(min(64, max(1, WALK_BLOCK // (n * n))))
     for start in range(0, k, chunk):
         out[start:start + chunk] = _walk_circles(a[start:start + chunk])
     return out
 
 
 def _walk_circles(blk: np.ndarray) -> np.ndarray:
-    """``max_s |a s|`` for a stack (B, 3, n), walking around the great circle ``u . a_i = 0`` of every column.
+    """``max_s |a s|`` for a stack (B, 3, n), walking around half of the great circle ``u . a_i = 0`` of every column.
 
     Along the circle of column ``i`` (``u = e1 cos t + e2 sin t``) the sign of ``u . a_k`` flips at two
-    angles per column ``k``; between consecutive crossings the pattern is that of a cell of the
+    antipodal angles per column ``k``; between consecutive crossings the pattern is that of a cell of the
     arrangement next to the circle, with ``s_i = +-1`` on its two sides, and every cell lies next to some
-    circle.  The patterns are built by one sort and one cumulative sum per circle (``O(n^2 log n)`` per
-    matrix).  Columns parallel to ``a_i`` (within 1e-12 of the largest column: ``a_i`` itself, exact
-    copies, columns below the round-off) take ``s_i`` times the sign of their projection on ``a_i``.
-    Simultaneous crossings (coplanar columns) are taken one at a time: the patterns in between are
-    sign patterns too, so the maximum is never above the true one.
+    circle.  Half a turn is enough: at ``t + pi`` every sign is flipped (``u -> -u``), and ``|a (-s)| = |a s|``;
+    on ``[0, pi)`` each column flips exactly once, so a circle's patterns are built by one sort and one cumulative
+    sum of ``n`` steps (``O(n^2 log n)`` per matrix, half the steps of a whole turn; issue 39).  Columns parallel to
+    ``a_i`` (within 1e-12 of the largest column: ``a_i`` itself, exact copies, columns below the round-off) take
+    ``s_i`` times the sign of their projection on ``a_i``.  Simultaneous crossings (coplanar columns) are taken one
+    at a time: the patterns in between are sign patterns too, so the maximum is never above the true one.
 
-    The walk is summed one component at a time along the contiguous last axis, and the maximum is
-    taken of the squared lengths before one square root (``sqrt`` is monotonic and correctly
-    rounded): the same additions in the same order as the stacked ``(B, n_i, 2 n, 3)`` form of the
-    versions before, bit for bit (tested), in half the time (issue 39: the hexapod's 24 tolerances).
+    The two sides ``w +- g`` of the circle (``g``: the parallel columns with their signs) are compared through
+    ``|w +- g|^2 = |w|^2 + |g|^2 +- 2 w . g``, whose larger is ``|w|^2 + |g|^2 + 2 |w . g|`` (a sum of
+    non-negative terms: no cancellation), summed one component at a time along the contiguous last axis; one square
+    root of the largest.  The maxima agree with a whole turn's stacked walk to a few units of the last place
+    (tested): the same patterns, their sums in another order.
     """
     b_, _, n = blk.shape
+    # each matrix scaled by the power of two nearest its largest entry (exact: the same bits once scaled back), so
+    # that the squared lengths below neither underflow nor overflow whatever the unit
+    big = np.max(np.abs(blk), axis=(1, 2))
+    power = np.ldexp(1.0, np.frexp(np.where(big > 0, big, 1.0))[1])[:, None, None]
+    blk = blk / power
     cols = np.swapaxes(blk, 1, 2)  # (B, n, 3)
     norm = np.linalg.norm(cols, axis=2)
     scale = np.maximum(norm.max(axis=1), 1e-300)
@@ -110,42 +118,34 @@ def _walk_circles(blk: np.ndarray) -> np.ndarray:
     c, d = e1 @ blk, e2 @ blk  # (B, n_i, n_k): u(t) . a_k = c cos t + d sin t
     tied = _within(c, d, 1e-12 * scale)
     group = np.where(tied, np.sign(unit @ blk), 0.0) @ cols  # the tied columns with their signs, (B, n_i, 3)
-    phi = np.arctan2(d, c)
-    up = _turn(phi - np.pi / 2)  # u . a_k turns positive
-    down = _turn(phi + np.pi / 2)  # and negative
-    free = ~tied
-    base = np.where(free, np.where(up < down, -1.0, 1.0), 0.0)  # the sign before the first crossing in [0, 2 pi)
-    order = np.argsort(np.concatenate([up, down], axis=2), axis=2)  # (B, n_i, 2 n)
-    steps = np.concatenate([np.where(free, 2.0, 0.0), np.where(free, -2.0, 0.0)], axis=2)
-    steps = np.take_along_axis(steps, order, axis=2)
+    # the crossing of column k in [0, pi] is at pi/2 + the angle of +-(c, d) taken with c >= 0; the sign just before
+    # it (the start of the half turn) is + for c >= 0 (it turns negative there) and - for c < 0
+    negative = c < 0
+    crossing = np.arctan2(np.where(negative, -d, d), np.abs(c))  # in [-pi/2, pi/2]: the order of the crossings
+    before = np.where(tied, 0.0, np.where(negative, -1.0, 1.0))
+    order = np.argsort(crossing, axis=2)  # (B, n_i, n)
+    steps = np.take_along_axis(before, order, axis=2)
+    steps *= -2.0
     # the column crossed at each step, as a row of the (B n, 3) columns: one plain gather per component
-    which = np.concatenate([np.arange(n), np.arange(n)])[order] + (n * np.arange(b_))[:, None, None]
+    which = order + (n * np.arange(b_))[:, None, None]
     comp = np.ascontiguousarray(cols.reshape(b_ * n, 3).T)  # (3, B n)
-    start = base @ cols  # (B, n_i, 3): the pattern before the first crossing
-    plus = minus = None  # squared lengths of w + group and w - group, (B, n_i, 2 n)
+    start = before @ cols  # (B, n_i, 3): the pattern before the first crossing
+    squares = dots = None  # |w|^2 and w . g of every arc, (B, n_i, n)
     for x in range(3):
         w = np.cumsum(steps * comp[x][which], axis=2)  # the pattern of every arc, component x
         w += start[:, :, x, None]
-        p, m = w + group[:, :, x, None], w - group[:, :, x, None]
-        p *= p
-        m *= m
-        if plus is None:
-            plus, minus = p, m
+        wg = w * group[:, :, x, None]
+        w *= w
+        if squares is None:
+            squares, dots = w, wg
         else:
-            plus += p
-            minus += m
-    return np.maximum(np.sqrt(plus.max(axis=(1, 2))), np.sqrt(minus.max(axis=(1, 2))))
-
-
-def _turn(x: np.ndarray) -> np.ndarray:
-    """``numpy.mod(x, 2 pi)`` for ``-2 pi < x < 2 pi``, bit for bit, at a third of its cost: there ``fmod`` returns ``x``
-    itself and ``mod`` adds ``2 pi`` to a negative one (the same rounded sum); ``+0.0`` stays ``+0.0``.
-
-    >>> x = np.array([-4.0, -1e-300, 0.0, 1.0, 6.2])
-    >>> bool(np.array_equal(_turn(x), np.mod(x, 2 * np.pi)))
-    True
-    """
-    return np.where(x < 0, x + 2 * np.pi, x)
+            squares += w
+            dots += wg
+    np.abs(dots, out=dots)
+    dots *= 2.0
+    squares += dots
+    squares += np.einsum("bix,bix->bi", group, group)[:, :, None]
+    return np.sqrt(squares.max(axis=(1, 2))) * power[:, 0, 0]
 
 
 def _within(c: np.ndarray, d: np.ndarray, radius: np.ndarray) -> np.ndarray:
