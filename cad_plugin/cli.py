@@ -303,7 +303,12 @@ def _cmd_report(args) -> int:
                 images["rendered"], images["skeleton"] = drawn["rendered"], drawn["drawing"]
             written = write_report(solver_cli.jsonable(doc), args.out, mech, analysis_json, images,
                                    step_drawings=args.step_drawings, pdf=args.pdf, cache=command_cache(args))
-    if not args.quiet:
+    if not args.quiet:  # a drawing no workshop can make is said here too (its page 1 says it first)
+        from hyperstat.solver.tolerances.drawing import PRACTICAL_SIZE_WARNING
+
+        for w in (doc.get("tolerances") or {}).get("warnings") or []:
+            if w.startswith(PRACTICAL_SIZE_WARNING):
+                sys.stderr.write(f"hyperstat: warning: {Path(args.out) / 'report.json'}: {w}\n")
         c = doc["summary"]["tolerance_classes"]
         print(f"{mech.name}: " + ", ".join(f"{n} {k}" for k, n in c.items()))
         for w in written:

@@ -42,6 +42,7 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: now
 table.block { width: 100%; border: 2px solid #111; } table.block td { border: 1px solid #777; }
 table.block td.k { font-weight: bold; white-space: nowrap; background: #f4f4f4; width: 1%; }
 table.block td.hash { font-family: "DejaVu Sans Mono", monospace; font-size: .85em; }
+table.block td.warn { color: #b00020; font-weight: bold; }
 table.tol { font-size: .8em; width: 100%; } table.tol td.stmt { font-family: "DejaVu Sans Mono", monospace;
        overflow-wrap: anywhere; } table.tol td { padding: 0 .25em; } td.nw { white-space: nowrap; }
 .badge { display: inline-block; padding: 0 .35em; border-radius: .4em; color: white; font-weight: bold;
@@ -137,7 +138,7 @@ def _summary(doc: dict) -> str:
                 block.append(f"<tr>{''.join(short)}</tr>")
                 short = []
             continue
-        cls = ' class="hash"' if "SHA" in k else ""
+        cls = ' class="hash"' if "SHA" in k else ' class="warn"' if v.startswith("WARNING: ") else ""
         block.append(f'<tr><td class="k">{_e(k)}</td><td colspan="3"{cls}>{_e(v)}</td></tr>')
     if short:
         block.append(f"<tr>{short[0]}<td></td><td></td></tr>")

@@ -16,7 +16,7 @@ import re
 __all__ = ["number", "micro", "safe_round", "tolerance_value", "calibrated_value", "um", "significance", "SIGNIFICANCE",
            "coefficient_words", "glossary", "title_rows", "where_words", "contributor_groups", "spec_text",
            "values_note", "frames_of", "display_path", "bounds_lines", "limit_lines", "calibration_words",
-           "other_warnings", "CAMPAIGN_WARNING"]
+           "other_warnings", "practical_size_rows", "CAMPAIGN_WARNING"]
 
 #: significance marks of an estimate (|estimate| / its standard deviation), strongest first
 SIGNIFICANCE = (("**", 3.0, "significant: the estimate is at least 3 standard deviations from zero"),
@@ -168,6 +168,7 @@ def title_rows(doc: dict) -> list[tuple[str, str]]:
             ("task", ", ".join(title.get("task") or [])),
             ("spec", spec_text(title.get("spec") or {})),
             ("calibration", calibration_words(meas, (doc.get("tolerances") or {}).get("warnings") or [])),
+            *practical_size_rows((doc.get("tolerances") or {}).get("warnings") or []),
             ("units", "lengths mm, angles rad, residuals µm; ± values are symmetric tolerances, rounded down")]
 
 
@@ -196,9 +197,27 @@ def calibration_words(meas: dict, warnings: list) -> str:
                           if w.startswith(CAMPAIGN_WARNING))
 
 
+def practical_size_rows(warnings: list) -> list[tuple[str, str]]:
+    """The title block's row of the classification's warning that frames state zones below what any workshop holds
+    (:data:`hyperstat.solver.tolerances.drawing.PRACTICAL_SIZE_WARNING`); none without it.
+
+    >>> practical_size_rows(["PRACTICAL SIZE: 1 frame of 2 states a zone below 0.3 µm."])
+    [('drawing', 'WARNING: 1 frame of 2 states a zone below 0.3 µm.')]
+    >>> practical_size_rows(["the worst case was still rising"])
+    []
+    """
+    from hyperstat.solver.tolerances.drawing import PRACTICAL_SIZE_WARNING
+
+    return [("drawing", f"WARNING: {w[len(PRACTICAL_SIZE_WARNING):]}") for w in warnings
+            if w.startswith(PRACTICAL_SIZE_WARNING)]
+
+
 def other_warnings(warnings: list) -> list:
-    """The classification's warnings but the calibration campaign's (the title block carries it)."""
-    return [w for w in warnings if not w.startswith(CAMPAIGN_WARNING)]
+    """The classification's warnings but the calibration campaign's and the practical size's (the title block
+    carries them)."""
+    from hyperstat.solver.tolerances.drawing import PRACTICAL_SIZE_WARNING
+
+    return [w for w in warnings if not w.startswith((CAMPAIGN_WARNING, PRACTICAL_SIZE_WARNING))]
 
 
 def frames_of(item: dict) -> list[dict]:

@@ -44,7 +44,7 @@ import numpy as np
 from hyperstat.solver.kinematics.model import Mechanism
 
 __all__ = ["safe_round", "SYMBOLS", "part_drawings", "add_drawing", "statement_functional", "provisional_drawings",
-           "campaign_words"]
+           "campaign_words", "PRACTICAL_ZONE_MM", "PRACTICAL_SIZE_WARNING", "practical_size_warning"]
 
 #: ISO 1101 symbols
 SYMBOLS = {"parallelism": "\u2225", "perpendicularity": "\u27c2", "angularity": "\u2220", "position": "\u2316",
@@ -53,6 +53,16 @@ _DIAMETER = "\u2300"
 _ORIENTATION = ("parallelism", "perpendicularity", "angularity")
 _PRIORITY = {"tilt": 0, "normal": 1, "shift": 2}
 _SEAT_ORDER = {"seat": 0, "seatface": 1, "seatflat": 2}  # the seat's bore first: the longest lever, the widest zone
+
+
+#: the smallest zone (mm) a frame states without a warning: 0.3 µm, the finest standard tolerance grade of ISO 286-1
+#: (IT01, nominal sizes up to 3 mm: a grade for gauges).  A workshop is never asked to hold a size that closely on the
+#: smallest part, let alone an orientation or a position on a mechanism's part; a zone below it is a value no part
+#: can be made to, however right the model that computed it
+PRACTICAL_ZONE_MM = 3e-4
+#: the start of the classification's warning that names the frames below :data:`PRACTICAL_ZONE_MM` (the report's
+#: page 1 carries it whole)
+PRACTICAL_SIZE_WARNING = "PRACTICAL SIZE: "
 
 
 def safe_round(value: float | None, digits: int = 3) -> float | None:
@@ -436,6 +446,10 @@ def _assemble(cl, mechanism, systems, frames, requirements, expr, not_drawn, ite
                 note += ("; " if note else "") + "; ".join(
                     f"a share of {tid} ({items[tid].statement} within {items[tid].drawing_value:g} "
                     f"{items[tid].unit}) split between its parts" for tid in cross)
+            if zone < PRACTICAL_ZONE_MM:
+                note += ("; " if note else "") + (
+                    f"a zone below {PRACTICAL_ZONE_MM * 1e3:g} µm, the finest grade of ISO 286-1 (IT01): no workshop "
+                    "holds it; see the PRACTICAL SIZE warning on the report's page 1")
             text = _text(ds, f, zone, length, ted)
             cells = f"|{sym}|{_DIAMETER if cyl else ''}{zone:g}|" + "|".join(letters) + "|"
             frame = {"id": f.id, "tolerances": tids, "feature": f.feature.id, "characteristic": f.characteristic,
@@ -584,4 +598,47 @@ def add_drawing(cl, mechanism: Mechanism, kin=None) -> dict:
                            "assembles as the nominal one; the frames bound the rest (its orthogonal projection on what "
                            "the features see)"}
     cl.drawings = out
+    cl.warnings = [w for w in cl.warnings if not w.startswith(PRACTICAL_SIZE_WARNING)]
+    warning = practical_size_warning(out["drawings"], {t.id: t for t in cl.items})
+    if warning:
+        cl.warnings.append(warning)
     return out
+
+
+def practical_size_warning(drawings: list, items: dict) -> str | None:
+    """The warning that names every frame of ``drawings`` whose zone is below :data:`PRACTICAL_ZONE_MM`, with its
+    tolerances and their classes; None when there is none.
+
+    A value is what the accuracy spec and the mechanism's sensitivity to a defect ask for; below the finest grade no
+    part can be made to it, so the drawing cannot be released as it is, whatever the model.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as NS
+    >>> drawings = [{"part": "base", "frames": [{"id": "base-F1", "zone_mm": 1.7e-07, "tolerances": ["T17"]},
+    ...                                         {"id": "base-F2", "zone_mm": 0.004, "tolerances": ["T18"]}]}]
+    >>> print(practical_size_warning(drawings, {"T17": NS(cls="accuracy-critical")}))  # doctest: +NORMALIZE_WHITESPACE
+    PRACTICAL SIZE: 1 frame of 2 states a zone below 0.3 µm, the finest grade of ISO 286-1 (IT01), which no workshop
+    holds: base-F1 (1.7e-07 mm; T17 accuracy-critical). The parts cannot be made to this drawing: relax the accuracy
+    spec, or change the design so that the mechanism is less sensitive to these defects (an accuracy-critical
+    tolerance is one that calibration does not compensate).
+    >>> practical_size_warning([{"part": "base", "frames": [drawings[0]["frames"][1]]}], {}) is None
+    True
+    """
+    frames = [f for d in drawings for f in d.get("frames") or []]
+    small = [f for f in frames if f.get("zone_mm") is not None and f["zone_mm"] < PRACTICAL_ZONE_MM]
+    if not small:
+        return None
+
+    def carried(f: dict) -> str:
+        return ", ".join(f"{tid} {items[tid].cls}" if tid in items else tid for tid in f.get("tolerances") or [])
+
+    listed = "; ".join(f"{f['id']} ({f['zone_mm']:g} mm; {carried(f)})" for f in small[:12])
+    if len(small) > 12:
+        listed += f"; and {len(small) - 12} more (their notes on the part pages say so)"
+    verb = "states" if len(small) == 1 else "state"
+    return (f"{PRACTICAL_SIZE_WARNING}{len(small)} frame{'s' if len(small) > 1 else ''} of {len(frames)} {verb} a zone "
+            f"below {PRACTICAL_ZONE_MM * 1e3:g} µm, the finest grade of ISO 286-1 (IT01), which no workshop holds: "
+            f"{listed}. The parts cannot be made to this drawing: relax the accuracy spec, or change the design so "
+            "that the mechanism is less sensitive to these defects (an accuracy-critical tolerance is one that "
+            "calibration does not compensate).")

@@ -161,6 +161,42 @@ def test_the_reports_tables_keep_their_columns(corpus, member):
     assert "<html" in (run["dir"] / "rep" / "report.html").read_text(encoding="utf-8")[:200].lower()
 
 
+@pytest.mark.parametrize("member", [m for m in MEMBERS if (m, "report") not in LEFT_OUT])
+def test_a_zone_no_workshop_holds_is_said_on_page_1_and_on_its_frame(corpus, member):
+    """Every frame whose zone is below 0.3 µm (ISO 286-1's finest grade, IT01; read from the JSON here, not from the
+    code's list) is named by the PRACTICAL SIZE warning with its tolerances and carries the note on its part page;
+    no other frame is; the title block of report.md carries the warning on page 1, the HTML's in its warning style,
+    and the appendix's warnings list does not repeat it.  Tsai's 3-UPU has such frames (its U-joints' tilts move the
+    platform's orientation thousands of times over); a member without any carries no warning."""
+    run = corpus["runs"][(member, "report")]
+    assert run["code"] == 0, run["stderr"]
+    doc = json.loads((run["dir"] / "rep" / "report.json").read_text())
+    md = (run["dir"] / "rep" / "report.md").read_text(encoding="utf-8")
+    html = (run["dir"] / "rep" / "report.html").read_text(encoding="utf-8")
+    frames = [f for d in doc.get("drawings") or [] for f in d["frames"]]
+    small = [f for f in frames if f["zone_mm"] < 3e-4]
+    warnings = [w for w in doc["tolerances"].get("warnings") or [] if w.startswith("PRACTICAL SIZE: ")]
+    if member == "tsai_3upu":
+        assert small, "the 3-UPU's U-joint tilts were expected below 0.3 µm"
+    assert len(warnings) == (1 if small else 0), warnings
+    for f in frames:
+        assert ("below 0.3 µm" in f["note"]) == (f in small), (f["id"], f["zone_mm"], f["note"])
+    if not small:
+        assert "drawing: WARNING" not in md
+        return
+    warning = warnings[0]
+    assert warning.startswith(f"PRACTICAL SIZE: {len(small)} frame")
+    named = re.findall(r"(\S+) \((\S+) mm; ([^)]*)\)", warning)
+    assert len(named) == min(len(small), 12)
+    for (fid, zone, carried), f in zip(named, small):
+        assert fid == f["id"] and float(zone) == f["zone_mm"]
+        assert [c.split()[0] for c in carried.split(", ")] == f["tolerances"]
+    title = md.split("## Summary", 1)[0]
+    assert f"* drawing: WARNING: {warning[len('PRACTICAL SIZE: '):]}" in title
+    assert md.count(warning[len("PRACTICAL SIZE: "):]) == 1  # not again in the warnings' list
+    assert '<td colspan="3" class="warn">WARNING: ' in html
+
+
 @pytest.mark.parametrize("member", PRINTED)
 def test_the_report_prints(corpus, member, tmp_path):
     """The HTML printed on A4 by headless Chromium: pages, and the tolerance table's words in the PDF."""
