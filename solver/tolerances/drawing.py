@@ -619,9 +619,12 @@ def practical_size_warning(drawings: list, items: dict) -> str | None:
     ...                                         {"id": "base-F2", "zone_mm": 0.004, "tolerances": ["T18"]}]}]
     >>> print(practical_size_warning(drawings, {"T17": NS(cls="accuracy-critical")}))  # doctest: +NORMALIZE_WHITESPACE
     PRACTICAL SIZE: 1 frame of 2 states a zone below 0.3 µm, the finest grade of ISO 286-1 (IT01), which no workshop
-    holds: base-F1 (1.7e-07 mm; T17 accuracy-critical). The parts cannot be made to this drawing: relax the accuracy
-    spec, or change the design so that the mechanism is less sensitive to these defects (an accuracy-critical
-    tolerance is one that calibration does not compensate).
+    holds: base-F1 (1.7e-07 mm; T17 accuracy-critical). The parts cannot be made to this drawing as it is. An accuracy
+    tolerance's value comes from the accuracy spec: relax the spec, or change the design so that the tool is less
+    sensitive to these defects.
+    >>> practical_size_warning(drawings, {"T17": NS(cls="assembly")}).split("as it is. ")[1]
+    "An assembly condition's value comes from the joints' clearances: give them more play, adjust at assembly, or \
+remove the over-constraint."
     >>> practical_size_warning([{"part": "base", "frames": [drawings[0]["frames"][1]]}], {}) is None
     True
     """
@@ -637,8 +640,14 @@ def practical_size_warning(drawings: list, items: dict) -> str | None:
     if len(small) > 12:
         listed += f"; and {len(small) - 12} more (their notes on the part pages say so)"
     verb = "states" if len(small) == 1 else "state"
+    classes = {items[tid].cls for f in small for tid in f.get("tolerances") or [] if tid in items}
+    why = []
+    if "assembly" in classes:
+        why.append("An assembly condition's value comes from the joints' clearances: give them more play, adjust at "
+                   "assembly, or remove the over-constraint.")
+    if classes - {"assembly"} or not classes:
+        why.append("An accuracy tolerance's value comes from the accuracy spec: relax the spec, or change the design "
+                   "so that the tool is less sensitive to these defects.")
     return (f"{PRACTICAL_SIZE_WARNING}{len(small)} frame{'s' if len(small) > 1 else ''} of {len(frames)} {verb} a zone "
             f"below {PRACTICAL_ZONE_MM * 1e3:g} µm, the finest grade of ISO 286-1 (IT01), which no workshop holds: "
-            f"{listed}. The parts cannot be made to this drawing: relax the accuracy spec, or change the design so "
-            "that the mechanism is less sensitive to these defects (an accuracy-critical tolerance is one that "
-            "calibration does not compensate).")
+            f"{listed}. The parts cannot be made to this drawing as it is. " + " ".join(why))
