@@ -103,8 +103,8 @@ def _walk_circles(blk: np.ndarray) -> np.ndarray:
     (tested): the same patterns, their sums in another order.
     """
     b_, _, n = blk.shape
-    # each matrix scaled by the power of two nearest its largest entry (exact: the same bits once scaled back), so
-    # that the squared lengths below neither underflow nor overflow whatever the unit
+    # each matrix scaled by the power of two just above its largest entry (exact: the same bits once scaled back),
+    # so that the squared lengths below neither underflow nor overflow whatever the unit
     big = np.max(np.abs(blk), axis=(1, 2))
     power = np.ldexp(1.0, np.frexp(np.where(big > 0, big, 1.0))[1])[:, None, None]
     blk = blk / power

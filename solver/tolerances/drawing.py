@@ -609,8 +609,10 @@ def practical_size_warning(drawings: list, items: dict) -> str | None:
     """The warning that names every frame of ``drawings`` whose zone is below :data:`PRACTICAL_ZONE_MM`, with its
     tolerances and their classes; None when there is none.
 
-    A value is what the accuracy spec and the mechanism's sensitivity to a defect ask for; below the finest grade no
-    part can be made to it, so the drawing cannot be released as it is, whatever the model.
+    A frame's zone is what the model asks of the features it bounds (from the accuracy spec, or from the joints'
+    clearances for an assembly condition); below the finest grade no part can be made to it, so the drawing cannot be
+    released as it is, however right the model.  The assembly and set-up requirements (values in rad or mm between
+    parts, not zones) are not checked here.
 
     Examples
     --------
