@@ -46,8 +46,8 @@ PATTERN_BLOCK = 1 << 20
 
 
 #: entries (matrices x circles x crossings) of one block of the circle walk: its temporaries stay in a core's L2 cache
-#: (2 MiB here).  Measured on the half-circle walk (issue 39): 5-12 matrices of 48-72 tolerances per block took 0.22 s
-#: and 0.50 s per 2,000 matrices, 16 and 10 (37,000-52,000 entries) 0.32 s and 0.72 s
+#: (2 MiB here).  Measured on the half-circle walk (issue 39), random normal matrices: 5-12 matrices of 48-72
+#: tolerances per block took 0.22 s and 0.50 s per 2,000 matrices, 16 and 10 (37,000-52,000 entries) 0.32 s and 0.72 s
 WALK_BLOCK = 27648
 
 

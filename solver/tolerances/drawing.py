@@ -627,6 +627,9 @@ def practical_size_warning(drawings: list, items: dict) -> str | None:
     >>> practical_size_warning(drawings, {"T17": NS(cls="assembly")}).split("as it is. ")[1]
     "An assembly condition's value comes from the joints' clearances: give them more play, adjust at assembly, or \
 remove the over-constraint."
+    >>> more = [{"part": "arm", "frames": [{"id": "arm-F1", "zone_mm": 1e-4, "tolerances": ["T3", "T4", "T5", "T9"]}]}]
+    >>> practical_size_warning(more, {t: NS(cls="compensable") for t in ("T3", "T4", "T5", "T9")}).split(": ")[2][:41]
+    'arm-F1 (0.0001 mm; T3-T5, T9 compensable)'
     >>> practical_size_warning([{"part": "base", "frames": [drawings[0]["frames"][1]]}], {}) is None
     True
     """
@@ -635,8 +638,13 @@ remove the over-constraint."
     if not small:
         return None
 
-    def carried(f: dict) -> str:
-        return ", ".join(f"{tid} {items[tid].cls}" if tid in items else tid for tid in f.get("tolerances") or [])
+    from hyperstat.solver.tolerances.classification import _id_list
+
+    def carried(f: dict) -> str:  # the frame's tolerances by class, consecutive ids as ranges: "T52-T56 compensable"
+        by_class: dict = {}
+        for tid in f.get("tolerances") or []:
+            by_class.setdefault(items[tid].cls if tid in items else "", []).append(tid)
+        return ", ".join(f"{_id_list(ids)} {cls}".rstrip() for cls, ids in by_class.items())
 
     listed = "; ".join(f"{f['id']} ({f['zone_mm']:g} mm; {carried(f)})" for f in small[:12])
     if len(small) > 12:

@@ -277,8 +277,9 @@ def _apply_analysis(obj, texts: tuple[str, str]) -> dict:
     geometry.color_markers(obj, analysis)
     geometry.label_frames(obj, drawings(obj)["drawings"])
     obj.Status = "analysed"
-    for w in tolerances.get("warnings") or []:  # the report's page 1: a calibration hyperstat's own commands do not
-        if w.startswith(("CALIBRATION CAMPAIGN: ", "PRACTICAL SIZE: ")):  # run, zones no workshop holds
+    # what the report's page 1 carries: a calibration hyperstat's own commands do not run, zones no workshop holds
+    for w in tolerances.get("warnings") or []:
+        if w.startswith(("CALIBRATION CAMPAIGN: ", "PRACTICAL SIZE: ")):
             import FreeCAD
 
             FreeCAD.Console.PrintWarning(f"Hyperstat - {obj.Label}: {w}\n")
